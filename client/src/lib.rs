@@ -1,0 +1,1 @@
+//! The penmesh client library.

@@ -1,0 +1,295 @@
+//! The wire protocol between client and proxy: the message enums of `docs/protocol.md`.
+//!
+//! One serde definition serves both encodings:
+//! - **JSON text frames**: serde's externally tagged form with snake_case names, e.g.
+//!   `{"points":{"stroke":"…","seq":0,"points":[[x,y,t,p],…]}}`.
+//! - **Binary frames**: a version byte, then bincode 2 of the same enums (see [`codec`]); the
+//!   samples of a `Points` batch are quantised and delta-encoded there ([`PointBatch`]).
+//!
+//! **Only this module knows the wire encoding.** Everything else passes typed messages.
+
+mod codec;
+
+use serde::{Deserialize, Serialize};
+use uuid::Uuid;
+
+use crate::acuts::AcutsParams;
+use crate::model::{Brush, Sample};
+
+pub use codec::{
+    CodecError, MAX_FRAME_BYTES_DEFAULT, POSITION_STEP, PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP,
+    decode_client, decode_client_json, decode_server, decode_server_json, encode_client,
+    encode_client_json, encode_server, encode_server_json, quantize_sample,
+};
+
+/// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
+pub type StrokeId = Uuid;
+/// A participant of a session (one WebSocket connection's person).
+pub type ParticipantId = Uuid;
+
+/// A batch of samples. In JSON it is a plain array of `[x, y, t, p]`; in the binary encoding it
+/// is quantised and delta-encoded (see the codec module), so decoded samples lie on the
+/// quantisation grid ([`quantize_sample`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PointBatch(pub Vec<Sample>);
+
+/// Client to proxy.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClientMessage {
+    /// First message on a connection. `resume` lists strokes the client was drawing when its
+    /// last connection dropped; the proxy answers with how far it has committed each.
+    Hello(Hello),
+    StrokeBegin(StrokeBegin),
+    Points(Points),
+    StrokeEnd(StrokeEnd),
+    Ping(Ping),
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Hello {
+    pub protocol: u16,
+    /// Free-form client name and version, for logs.
+    pub client: String,
+    /// Display name shown to the session's other participants.
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub resume: Vec<StrokeId>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StrokeBegin {
+    pub stroke: StrokeId,
+    #[serde(default)]
+    pub brush: Brush,
+    /// Input device description, e.g. `"wacom ctl-671"` or `"synth:figure8"`.
+    #[serde(default)]
+    pub device: Option<String>,
+    /// ACUTS stage 2 parameters; the proxy's defaults when absent.
+    #[serde(default)]
+    pub params: Option<AcutsParams>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Points {
+    pub stroke: StrokeId,
+    /// Index in the stroke of the first sample of this batch.
+    pub seq: u64,
+    pub points: PointBatch,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StrokeEnd {
+    pub stroke: StrokeId,
+    /// Total samples the client sent for this stroke; the proxy checks it has them all.
+    pub n_points: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Ping {
+    pub nonce: u64,
+}
+
+/// Proxy to client.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ServerMessage {
+    Welcome(Welcome),
+    /// Every sample of `stroke` with `seq < upto_seq` is committed to the database: the client
+    /// may forget them, and after a reconnect resumes from `upto_seq`.
+    Ack(Ack),
+    /// Simplified samples as soon as ACUTS decides them. `first` is the index of `points[0]` in
+    /// the simplified stroke, so a receiver can spot a gap or a repeat.
+    Retained(Retained),
+    StrokeDone(StrokeDone),
+    Pong(Ping),
+    Error(ErrorMessage),
+    PeerJoined(PeerJoined),
+    PeerLeft(PeerLeft),
+    PeerStrokeBegin(PeerStrokeBegin),
+    PeerRetained(PeerRetained),
+    PeerStrokeDone(PeerStrokeDone),
+    PeerMesh(PeerMesh),
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Welcome {
+    pub protocol: u16,
+    pub session: Uuid,
+    pub participant: ParticipantId,
+    /// For each stroke named in `Hello.resume`: how far the proxy has it.
+    #[serde(default)]
+    pub resume: Vec<ResumeState>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResumeState {
+    pub stroke: StrokeId,
+    /// The next sample index the proxy expects (every earlier one is committed).
+    pub next_seq: u64,
+    /// `open` (resumable), `interrupted` (resumable), `done`, or `unknown` (never seen).
+    pub status: StrokeStatus,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StrokeStatus {
+    Open,
+    Done,
+    Interrupted,
+    Unknown,
+}
+
+impl StrokeStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StrokeStatus::Open => "open",
+            StrokeStatus::Done => "done",
+            StrokeStatus::Interrupted => "interrupted",
+            StrokeStatus::Unknown => "unknown",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<StrokeStatus> {
+        Some(match s {
+            "open" => StrokeStatus::Open,
+            "done" => StrokeStatus::Done,
+            "interrupted" => StrokeStatus::Interrupted,
+            "unknown" => StrokeStatus::Unknown,
+            _ => return None,
+        })
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Ack {
+    pub stroke: StrokeId,
+    pub upto_seq: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Retained {
+    pub stroke: StrokeId,
+    pub first: u64,
+    pub points: PointBatch,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StrokeDone {
+    pub stroke: StrokeId,
+    pub n_retained: u64,
+    /// Path of the simplified stroke on the proxy, e.g. `/v1/strokes/{id}/simplified`.
+    pub url: String,
+}
+
+/// Machine-readable error codes; the message says the rest in words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorCode {
+    /// A binary frame that does not decode.
+    Malformed,
+    /// A text frame that is not valid JSON for any message.
+    BadJson,
+    /// Valid framing, but not a message this protocol knows.
+    UnknownMessage,
+    /// The first message was not `Hello`, or a `Hello` came twice, or versions differ.
+    Protocol,
+    /// A non-finite value, pressure outside [0, 1], time going backwards.
+    BadSample,
+    BadBrush,
+    UnknownStroke,
+    StrokeFinished,
+    /// A `StrokeBegin` for a stroke id already in use by someone else.
+    StrokeConflict,
+    SeqGap,
+    /// `StrokeEnd.n_points` differs from what was received.
+    CountMismatch,
+    FrameTooLarge,
+    BatchTooLarge,
+    StrokeTooLong,
+    TooManyOpenStrokes,
+    TooManyConnections,
+    IdleTimeout,
+    /// This connection fell too far behind the session's events; resync from history.
+    Lagged,
+    ShuttingDown,
+    Internal,
+}
+
+impl ErrorCode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ErrorCode::Malformed => "malformed",
+            ErrorCode::BadJson => "bad_json",
+            ErrorCode::UnknownMessage => "unknown_message",
+            ErrorCode::Protocol => "protocol",
+            ErrorCode::BadSample => "bad_sample",
+            ErrorCode::BadBrush => "bad_brush",
+            ErrorCode::UnknownStroke => "unknown_stroke",
+            ErrorCode::StrokeFinished => "stroke_finished",
+            ErrorCode::StrokeConflict => "stroke_conflict",
+            ErrorCode::SeqGap => "seq_gap",
+            ErrorCode::CountMismatch => "count_mismatch",
+            ErrorCode::FrameTooLarge => "frame_too_large",
+            ErrorCode::BatchTooLarge => "batch_too_large",
+            ErrorCode::StrokeTooLong => "stroke_too_long",
+            ErrorCode::TooManyOpenStrokes => "too_many_open_strokes",
+            ErrorCode::TooManyConnections => "too_many_connections",
+            ErrorCode::IdleTimeout => "idle_timeout",
+            ErrorCode::Lagged => "lagged",
+            ErrorCode::ShuttingDown => "shutting_down",
+            ErrorCode::Internal => "internal",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ErrorMessage {
+    pub code: ErrorCode,
+    pub message: String,
+    /// The stroke the error is about, when there is one.
+    #[serde(default)]
+    pub stroke: Option<StrokeId>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerJoined {
+    pub participant: ParticipantId,
+    pub name: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerLeft {
+    pub participant: ParticipantId,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerStrokeBegin {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub brush: Brush,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerRetained {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub first: u64,
+    pub points: PointBatch,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerStrokeDone {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub n_retained: u64,
+    pub url: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerMesh {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub url: String,
+}
