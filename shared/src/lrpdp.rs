@@ -1,1 +1,480 @@
-//! (being written)
+//! LRPDP: the pressure-sensitive outline of a simplified stroke, and its layered point cloud.
+//!
+//! Each sample `S_k` gets a radius `r_k = brush.radius(p_k)` (formula 6) and a unit normal
+//! `n_k = perp(unit(t_in + t_out))` across the stroke, where `t_in` and `t_out` are the unit
+//! tangents towards the previous and next sample. At a cusp (`t_in + t_out ≈ 0`) the normal
+//! falls back to `perp(t_in)`; at the ends only one tangent exists. The offset points are
+//! `T_u[k] = S_k + r_k n_k` and `T_v[k] = S_k - r_k n_k` (formulas 7–15), and half circles
+//! `T_f`, `T_e` close the ends (formula 16).
+//!
+//! Conventions, in the stroke's own `(x, y)` coordinates read as a right-handed plane (`x`
+//! right, `y` up): `perp` turns a vector clockwise, so `T_u` lies on the right of the direction
+//! of travel and the closed outline `T_c` is counter-clockwise (positive shoelace area).
+//! `T_c` runs `T_f, T_u, T_e, reverse(T_v)`: the spec lists the end cap last, but a loop must
+//! pass the end cap between the two sides, so that is the order built here.
+//!
+//! Limits: samples are expected to be validated (finite). Consecutive samples at the same
+//! position are merged (the larger radius wins), so repeated points never make a zero-length
+//! tangent. A stroke whose samples all coincide is a dot: its outline is a full circle. Where a
+//! curve is tighter than the radius, `T_u` or `T_v` crosses itself: the outline is then not a
+//! simple polygon, which the strip mesh of [`crate::solid_mesh`] tolerates by construction.
+
+use glam::{DVec2, DVec3};
+
+use crate::model::{Brush, Sample};
+
+/// Default cap density `I`: points per px of radius on each end cap.
+pub const DEFAULT_CAP_DENSITY: f64 = 2.0;
+/// Smallest number of points on an end cap.
+pub const MIN_CAP_POINTS: usize = 3;
+/// Default depth of the layered point cloud, as a multiple of the largest radius (`D = 2 max r`).
+pub const DEFAULT_CLOUD_DEPTH_FACTOR: f64 = 2.0;
+/// Default number of layer spacings in the depth (`d_s = D / 4`).
+pub const DEFAULT_CLOUD_DIVISIONS: u32 = 4;
+
+/// Below this turn of the tangent sum (`|t_in + t_out|`), a sample is treated as a cusp.
+const CUSP_EPSILON: f64 = 1e-9;
+/// Samples closer than this (relative to their coordinates' magnitude) are merged.
+const MERGE_EPSILON: f64 = 1e-9;
+
+/// How the outline is built.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutlineOptions {
+    /// Miter correction: offset by `r / cos(theta / 2)` (capped at `2 r`) at a turn of angle
+    /// `theta`, so the band keeps its width `2 r` through corners. Off by default.
+    pub miter: bool,
+    /// Cap density `I`: each end cap has `max(3, ceil(I * r))` points.
+    pub cap_density: f64,
+}
+
+impl OutlineOptions {
+    pub fn miter(mut self, miter: bool) -> OutlineOptions {
+        self.miter = miter;
+        self
+    }
+
+    pub fn cap_density(mut self, cap_density: f64) -> OutlineOptions {
+        self.cap_density = cap_density;
+        self
+    }
+
+    /// Number of points on an end cap of radius `radius`.
+    pub fn cap_points(&self, radius: f64) -> usize {
+        let wanted = (self.cap_density * radius).ceil();
+        // Saturating conversion: NaN gives 0, a huge value is capped so memory stays bounded.
+        let wanted = if wanted.is_finite() { wanted.clamp(0.0, 4096.0) as usize } else { 0 };
+        wanted.max(MIN_CAP_POINTS)
+    }
+}
+
+impl Default for OutlineOptions {
+    fn default() -> OutlineOptions {
+        OutlineOptions { miter: false, cap_density: DEFAULT_CAP_DENSITY }
+    }
+}
+
+/// The outline of one stroke: centre line, offset sides and end caps.
+///
+/// All vectors indexed by sample (`centres`, `radii`, `normals`, `upper`, `lower`) have the same
+/// length, the number of samples left after merging repeated points. An empty stroke gives an
+/// empty outline.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Outline {
+    /// The stroke's samples, repeated positions merged.
+    pub centres: Vec<DVec2>,
+    /// Radius `r_k` at each centre.
+    pub radii: Vec<f64>,
+    /// Unit normal `n_k` at each centre, pointing towards `upper`.
+    pub normals: Vec<DVec2>,
+    /// `T_u`: the right-hand side, `S_k + r_k n_k` (times the miter factor, if enabled).
+    pub upper: Vec<DVec2>,
+    /// `T_v`: the left-hand side, `S_k - r_k n_k` (times the miter factor, if enabled).
+    pub lower: Vec<DVec2>,
+    /// `T_f`: the start cap, from next to `lower[0]` round the back of the stroke to next to
+    /// `upper[0]` (the side points themselves excluded).
+    pub start_cap: Vec<DVec2>,
+    /// `T_e`: the end cap, from next to `upper[last]` round the front to next to `lower[last]`.
+    pub end_cap: Vec<DVec2>,
+    /// Outward unit normal of each start cap point.
+    pub start_cap_normals: Vec<DVec2>,
+    /// Outward unit normal of each end cap point.
+    pub end_cap_normals: Vec<DVec2>,
+}
+
+impl Outline {
+    /// Number of (merged) samples.
+    pub fn n_samples(&self) -> usize {
+        self.centres.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.centres.is_empty()
+    }
+
+    /// The largest radius, 0 for an empty outline.
+    pub fn max_radius(&self) -> f64 {
+        self.radii.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// Number of points of the closed outline `T_c`.
+    pub fn n_closed(&self) -> usize {
+        self.start_cap.len() + self.end_cap.len() + 2 * self.centres.len()
+    }
+
+    /// The closed counter-clockwise outline `T_c = T_f, T_u, T_e, reverse(T_v)` (not repeating
+    /// its first point at the end).
+    pub fn closed(&self) -> Vec<DVec2> {
+        let mut points = Vec::with_capacity(self.n_closed());
+        points.extend_from_slice(&self.start_cap);
+        points.extend_from_slice(&self.upper);
+        points.extend_from_slice(&self.end_cap);
+        points.extend(self.lower.iter().rev());
+        points
+    }
+
+    /// The outward unit normal at each point of [`Outline::closed`]: `n_k` on `T_u`, `-n_k` on
+    /// `T_v`, radial on the caps.
+    pub fn closed_normals(&self) -> Vec<DVec2> {
+        let mut normals = Vec::with_capacity(self.n_closed());
+        normals.extend_from_slice(&self.start_cap_normals);
+        normals.extend_from_slice(&self.normals);
+        normals.extend_from_slice(&self.end_cap_normals);
+        normals.extend(self.normals.iter().rev().map(|n| -*n));
+        normals
+    }
+
+    /// The radius that belongs to each point of [`Outline::closed`] (the end sample's radius on
+    /// the caps).
+    pub fn closed_radii(&self) -> Vec<f64> {
+        let (Some(&first), Some(&last)) = (self.radii.first(), self.radii.last()) else {
+            return Vec::new();
+        };
+        let mut radii = Vec::with_capacity(self.n_closed());
+        radii.extend(std::iter::repeat_n(first, self.start_cap.len()));
+        radii.extend_from_slice(&self.radii);
+        radii.extend(std::iter::repeat_n(last, self.end_cap.len()));
+        radii.extend(self.radii.iter().rev());
+        radii
+    }
+}
+
+/// Turns `v` a quarter turn clockwise: the right-hand side of a direction of travel.
+fn perp(v: DVec2) -> DVec2 {
+    DVec2::new(v.y, -v.x)
+}
+
+/// Merges consecutive samples at the same position; returns centres and radii.
+fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
+    let mut centres: Vec<DVec2> = Vec::with_capacity(samples.len());
+    let mut radii: Vec<f64> = Vec::with_capacity(samples.len());
+    for s in samples {
+        let pos = s.pos();
+        let radius = brush.radius(s.p);
+        if let (Some(last), Some(last_radius)) = (centres.last(), radii.last_mut()) {
+            let scale = last.abs().max_element().max(pos.abs().max_element()).max(1.0);
+            if last.distance(pos) <= MERGE_EPSILON * scale {
+                *last_radius = last_radius.max(radius);
+                continue;
+            }
+        }
+        centres.push(pos);
+        radii.push(radius);
+    }
+    (centres, radii)
+}
+
+/// Builds the outline of a simplified stroke (LRPDP steps 1–4).
+///
+/// Never panics; an empty stroke gives an empty outline, and a stroke whose samples all coincide
+/// gives a dot (a full circle of cap points around the one centre).
+pub fn outline(samples: &[Sample], brush: &Brush, options: &OutlineOptions) -> Outline {
+    let (centres, radii) = merged_centres(samples, brush);
+    let n_samples = centres.len();
+    if n_samples == 0 {
+        return Outline::default();
+    }
+
+    let mut normals = Vec::with_capacity(n_samples);
+    let mut upper = Vec::with_capacity(n_samples);
+    let mut lower = Vec::with_capacity(n_samples);
+    for sample_idx in 0..n_samples {
+        let centre = centres[sample_idx];
+        let t_in = (sample_idx > 0).then(|| (centre - centres[sample_idx - 1]).normalize());
+        let t_out =
+            (sample_idx + 1 < n_samples).then(|| (centres[sample_idx + 1] - centre).normalize());
+        let (normal, miter_factor) = match (t_in, t_out) {
+            (Some(t_in), Some(t_out)) => {
+                let sum = t_in + t_out;
+                let sum_len = sum.length();
+                if sum_len > CUSP_EPSILON {
+                    // |t_in + t_out| = 2 cos(theta / 2) for a turn of angle theta.
+                    (perp(sum / sum_len), (2.0 / sum_len).min(2.0))
+                } else {
+                    (perp(t_in), 2.0)
+                }
+            }
+            (Some(t), None) | (None, Some(t)) => (perp(t), 1.0),
+            // A dot: any direction will do.
+            (None, None) => (perp(DVec2::X), 1.0),
+        };
+        let offset = radii[sample_idx] * if options.miter { miter_factor } else { 1.0 };
+        normals.push(normal);
+        upper.push(centre + offset * normal);
+        lower.push(centre - offset * normal);
+    }
+
+    let first_normal = normals[0];
+    let last_normal = normals[n_samples - 1];
+    // Start cap: from -n_0, counter-clockwise round the back (-t) to +n_0.
+    let (start_cap, start_cap_normals) =
+        half_circle(centres[0], radii[0], -first_normal, options.cap_points(radii[0]));
+    // End cap: from +n_last, counter-clockwise round the front (+t) to -n_last.
+    let last_radius = radii[n_samples - 1];
+    let (end_cap, end_cap_normals) = half_circle(
+        centres[n_samples - 1],
+        last_radius,
+        last_normal,
+        options.cap_points(last_radius),
+    );
+
+    Outline {
+        centres,
+        radii,
+        normals,
+        upper,
+        lower,
+        start_cap,
+        end_cap,
+        start_cap_normals,
+        end_cap_normals,
+    }
+}
+
+/// `n_points` points strictly inside the half circle that starts at `centre + radius * from`
+/// and turns counter-clockwise by half a turn, with their outward normals.
+fn half_circle(
+    centre: DVec2,
+    radius: f64,
+    from: DVec2,
+    n_points: usize,
+) -> (Vec<DVec2>, Vec<DVec2>) {
+    let step = std::f64::consts::PI / (n_points + 1) as f64;
+    let normals: Vec<DVec2> = (1..=n_points)
+        .map(|point_idx| DVec2::from_angle(step * point_idx as f64).rotate(from))
+        .collect();
+    let points = normals.iter().map(|n| centre + radius * *n).collect();
+    (points, normals)
+}
+
+/// How the layered point cloud is built (LRPDP step 5, formulas 17–22).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CloudOptions {
+    /// Depth `D` as a multiple of the largest radius.
+    pub depth_factor: f64,
+    /// `D / d_s`: layers sit at `z = ±xi * d_s` for `xi = 0..=divisions`.
+    pub divisions: u32,
+}
+
+impl CloudOptions {
+    pub fn depth_factor(mut self, depth_factor: f64) -> CloudOptions {
+        self.depth_factor = depth_factor;
+        self
+    }
+
+    pub fn divisions(mut self, divisions: u32) -> CloudOptions {
+        self.divisions = divisions;
+        self
+    }
+}
+
+impl Default for CloudOptions {
+    fn default() -> CloudOptions {
+        CloudOptions {
+            depth_factor: DEFAULT_CLOUD_DEPTH_FACTOR,
+            divisions: DEFAULT_CLOUD_DIVISIONS,
+        }
+    }
+}
+
+/// Oriented points: copies of `T_c` stacked in depth, with outward normals.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PointCloud {
+    pub points: Vec<DVec3>,
+    pub normals: Vec<DVec3>,
+}
+
+impl PointCloud {
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+}
+
+/// The layered point cloud of an outline: copies of `T_c` at `z = ±xi * d_s` for
+/// `xi = 0..=ceil(D / d_s)` (the layer `z = 0` once), `D = depth_factor * max r`,
+/// `d_s = D / divisions`. Normals are the outline's outward normals (horizontal).
+///
+/// The range of `xi` is read as inclusive, so the cloud spans `[-D, D]` and has
+/// `2 * divisions + 1` layers (9 by default). With `divisions = 0` there is one layer.
+pub fn point_cloud(outline: &Outline, options: &CloudOptions) -> PointCloud {
+    let loop_points = outline.closed();
+    let loop_normals = outline.closed_normals();
+    let depth = options.depth_factor * outline.max_radius();
+    let divisions = options.divisions;
+    let spacing = if divisions == 0 { 0.0 } else { depth / f64::from(divisions) };
+    let mut layers_z = vec![0.0];
+    for xi in 1..=divisions {
+        let z = f64::from(xi) * spacing;
+        layers_z.push(z);
+        layers_z.push(-z);
+    }
+    let n_points = layers_z.len() * loop_points.len();
+    let mut cloud =
+        PointCloud { points: Vec::with_capacity(n_points), normals: Vec::with_capacity(n_points) };
+    for z in layers_z {
+        for (point, normal) in loop_points.iter().zip(&loop_normals) {
+            cloud.points.push(point.extend(z));
+            cloud.normals.push(normal.extend(0.0));
+        }
+    }
+    cloud
+}
+
+/// The point cloud as binary little-endian PLY: an ASCII header declaring
+/// `element vertex N` with `float x, y, z, nx, ny, nz`, then `N` records of six little-endian
+/// `f32` (24 bytes each).
+pub fn point_cloud_ply(cloud: &PointCloud) -> Vec<u8> {
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment penmesh LRPDP layered point cloud\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\nend_header\n",
+        cloud.len()
+    );
+    let mut bytes = Vec::with_capacity(header.len() + 24 * cloud.len());
+    bytes.extend_from_slice(header.as_bytes());
+    for (point, normal) in cloud.points.iter().zip(&cloud.normals) {
+        for value in point.to_array().into_iter().chain(normal.to_array()) {
+            bytes.extend_from_slice(&(value as f32).to_le_bytes());
+        }
+    }
+    bytes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(n: usize, p: f64) -> Vec<Sample> {
+        (0..n).map(|i| Sample::new(i as f64 * 2.0, 0.0, i as f64, p)).collect()
+    }
+
+    fn shoelace(points: &[DVec2]) -> f64 {
+        let n = points.len();
+        (0..n).map(|i| points[i].perp_dot(points[(i + 1) % n])).sum::<f64>() / 2.0
+    }
+
+    #[test]
+    fn straight_stroke_offsets_across_and_is_counter_clockwise() {
+        // Offsets of a straight stroke sit at ±r across it and T_c has positive area.
+        let brush = Brush::default();
+        let out = outline(&line(5, 1.0), &brush, &OutlineOptions::default());
+        assert_eq!(out.n_samples(), 5);
+        for k in 0..5 {
+            assert!((out.upper[k] - DVec2::new(2.0 * k as f64, -4.0)).length() < 1e-12);
+            assert!((out.lower[k] - DVec2::new(2.0 * k as f64, 4.0)).length() < 1e-12);
+        }
+        let closed = out.closed();
+        assert_eq!(closed.len(), 10 + 2 * 8);
+        assert!(shoelace(&closed) > 0.0);
+    }
+
+    #[test]
+    fn cap_point_count_follows_density_with_a_floor_of_three() {
+        // Caps have max(3, ceil(I r)) points.
+        let options = OutlineOptions::default();
+        assert_eq!(options.cap_points(0.25), 3);
+        assert_eq!(options.cap_points(4.0), 8);
+        assert_eq!(options.cap_points(2.2), 5);
+        assert_eq!(options.cap_density(1.0).cap_points(4.0), 4);
+    }
+
+    #[test]
+    fn repeated_points_are_merged_keeping_the_larger_radius() {
+        // Consecutive duplicates collapse to one centre with the larger radius.
+        let samples = [
+            Sample::new(0.0, 0.0, 0.0, 0.2),
+            Sample::new(0.0, 0.0, 1.0, 1.0),
+            Sample::new(3.0, 0.0, 2.0, 0.5),
+            Sample::new(3.0, 0.0, 3.0, 0.5),
+        ];
+        let out = outline(&samples, &Brush::default(), &OutlineOptions::default());
+        assert_eq!(out.n_samples(), 2);
+        assert_eq!(out.radii, vec![4.0, 2.0]);
+        assert!(out.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-12));
+    }
+
+    #[test]
+    fn one_sample_is_a_full_circle() {
+        // A dot's outline is a circle of radius r round the sample.
+        let out = outline(
+            &[Sample::new(1.0, 2.0, 0.0, 1.0)],
+            &Brush::default(),
+            &OutlineOptions::default(),
+        );
+        let closed = out.closed();
+        assert_eq!(closed.len(), 2 + 2 * 8);
+        for p in &closed {
+            assert!((p.distance(DVec2::new(1.0, 2.0)) - 4.0).abs() < 1e-12);
+        }
+        assert!((shoelace(&closed) - std::f64::consts::PI * 16.0).abs() < 4.0);
+    }
+
+    #[test]
+    fn cusp_falls_back_to_the_incoming_normal() {
+        // A stroke that reverses on itself uses perp(t_in) at the turn.
+        let samples = [
+            Sample::new(0.0, 0.0, 0.0, 1.0),
+            Sample::new(10.0, 0.0, 1.0, 1.0),
+            Sample::new(0.0, 0.0, 2.0, 1.0),
+        ];
+        let out = outline(&samples, &Brush::default(), &OutlineOptions::default());
+        assert!((out.normals[1] - DVec2::new(0.0, -1.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn miter_widens_corners_up_to_twice_the_radius() {
+        // A right-angle corner is offset by r / cos(45°) with the miter option.
+        let samples = [
+            Sample::new(0.0, 0.0, 0.0, 1.0),
+            Sample::new(10.0, 0.0, 1.0, 1.0),
+            Sample::new(10.0, 10.0, 2.0, 1.0),
+        ];
+        let options = OutlineOptions::default().miter(true);
+        let out = outline(&samples, &Brush::default(), &options);
+        let offset = out.upper[1].distance(out.centres[1]);
+        assert!((offset - 4.0 * std::f64::consts::SQRT_2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn empty_stroke_gives_empty_outline_and_cloud() {
+        // No samples: nothing to outline, no panic.
+        let out = outline(&[], &Brush::default(), &OutlineOptions::default());
+        assert!(out.is_empty() && out.closed().is_empty());
+        assert!(point_cloud(&out, &CloudOptions::default()).is_empty());
+    }
+
+    #[test]
+    fn cloud_has_nine_layers_spanning_the_depth() {
+        // Default cloud: 2 * 4 + 1 layers of T_c from -D to D, horizontal unit normals.
+        let out = outline(&line(3, 1.0), &Brush::default(), &OutlineOptions::default());
+        let cloud = point_cloud(&out, &CloudOptions::default());
+        assert_eq!(cloud.len(), 9 * out.n_closed());
+        let max_z = cloud.points.iter().map(|p| p.z).fold(f64::MIN, f64::max);
+        let min_z = cloud.points.iter().map(|p| p.z).fold(f64::MAX, f64::min);
+        assert_eq!((min_z, max_z), (-8.0, 8.0));
+        assert!(cloud.normals.iter().all(|n| n.z == 0.0 && (n.length() - 1.0).abs() < 1e-12));
+    }
+}
