@@ -160,8 +160,9 @@ fn steps(max_len: usize, max_turn: f64) -> impl Strategy<Value = Vec<Step>> {
     )
 }
 
-/// Strokes: smooth walks, jittery walks, and points on a small integer grid (many duplicates
-/// and collinear samples); small or far-off origins (1e9) and scales from 1e-3 to 1e3.
+/// Strokes: smooth walks, jittery walks, points on a small integer grid (many duplicates and
+/// collinear samples), and samples going back and forth along a line; small or far-off origins
+/// (1e9) and scales from 1e-3 to 1e3.
 fn stroke() -> impl Strategy<Value = Vec<Sample>> {
     let start = prop_oneof![Just((0.0, 0.0)), (-1e9..1e9, -1e9..1e9), (-100.0..100.0, -5.0..5.0)];
     let scale = prop_oneof![4 => Just(1.0), 1 => 1e-3..1e3];
@@ -183,7 +184,21 @@ fn stroke() -> impl Strategy<Value = Vec<Sample>> {
                 .collect()
         },
     );
-    prop_oneof![smooth, jittery, grid]
+    // Back and forth along one line (axis-aligned or not): reversals, repeats, single-ray cones.
+    let direction =
+        prop_oneof![Just((1.0, 0.0)), Just((0.0, -1.0)), Just((0.6, 0.8)), Just((1.0, 1.0))];
+    let line = (direction, 0.1..2.0, prop::collection::vec(-4..5_i32, 0..40)).prop_map(
+        |((dx, dy), step, ks)| {
+            ks.iter()
+                .enumerate()
+                .map(|(i, &k)| {
+                    let along = f64::from(k) * step;
+                    Sample::new(along * dx, along * dy, i as f64, 0.5)
+                })
+                .collect()
+        },
+    );
+    prop_oneof![smooth, jittery, grid, line]
 }
 
 fn params() -> impl Strategy<Value = AcutsParams> {
