@@ -236,7 +236,7 @@ fn contour(shape: Shape, rng: &mut SplitMix64) -> Vec<DVec2> {
             .map(|i| {
                 let theta = TAU * at(i);
                 let (sin, cos) = theta.sin_cos();
-                DVec2::new(0.45 * sin * (0.2 + 0.8 * cos * cos), -cos)
+                DVec2::new(0.7 * sin * (0.25 + 0.75 * cos * cos), -cos)
             })
             .collect(),
         Shape::Leaf => {
