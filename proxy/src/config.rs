@@ -1,0 +1,249 @@
+//! Settings: command-line flags, environment variables and an optional TOML or JSON file.
+//!
+//! Precedence, highest first: a flag, its environment variable, the `--config` file, the
+//! default. Every setting is documented by `penmesh-proxy --help` with its default.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::parser::ValueSource;
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, ValueEnum};
+use serde::{Deserialize, Serialize};
+
+/// How SQLite syncs to disk (see `docs/storage.md` for what each survives).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SqliteSync {
+    /// WAL + `synchronous=NORMAL`: survives a killed process, not a power cut.
+    Normal,
+    /// WAL + `synchronous=FULL`: survives a power cut too, at the cost of an fsync per commit.
+    Full,
+}
+
+/// Every setting of the proxy.
+#[derive(Debug, Clone, Parser, Serialize, Deserialize)]
+#[command(name = "penmesh-proxy", version, about = "penmesh simplification proxy")]
+pub struct Config {
+    /// Optional settings file (TOML, or JSON when the name ends in .json); keys are the long
+    /// flag names with `_` or `-`. Flags and environment variables win over the file.
+    #[arg(long, env = "PENMESH_CONFIG")]
+    #[serde(skip)]
+    pub config: Option<PathBuf>,
+
+    /// Address to listen on.
+    #[arg(long, env = "PENMESH_HOST", default_value = "0.0.0.0")]
+    pub host: String,
+
+    /// Port to listen on (0 picks a free one). `PORT` is honoured, as container platforms set it.
+    #[arg(long, env = "PORT", default_value_t = 8080)]
+    pub port: u16,
+
+    /// Database: `sqlite://PATH` (file created if missing) or `postgres://USER@HOST/DB`.
+    #[arg(long, env = "PENMESH_DATABASE_URL", default_value = "sqlite://penmesh.db")]
+    pub database_url: String,
+
+    /// SQLite durability: `normal` (survives a killed process) or `full` (also a power cut).
+    #[arg(long, env = "PENMESH_SQLITE_SYNCHRONOUS", value_enum, default_value_t = SqliteSync::Normal)]
+    pub sqlite_synchronous: SqliteSync,
+
+    /// Database connections for reads and HTTP writes (the group-commit writer has its own).
+    #[arg(long, env = "PENMESH_DB_MAX_CONNECTIONS", default_value_t = 8)]
+    pub db_max_connections: u32,
+
+    /// Group commit: at most one commit per this many milliseconds (0: commit as soon as the
+    /// previous commit is done).
+    #[arg(long, env = "PENMESH_COMMIT_INTERVAL_MS", default_value_t = 2)]
+    pub commit_interval_ms: u64,
+
+    /// Group commit: most write requests in one transaction.
+    #[arg(long, env = "PENMESH_COMMIT_MAX_REQUESTS", default_value_t = 4096)]
+    pub commit_max_requests: usize,
+
+    /// Capacity of the queue into the writer (connections wait when it is full).
+    #[arg(long, env = "PENMESH_WRITER_QUEUE", default_value_t = 16384)]
+    pub writer_queue: usize,
+
+    /// Largest WebSocket message (bytes) that is decoded; larger ones get `frame_too_large`.
+    #[arg(long, env = "PENMESH_MAX_MESSAGE_BYTES", default_value_t = 256 * 1024)]
+    pub max_message_bytes: usize,
+
+    /// Hard limit on a WebSocket message (bytes): past it the connection is closed (1009).
+    /// 0 means four times `max_message_bytes`.
+    #[arg(long, env = "PENMESH_HARD_MESSAGE_BYTES", default_value_t = 0)]
+    pub hard_message_bytes: usize,
+
+    /// Most samples in one `Points` batch.
+    #[arg(long, env = "PENMESH_MAX_BATCH_SAMPLES", default_value_t = 4096)]
+    pub max_batch_samples: usize,
+
+    /// Most samples in one stroke.
+    #[arg(long, env = "PENMESH_MAX_STROKE_SAMPLES", default_value_t = 1_000_000)]
+    pub max_stroke_samples: u64,
+
+    /// Most strokes open at once on one connection.
+    #[arg(long, env = "PENMESH_MAX_OPEN_STROKES", default_value_t = 16)]
+    pub max_open_strokes: usize,
+
+    /// Most WebSocket connections at once per session.
+    #[arg(long, env = "PENMESH_MAX_CONNECTIONS_PER_SESSION", default_value_t = 64)]
+    pub max_connections_per_session: usize,
+
+    /// A connection that sends nothing for this many seconds is closed.
+    #[arg(long, env = "PENMESH_IDLE_TIMEOUT_SECS", default_value_t = 60)]
+    pub idle_timeout_secs: u64,
+
+    /// Largest HTTP request body (bytes), e.g. a GLB mesh upload.
+    #[arg(long, env = "PENMESH_MAX_BODY_BYTES", default_value_t = 16 * 1024 * 1024)]
+    pub max_body_bytes: usize,
+
+    /// Outgoing messages queued per connection; a reader slower than this is disconnected.
+    #[arg(long, env = "PENMESH_OUTGOING_QUEUE", default_value_t = 1024)]
+    pub outgoing_queue: usize,
+
+    /// Batches per connection accepted but not yet committed; reading pauses past it.
+    #[arg(long, env = "PENMESH_MAX_INFLIGHT", default_value_t = 64)]
+    pub max_inflight: usize,
+
+    /// How long a resumed stroke waits for the connection that still holds it to let go (ms).
+    #[arg(long, env = "PENMESH_CLAIM_WAIT_MS", default_value_t = 2000)]
+    pub claim_wait_ms: u64,
+
+    /// Seconds granted on shutdown to flush open strokes and close every socket.
+    #[arg(long, env = "PENMESH_SHUTDOWN_GRACE_SECS", default_value_t = 10)]
+    pub shutdown_grace_secs: u64,
+
+    /// Default ACUTS chord-height tolerance `d_d` when `StrokeBegin` has no params.
+    #[arg(long, env = "PENMESH_TOLERANCE", default_value_t = penmesh::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+
+    /// Default ACUTS angle threshold `d_alpha` (degrees).
+    #[arg(long, env = "PENMESH_ANGLE_DEG", default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
+    pub angle_deg: f64,
+
+    /// Default ACUTS pressure-variance threshold `d_sigma2`.
+    #[arg(long, env = "PENMESH_PRESSURE_VARIANCE", default_value_t = penmesh::DEFAULT_PRESSURE_VARIANCE)]
+    pub pressure_variance: f64,
+}
+
+impl Config {
+    /// Parses flags and environment, then fills what neither gave from the `--config` file.
+    /// Exits with clap's message on `--help`, `--version` or a bad flag.
+    pub fn load() -> anyhow::Result<Config> {
+        let matches = Config::command().get_matches();
+        let config = Config::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+        match config.config.clone() {
+            Some(path) => config.merge_file(&path, &matches),
+            None => Ok(config),
+        }
+    }
+
+    pub fn load_from<I, T>(args: I) -> anyhow::Result<Config>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        let matches = Config::command().try_get_matches_from(args)?;
+        let config = Config::from_arg_matches(&matches)?;
+        match config.config.clone() {
+            Some(path) => config.merge_file(&path, &matches),
+            None => Ok(config),
+        }
+    }
+
+    fn merge_file(self, path: &Path, matches: &ArgMatches) -> anyhow::Result<Config> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading config file {}", path.display()))?;
+        let file: serde_json::Map<String, serde_json::Value> =
+            if path.extension().is_some_and(|e| e == "json") {
+                serde_json::from_str(&text)
+                    .with_context(|| format!("parsing JSON config {}", path.display()))?
+            } else {
+                toml::from_str(&text)
+                    .with_context(|| format!("parsing TOML config {}", path.display()))?
+            };
+        let serde_json::Value::Object(mut merged) = serde_json::to_value(&self)? else {
+            unreachable!("Config serialises to an object");
+        };
+        for (key, value) in file {
+            let key = key.replace('-', "_");
+            if !merged.contains_key(&key) {
+                anyhow::bail!("config file {}: unknown setting `{key}`", path.display());
+            }
+            if matches.value_source(&key) == Some(ValueSource::DefaultValue) {
+                merged.insert(key, value);
+            }
+        }
+        let mut config: Config = serde_json::from_value(serde_json::Value::Object(merged))
+            .with_context(|| format!("config file {}", path.display()))?;
+        config.config = Some(path.to_path_buf());
+        Ok(config)
+    }
+
+    /// The defaults, ignoring flags and the environment (for tests and embedding).
+    pub fn defaults() -> Config {
+        let matches = Config::command()
+            .mut_args(|a| a.env(None::<&str>))
+            .get_matches_from(["penmesh-proxy"]);
+        Config::from_arg_matches(&matches).expect("defaults parse")
+    }
+
+    pub fn default_params(&self) -> penmesh::AcutsParams {
+        penmesh::AcutsParams {
+            tolerance: self.tolerance,
+            angle_deg: self.angle_deg,
+            pressure_variance: self.pressure_variance,
+        }
+    }
+
+    pub fn hard_message_limit(&self) -> usize {
+        if self.hard_message_bytes == 0 {
+            self.max_message_bytes.saturating_mul(4)
+        } else {
+            self.hard_message_bytes.max(self.max_message_bytes)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_fills_what_flags_do_not_give() {
+        let dir = std::env::temp_dir().join(format!("penmesh-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("proxy.toml");
+        std::fs::write(&path, "port = 9000\nmax-open-strokes = 3\n").unwrap();
+        let config = Config::load_from([
+            "penmesh-proxy",
+            "--config",
+            path.to_str().unwrap(),
+            "--max-open-strokes",
+            "5",
+        ])
+        .unwrap();
+        assert_eq!(config.max_open_strokes, 5);
+        if std::env::var_os("PORT").is_none() {
+            assert_eq!(config.port, 9000);
+        }
+    }
+
+    #[test]
+    fn unknown_file_setting_is_refused() {
+        let dir = std::env::temp_dir().join(format!("penmesh-config-u-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("proxy.json");
+        std::fs::write(&path, r#"{"prot": 1}"#).unwrap();
+        let err = Config::load_from(["penmesh-proxy", "--config", path.to_str().unwrap()])
+            .unwrap_err();
+        assert!(err.to_string().contains("prot"), "{err}");
+    }
+
+    #[test]
+    fn help_documents_every_setting_with_its_default() {
+        let help = Config::command().render_long_help().to_string();
+        for needle in ["--database-url", "sqlite://penmesh.db", "PORT", "--commit-interval-ms"] {
+            assert!(help.contains(needle), "help lacks {needle}");
+        }
+    }
+}

@@ -1,0 +1,380 @@
+//! HTTP handlers, the bearer-token check, and the one [`AppError`] every handler returns.
+//!
+//! Sessions are private: a missing or wrong token gets 401 whether or not the session exists.
+//! Strokes are found by id and must belong to the token's session (404 otherwise).
+
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use penmesh::protocol::{PointBatch, Retained, ServerMessage, encode_server};
+use penmesh::{AcutsParams, Brush, Sample};
+use rand::RngCore;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+use uuid::Uuid;
+
+use crate::state::AppState;
+use crate::store::{MeshRow, StrokeRow, hash_token, now_ms};
+
+/// Every failure a handler can answer with.
+#[derive(Debug, thiserror::Error)]
+pub enum AppError {
+    #[error("missing or wrong session token")]
+    Unauthorized,
+    #[error("{0}")]
+    NotFound(String),
+    #[error("{0}")]
+    BadRequest(String),
+    #[error("{0}")]
+    Conflict(String),
+    #[error("{0}")]
+    TooLarge(String),
+    #[error("the proxy is shutting down")]
+    ShuttingDown,
+    #[error("internal error")]
+    Internal(#[from] anyhow::Error),
+}
+
+/// The JSON body of every error.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBody {
+    /// Machine-readable: `unauthorized`, `not_found`, `bad_request`, `conflict`,
+    /// `shutting_down`, `internal`.
+    pub error: String,
+    pub message: String,
+}
+
+impl IntoResponse for AppError {
+    fn into_response(self) -> Response {
+        let (status, code) = match &self {
+            AppError::Unauthorized => (StatusCode::UNAUTHORIZED, "unauthorized"),
+            AppError::NotFound(_) => (StatusCode::NOT_FOUND, "not_found"),
+            AppError::BadRequest(_) => (StatusCode::BAD_REQUEST, "bad_request"),
+            AppError::Conflict(_) => (StatusCode::CONFLICT, "conflict"),
+            AppError::TooLarge(_) => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
+            AppError::ShuttingDown => (StatusCode::SERVICE_UNAVAILABLE, "shutting_down"),
+            AppError::Internal(err) => {
+                tracing::error!(error = ?err, "request failed");
+                (StatusCode::INTERNAL_SERVER_ERROR, "internal")
+            }
+        };
+        metrics::counter!("penmesh_http_errors_total", "code" => code).increment(1);
+        let body = ErrorBody { error: code.into(), message: self.to_string() };
+        let mut response = (status, Json(body)).into_response();
+        if status == StatusCode::UNAUTHORIZED {
+            response.headers_mut().insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        response
+    }
+}
+
+/// The bearer token of a request: `Authorization: Bearer …`, else `?token=…` when given.
+pub fn request_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Option<&'a str> {
+    headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
+        .map(str::trim)
+        .or(query)
+        .filter(|t| !t.is_empty())
+}
+
+/// The session the request's token opens.
+pub async fn token_session(state: &AppState, headers: &HeaderMap, query: Option<&str>) -> Result<Uuid, AppError> {
+    let token = request_token(headers, query).ok_or(AppError::Unauthorized)?;
+    state.store.session_for_token_hash(&hash_token(token)).await?.ok_or(AppError::Unauthorized)
+}
+
+/// Checks that the request's token opens the session named in the path.
+pub async fn authorize_session(
+    state: &AppState,
+    headers: &HeaderMap,
+    query: Option<&str>,
+    session: &str,
+) -> Result<Uuid, AppError> {
+    let session = Uuid::parse_str(session).map_err(|_| AppError::Unauthorized)?;
+    let of_token = token_session(state, headers, query).await?;
+    if of_token == session { Ok(session) } else { Err(AppError::Unauthorized) }
+}
+
+/// The stroke `id` of the token's session.
+async fn authorized_stroke(state: &AppState, headers: &HeaderMap, id: &str) -> Result<StrokeRow, AppError> {
+    let session = token_session(state, headers, None).await?;
+    let not_found = || AppError::NotFound(format!("no stroke {id} in this session"));
+    let id = Uuid::parse_str(id).map_err(|_| not_found())?;
+    let row = state.store.stroke(id).await?.ok_or_else(not_found)?;
+    if row.session_id == session { Ok(row) } else { Err(not_found()) }
+}
+
+fn wants_binary(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.contains("application/octet-stream"))
+}
+
+/// A new session.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct NewSession {
+    pub session: Uuid,
+    /// The bearer token: shown once, stored only as a hash.
+    pub token: String,
+}
+
+/// Creates a session and its token.
+#[utoipa::path(post, path = "/v1/sessions", tag = "sessions",
+    responses((status = 201, description = "Session created", body = NewSession)))]
+pub async fn create_session(State(state): State<AppState>) -> Result<(StatusCode, Json<NewSession>), AppError> {
+    let mut bytes = [0u8; 32];
+    rand::rng().fill_bytes(&mut bytes);
+    let token = hex::encode(bytes);
+    let session = Uuid::new_v4();
+    state.store.create_session(session, &hash_token(&token)).await?;
+    metrics::counter!("penmesh_sessions_total").increment(1);
+    Ok((StatusCode::CREATED, Json(NewSession { session, token })))
+}
+
+/// A stroke's metadata.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeInfo {
+    pub id: Uuid,
+    pub session: Uuid,
+    pub participant: Uuid,
+    /// `open`, `done` or `interrupted`.
+    pub status: String,
+    pub n_points: u64,
+    pub n_retained: u64,
+    #[schema(value_type = Object)]
+    pub brush: Brush,
+    #[schema(value_type = Object)]
+    pub params: AcutsParams,
+    pub device: Option<String>,
+    pub has_mesh: bool,
+    /// Milliseconds since the Unix epoch.
+    pub created_at: i64,
+    pub updated_at: i64,
+}
+
+impl From<StrokeRow> for StrokeInfo {
+    fn from(row: StrokeRow) -> StrokeInfo {
+        StrokeInfo {
+            id: row.id,
+            session: row.session_id,
+            participant: row.participant,
+            status: row.status.as_str().into(),
+            n_points: row.n_points,
+            n_retained: row.n_retained,
+            brush: row.brush,
+            params: row.params,
+            device: row.device,
+            has_mesh: row.has_mesh,
+            created_at: row.created_at,
+            updated_at: row.updated_at,
+        }
+    }
+}
+
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeList {
+    pub strokes: Vec<StrokeInfo>,
+}
+
+/// The strokes of a session, oldest first.
+#[utoipa::path(get, path = "/v1/sessions/{session}/strokes", tag = "strokes",
+    params(("session" = Uuid, Path)), security(("bearer" = [])),
+    responses((status = 200, body = StrokeList), (status = 401, body = ErrorBody)))]
+pub async fn list_strokes(
+    State(state): State<AppState>,
+    Path(session): Path<String>,
+    headers: HeaderMap,
+) -> Result<Json<StrokeList>, AppError> {
+    let session = authorize_session(&state, &headers, None, &session).await?;
+    let rows = state.store.list_strokes(session).await?;
+    Ok(Json(StrokeList { strokes: rows.into_iter().map(StrokeInfo::from).collect() }))
+}
+
+/// Samples of a stroke with its metadata.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeSamples {
+    #[serde(flatten)]
+    pub stroke: StrokeInfo,
+    /// For the simplified stroke: the index of each sample in the raw stroke.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indices: Option<Vec<u64>>,
+    /// `[x, y, t, p]` each.
+    #[schema(value_type = Vec<[f64; 4]>)]
+    pub samples: Vec<Sample>,
+}
+
+fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
+    if !wants_binary(headers) {
+        return Json(body).into_response();
+    }
+    // The binary form is the wire codec's `Retained` message carrying every sample; the
+    // metadata travels in headers.
+    let msg = ServerMessage::Retained(Retained {
+        stroke: body.stroke.id,
+        first: 0,
+        points: PointBatch(body.samples),
+    });
+    let mut response = ([(header::CONTENT_TYPE, "application/octet-stream")], encode_server(&msg)).into_response();
+    let h = response.headers_mut();
+    for (name, value) in [
+        ("x-penmesh-status", body.stroke.status.clone()),
+        ("x-penmesh-n-points", body.stroke.n_points.to_string()),
+        ("x-penmesh-n-retained", body.stroke.n_retained.to_string()),
+    ] {
+        if let Ok(value) = HeaderValue::from_str(&value) {
+            h.insert(name, value);
+        }
+    }
+    response
+}
+
+/// The simplified stroke (once the stroke is done). JSON, or the wire codec's `Retained`
+/// message on `Accept: application/octet-stream`.
+#[utoipa::path(get, path = "/v1/strokes/{id}/simplified", tag = "strokes",
+    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody),
+        (status = 404, body = ErrorBody), (status = 409, description = "stroke not done", body = ErrorBody)))]
+pub async fn simplified(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    let Some(simplified) = state.store.simplified(row.id).await? else {
+        return Err(AppError::Conflict(format!(
+            "stroke {} is {}: it has no simplified form until it is done",
+            row.id,
+            row.status.as_str()
+        )));
+    };
+    let body = StrokeSamples {
+        stroke: row.into(),
+        indices: Some(simplified.indices),
+        samples: simplified.samples,
+    };
+    Ok(samples_response(&headers, body))
+}
+
+/// Every committed raw (resampled) sample of a stroke.
+#[utoipa::path(get, path = "/v1/strokes/{id}/raw", tag = "strokes",
+    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody), (status = 404, body = ErrorBody)))]
+pub async fn raw(State(state): State<AppState>, Path(id): Path<String>, headers: HeaderMap) -> Result<Response, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    let samples = state.store.raw_samples(row.id).await?;
+    Ok(samples_response(&headers, StrokeSamples { stroke: row.into(), indices: None, samples }))
+}
+
+/// What a stored mesh holds.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct MeshInfo {
+    pub stroke: Uuid,
+    pub bytes: u64,
+    pub vertices: u64,
+    pub triangles: u64,
+    pub uploader: Option<String>,
+}
+
+/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one.
+/// Vertex and triangle counts are read from the GLB's accessors. The uploader is the optional
+/// `x-penmesh-uploader` header.
+#[utoipa::path(put, path = "/v1/strokes/{id}/mesh", tag = "meshes",
+    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    request_body(content = Vec<u8>, content_type = "model/gltf-binary"),
+    responses((status = 200, body = MeshInfo), (status = 400, body = ErrorBody), (status = 401, body = ErrorBody),
+        (status = 404, body = ErrorBody), (status = 409, body = ErrorBody), (status = 413, description = "body too large")))]
+pub async fn put_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+    body: Result<Bytes, axum::extract::rejection::BytesRejection>,
+) -> Result<Json<MeshInfo>, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    let body = body.map_err(|rejection| match rejection.status() {
+        StatusCode::PAYLOAD_TOO_LARGE => AppError::TooLarge(format!(
+            "the body is larger than the limit of {} bytes",
+            state.config.max_body_bytes
+        )),
+        _ => AppError::BadRequest(rejection.body_text()),
+    })?;
+    if row.status != penmesh::protocol::StrokeStatus::Done {
+        return Err(AppError::Conflict(format!(
+            "stroke {} is {}: a mesh can be stored once it is done",
+            row.id,
+            row.status.as_str()
+        )));
+    }
+    let counts = crate::glb::inspect(&body).map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
+    let uploader = headers
+        .get("x-penmesh-uploader")
+        .and_then(|v| v.to_str().ok())
+        .map(|s| s.chars().take(200).collect::<String>());
+    let mesh = MeshRow {
+        glb: body.to_vec(),
+        vertices: counts.vertices,
+        triangles: counts.triangles,
+        uploader: uploader.clone(),
+        created_at: now_ms(),
+    };
+    state.store.put_mesh(row.id, &mesh).await?;
+    metrics::counter!("penmesh_meshes_total").increment(1);
+    Ok(Json(MeshInfo {
+        stroke: row.id,
+        bytes: body.len() as u64,
+        vertices: counts.vertices,
+        triangles: counts.triangles,
+        uploader,
+    }))
+}
+
+/// The stroke's mesh as `model/gltf-binary`.
+#[utoipa::path(get, path = "/v1/strokes/{id}/mesh", tag = "meshes",
+    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    responses((status = 200, content_type = "model/gltf-binary", body = Vec<u8>), (status = 401, body = ErrorBody),
+        (status = 404, body = ErrorBody)))]
+pub async fn get_mesh(State(state): State<AppState>, Path(id): Path<String>, headers: HeaderMap) -> Result<Response, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    let mesh = state
+        .store
+        .mesh(row.id)
+        .await?
+        .ok_or_else(|| AppError::NotFound(format!("stroke {} has no mesh", row.id)))?;
+    let mut response = ([(header::CONTENT_TYPE, "model/gltf-binary")], mesh.glb).into_response();
+    let h = response.headers_mut();
+    h.insert("x-penmesh-vertices", HeaderValue::from(mesh.vertices));
+    h.insert("x-penmesh-triangles", HeaderValue::from(mesh.triangles));
+    Ok(response)
+}
+
+/// Liveness: the process answers.
+#[utoipa::path(get, path = "/healthz", tag = "operations", responses((status = 200, description = "alive")))]
+pub async fn healthz() -> &'static str {
+    "ok"
+}
+
+/// Readiness: the database answers.
+#[utoipa::path(get, path = "/readyz", tag = "operations",
+    responses((status = 200, description = "ready"), (status = 503, description = "database unreachable or shutting down")))]
+pub async fn readyz(State(state): State<AppState>) -> Response {
+    if state.shutdown.is_cancelled() {
+        return (StatusCode::SERVICE_UNAVAILABLE, "shutting down").into_response();
+    }
+    match state.store.ping().await {
+        Ok(()) => "ready".into_response(),
+        Err(err) => {
+            tracing::warn!(error = %err, "readiness: database unreachable");
+            (StatusCode::SERVICE_UNAVAILABLE, "database unreachable").into_response()
+        }
+    }
+}
+
+/// Prometheus metrics in the text format.
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text")))]
+pub async fn metrics(State(state): State<AppState>) -> Response {
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], state.metrics.render()).into_response()
+}

@@ -1,0 +1,228 @@
+//! Per-stroke ingest state: seq contiguity, sample validation, the streaming ACUTS
+//! [`Simplifier`], and the limits. No I/O: the connection loop turns the outcomes into
+//! database writes and messages.
+
+use penmesh::protocol::{ErrorCode, StrokeId};
+use penmesh::{AcutsParams, Kept, Sample, Simplifier, validate_samples};
+
+/// A refusal: the code and a message naming what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal {
+    pub code: ErrorCode,
+    pub message: String,
+}
+
+impl Refusal {
+    pub fn new(code: ErrorCode, message: impl Into<String>) -> Refusal {
+        Refusal { code, message: message.into() }
+    }
+}
+
+/// Limits that apply to one stroke.
+#[derive(Debug, Clone, Copy)]
+pub struct StrokeLimits {
+    pub max_batch_samples: usize,
+    pub max_stroke_samples: u64,
+}
+
+/// What a `Points` batch amounts to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Accepted {
+    /// Every sample of the batch was accepted before: nothing to store, ack again.
+    Duplicate,
+    /// New samples `seq..seq + samples.len()` to store; `kept` are the newly retained ones,
+    /// the first of which has index `first_kept` in the simplified stroke.
+    New { seq: u64, samples: Vec<Sample>, kept: Vec<Kept>, first_kept: u64 },
+}
+
+/// One stroke being drawn on a connection.
+#[derive(Debug, Clone)]
+pub struct StrokeState {
+    pub id: StrokeId,
+    /// Samples accepted (validated and queued for storage): the next seq expected.
+    next_seq: u64,
+    /// Every sample below this is committed.
+    pub committed_seq: u64,
+    last: Option<Sample>,
+    simplifier: Simplifier,
+    kept: Vec<Kept>,
+}
+
+impl StrokeState {
+    pub fn new(id: StrokeId, params: AcutsParams) -> StrokeState {
+        StrokeState {
+            id,
+            next_seq: 0,
+            committed_seq: 0,
+            last: None,
+            simplifier: Simplifier::new(params),
+            kept: Vec::new(),
+        }
+    }
+
+    /// Rebuilds the state of a resumed stroke by replaying its committed samples through a
+    /// fresh simplifier: the result is the state the stroke had, with every retained sample.
+    pub fn replay(id: StrokeId, params: AcutsParams, samples: &[Sample]) -> StrokeState {
+        let mut state = StrokeState::new(id, params);
+        for s in samples {
+            state.kept.extend(state.simplifier.push(*s));
+        }
+        state.next_seq = samples.len() as u64;
+        state.committed_seq = state.next_seq;
+        state.last = samples.last().copied();
+        state
+    }
+
+    pub fn next_seq(&self) -> u64 {
+        self.next_seq
+    }
+
+    /// The samples retained so far.
+    pub fn kept(&self) -> &[Kept] {
+        &self.kept
+    }
+
+    /// Takes a batch starting at `seq`. A batch wholly before `next_seq` is a duplicate; one
+    /// that overlaps contributes only its new tail; one that starts past it is a gap.
+    /// Nothing changes when the batch is refused.
+    pub fn push_points(
+        &mut self,
+        seq: u64,
+        points: &[Sample],
+        limits: &StrokeLimits,
+    ) -> Result<Accepted, Refusal> {
+        if points.len() > limits.max_batch_samples {
+            return Err(Refusal::new(
+                ErrorCode::BatchTooLarge,
+                format!(
+                    "batch of {} samples is larger than the limit of {}",
+                    points.len(),
+                    limits.max_batch_samples
+                ),
+            ));
+        }
+        if seq > self.next_seq {
+            return Err(Refusal::new(
+                ErrorCode::SeqGap,
+                format!("seq gap: expected seq {}, got {seq}", self.next_seq),
+            ));
+        }
+        let end = seq + points.len() as u64;
+        if end <= self.next_seq {
+            return Ok(Accepted::Duplicate);
+        }
+        let tail = &points[(self.next_seq - seq) as usize..];
+        if end > limits.max_stroke_samples {
+            return Err(Refusal::new(
+                ErrorCode::StrokeTooLong,
+                format!(
+                    "stroke would have {end} samples, more than the limit of {}",
+                    limits.max_stroke_samples
+                ),
+            ));
+        }
+        validate_samples(tail, self.last.as_ref(), self.next_seq as usize)
+            .map_err(|e| Refusal::new(ErrorCode::BadSample, e.to_string()))?;
+        let first_kept = self.kept.len() as u64;
+        let mut kept = Vec::new();
+        for s in tail {
+            kept.extend(self.simplifier.push(*s));
+        }
+        self.kept.extend_from_slice(&kept);
+        let seq = self.next_seq;
+        self.next_seq = end;
+        self.last = tail.last().copied();
+        Ok(Accepted::New { seq, samples: tail.to_vec(), kept, first_kept })
+    }
+
+    /// Pen-up: checks the count and finishes the simplifier. Returns the last retained sample
+    /// (if the pending candidate is kept) with its index in the simplified stroke, and the whole
+    /// simplified stroke.
+    pub fn finish(&mut self, n_points: u64) -> Result<(Option<(u64, Kept)>, Vec<Kept>), Refusal> {
+        if n_points != self.next_seq {
+            return Err(Refusal::new(
+                ErrorCode::CountMismatch,
+                format!(
+                    "stroke_end says {n_points} samples, but {} were received",
+                    self.next_seq
+                ),
+            ));
+        }
+        let last = self.simplifier.finish().map(|k| {
+            self.kept.push(k);
+            (self.kept.len() as u64 - 1, k)
+        });
+        Ok((last, std::mem::take(&mut self.kept)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: StrokeLimits = StrokeLimits { max_batch_samples: 100, max_stroke_samples: 1000 };
+
+    fn line(from: usize, to: usize) -> Vec<Sample> {
+        (from..to)
+            .map(|i| Sample::new(i as f64 * 3.0, ((i * 7) % 5) as f64 * 4.0, i as f64, 0.5))
+            .collect()
+    }
+
+    fn state() -> StrokeState {
+        StrokeState::new(uuid::Uuid::nil(), AcutsParams::default())
+    }
+
+    #[test]
+    fn streamed_batches_retain_what_batch_simplify_keeps() {
+        let samples = line(0, 60);
+        let mut s = state();
+        for (i, chunk) in samples.chunks(7).enumerate() {
+            s.push_points((i * 7) as u64, chunk, &LIMITS).unwrap();
+        }
+        let (_, kept) = s.finish(60).unwrap();
+        let indices: Vec<usize> = kept.iter().map(|k| k.index).collect();
+        assert_eq!(indices, penmesh::simplify(&samples, &AcutsParams::default()));
+    }
+
+    #[test]
+    fn duplicates_overlaps_and_gaps() {
+        let samples = line(0, 20);
+        let mut s = state();
+        s.push_points(0, &samples[..10], &LIMITS).unwrap();
+        assert_eq!(s.push_points(0, &samples[..10], &LIMITS).unwrap(), Accepted::Duplicate);
+        match s.push_points(5, &samples[5..15], &LIMITS).unwrap() {
+            Accepted::New { seq, samples: new, .. } => {
+                assert_eq!(seq, 10);
+                assert_eq!(new, samples[10..15].to_vec());
+            }
+            other => panic!("{other:?}"),
+        }
+        let gap = s.push_points(16, &samples[16..], &LIMITS).unwrap_err();
+        assert_eq!(gap.code, ErrorCode::SeqGap);
+        assert!(gap.message.contains("expected seq 15"), "{}", gap.message);
+    }
+
+    #[test]
+    fn refused_batches_change_nothing() {
+        let mut s = state();
+        s.push_points(0, &line(0, 5), &LIMITS).unwrap();
+        let mut bad = line(5, 8);
+        bad[1].p = 2.0;
+        let err = s.push_points(5, &bad, &LIMITS).unwrap_err();
+        assert_eq!(err.code, ErrorCode::BadSample);
+        assert!(err.message.contains("sample 6"), "{}", err.message);
+        assert_eq!(s.next_seq(), 5);
+        assert_eq!(s.push_points(0, &line(0, 101), &LIMITS).unwrap_err().code, ErrorCode::BatchTooLarge);
+        assert_eq!(s.finish(4).unwrap_err().code, ErrorCode::CountMismatch);
+    }
+
+    #[test]
+    fn replay_rebuilds_the_same_state() {
+        let samples = line(0, 40);
+        let mut streamed = state();
+        streamed.push_points(0, &samples, &LIMITS).unwrap();
+        let mut replayed = StrokeState::replay(uuid::Uuid::nil(), AcutsParams::default(), &samples[..25]);
+        replayed.push_points(25, &samples[25..], &LIMITS).unwrap();
+        assert_eq!(streamed.finish(40).unwrap().1, replayed.finish(40).unwrap().1);
+    }
+}

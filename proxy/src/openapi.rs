@@ -1,0 +1,46 @@
+//! The OpenAPI document served at `/v1/openapi.json`.
+
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+use utoipa::{Modify, OpenApi};
+
+use crate::http;
+
+/// The proxy's HTTP API.
+#[derive(Debug, OpenApi)]
+#[openapi(
+    info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
+        The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token or ?token=)."),
+    paths(
+        http::create_session,
+        http::list_strokes,
+        http::simplified,
+        http::raw,
+        http::put_mesh,
+        http::get_mesh,
+        http::healthz,
+        http::readyz,
+        http::metrics,
+    ),
+    components(schemas(
+        http::NewSession,
+        http::StrokeInfo,
+        http::StrokeList,
+        http::StrokeSamples,
+        http::MeshInfo,
+        http::ErrorBody
+    )),
+    modifiers(&BearerAuth)
+)]
+pub struct ApiDoc;
+
+struct BearerAuth;
+
+impl Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
+    }
+}

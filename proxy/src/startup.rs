@@ -1,0 +1,155 @@
+//! Building and running the application: bind first (so port 0 works and [`Application::port`]
+//! tells the real one), then serve until a signal or the test handle asks to stop.
+//!
+//! Shutdown, all within `shutdown_grace_secs`: new upgrades get 503 and the listener stops;
+//! every WebSocket task commits what it has, marks its open strokes `interrupted`, sends
+//! `Error {shutting_down}` and Close 1001; then the writer commits what is left and stops.
+
+use std::time::Duration;
+
+use anyhow::Context;
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::routing::{get, post, put};
+use tokio::net::TcpListener;
+use tokio_util::sync::CancellationToken;
+use tower_http::trace::TraceLayer;
+use utoipa::OpenApi;
+
+use crate::config::Config;
+use crate::state::AppState;
+use crate::store::{Store, WriterTask, redact};
+use crate::{http, metrics, ws};
+
+/// A bound, ready-to-run proxy.
+#[derive(Debug)]
+pub struct Application {
+    listener: TcpListener,
+    port: u16,
+    state: AppState,
+    writer: WriterTask,
+}
+
+impl Application {
+    /// Connects to the database (migrating it), starts the writer and binds the listener.
+    pub async fn build(config: Config) -> anyhow::Result<Application> {
+        let metrics = metrics::install();
+        let store = Store::connect(&config).await?;
+        let orphans = store.interrupt_orphans().await?;
+        if orphans > 0 {
+            tracing::info!(orphans, "strokes left open by an earlier run are now interrupted");
+        }
+        let (writer, writer_task) = WriterTask::start(
+            &store,
+            Duration::from_millis(config.commit_interval_ms),
+            config.commit_max_requests,
+            config.writer_queue,
+        )
+        .await?;
+        let listener = TcpListener::bind((config.host.as_str(), config.port))
+            .await
+            .with_context(|| format!("binding {}:{}", config.host, config.port))?;
+        let port = listener.local_addr()?.port();
+        tracing::info!(
+            address = %listener.local_addr()?,
+            database = %redact(&config.database_url),
+            "penmesh proxy listening"
+        );
+        let state = AppState::new(config, store, writer, CancellationToken::new(), metrics);
+        Ok(Application { listener, port, state, writer: writer_task })
+    }
+
+    /// The port actually bound.
+    pub fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// Cancelling this token shuts the application down, as SIGTERM does.
+    pub fn shutdown_handle(&self) -> CancellationToken {
+        self.state.shutdown.clone()
+    }
+
+    pub fn state(&self) -> &AppState {
+        &self.state
+    }
+
+    /// Serves until SIGTERM, Ctrl-C or the shutdown handle, then shuts down gracefully.
+    pub async fn run_until_stopped(self) -> anyhow::Result<()> {
+        let Application { listener, state, writer, .. } = self;
+        let shutdown = state.shutdown.clone();
+        let signals = tokio::spawn(cancel_on_signal(shutdown.clone()));
+        let server = tokio::spawn(
+            axum::serve(listener, router(state.clone()))
+                .with_graceful_shutdown(shutdown.clone().cancelled_owned())
+                .into_future(),
+        );
+        shutdown.cancelled().await;
+        signals.abort();
+        let grace = Duration::from_secs(state.config.shutdown_grace_secs);
+        let deadline = tokio::time::Instant::now() + grace;
+        tracing::info!(grace_secs = grace.as_secs(), "shutting down");
+        state.tracker.close();
+        if tokio::time::timeout_at(deadline, state.tracker.wait()).await.is_err() {
+            tracing::warn!(left = state.tracker.len(), "WebSocket tasks outlived the grace period");
+        }
+        let mut server = server;
+        match tokio::time::timeout_at(deadline, &mut server).await {
+            Ok(Ok(Err(err))) => tracing::error!(error = %err, "server failed"),
+            Ok(_) => {}
+            Err(_) => {
+                tracing::warn!("HTTP connections outlived the grace period");
+                server.abort();
+            }
+        }
+        writer.stop().await;
+        state.store.pool().close().await;
+        tracing::info!("stopped");
+        Ok(())
+    }
+}
+
+async fn cancel_on_signal(shutdown: CancellationToken) {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(term) => term,
+            Err(err) => {
+                tracing::warn!(error = %err, "cannot listen for SIGTERM");
+                let _ = ctrl_c.await;
+                shutdown.cancel();
+                return;
+            }
+        };
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = ctrl_c.await;
+    shutdown.cancel();
+}
+
+/// Every route of the proxy.
+pub fn router(state: AppState) -> Router {
+    let body_limit = state.config.max_body_bytes;
+    Router::new()
+        .route("/v1/sessions", post(http::create_session))
+        .route("/v1/sessions/{session}/strokes", get(http::list_strokes))
+        .route("/v1/sessions/{session}/ws", get(ws::ws_handler))
+        .route("/v1/strokes/{id}/simplified", get(http::simplified))
+        .route("/v1/strokes/{id}/raw", get(http::raw))
+        .route("/v1/strokes/{id}/mesh", put(http::put_mesh).get(http::get_mesh))
+        .route("/v1/openapi.json", get(openapi_json))
+        .route("/healthz", get(http::healthz))
+        .route("/readyz", get(http::readyz))
+        .route("/metrics", get(http::metrics))
+        .layer(DefaultBodyLimit::max(body_limit))
+        .layer(TraceLayer::new_for_http())
+        .with_state(state)
+}
+
+async fn openapi_json() -> axum::Json<utoipa::openapi::OpenApi> {
+    axum::Json(crate::openapi::ApiDoc::openapi())
+}

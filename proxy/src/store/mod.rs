@@ -1,0 +1,396 @@
+//! The database layer: one set of queries for SQLite and PostgreSQL through sqlx's `Any`
+//! driver, the embedded migrations, and the group-commit [`writer`].
+//!
+//! **Only this module knows how samples are laid out in the database** (little-endian `f64`
+//! quadruples `x, y, t, p` in a blob).
+
+mod writer;
+
+use std::str::FromStr;
+use std::time::Duration;
+
+use anyhow::Context;
+use penmesh::Sample;
+use penmesh::protocol::StrokeStatus;
+use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
+use sqlx::{AnyPool, Executor, Row};
+use uuid::Uuid;
+
+pub use writer::{WriteError, WriteOp, Writer, WriterTask};
+
+use crate::config::{Config, SqliteSync};
+
+static SQLITE_MIGRATIONS: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/sqlite");
+static POSTGRES_MIGRATIONS: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/postgres");
+
+/// Which database engine is behind the URL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    Sqlite,
+    Postgres,
+}
+
+/// A pool of read connections plus what the writer needs to open its own.
+#[derive(Debug, Clone)]
+pub struct Store {
+    pool: AnyPool,
+    backend: Backend,
+}
+
+/// A stroke's row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StrokeRow {
+    pub id: Uuid,
+    pub session_id: Uuid,
+    pub participant: Uuid,
+    pub brush: penmesh::Brush,
+    pub params: penmesh::AcutsParams,
+    pub device: Option<String>,
+    pub status: StrokeStatus,
+    pub n_points: u64,
+    pub n_retained: u64,
+    pub created_at: i64,
+    pub updated_at: i64,
+    pub has_mesh: bool,
+}
+
+/// The simplified stroke: indices into the raw samples and the samples themselves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Simplified {
+    pub indices: Vec<u64>,
+    pub samples: Vec<Sample>,
+}
+
+/// A stored mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshRow {
+    pub glb: Vec<u8>,
+    pub vertices: u64,
+    pub triangles: u64,
+    pub uploader: Option<String>,
+    pub created_at: i64,
+}
+
+/// Milliseconds since the Unix epoch.
+pub fn now_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_millis() as i64)
+        .unwrap_or(0)
+}
+
+/// sha256 of a token, lowercase hex: what the sessions table stores.
+pub fn hash_token(token: &str) -> String {
+    use sha2::Digest;
+    hex::encode(sha2::Sha256::digest(token.as_bytes()))
+}
+
+pub(crate) fn encode_samples(samples: &[Sample]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(samples.len() * 32);
+    for s in samples {
+        for v in [s.x, s.y, s.t, s.p] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
+pub(crate) fn decode_samples(bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
+    anyhow::ensure!(bytes.len() % 32 == 0, "sample blob of {} bytes is not a multiple of 32", bytes.len());
+    Ok(bytes
+        .chunks_exact(32)
+        .map(|c| {
+            let f = |i: usize| f64::from_le_bytes(c[i * 8..i * 8 + 8].try_into().unwrap());
+            Sample::new(f(0), f(1), f(2), f(3))
+        })
+        .collect())
+}
+
+pub(crate) fn encode_indices(indices: &[u64]) -> Vec<u8> {
+    indices.iter().flat_map(|i| i.to_le_bytes()).collect()
+}
+
+fn decode_indices(bytes: &[u8]) -> Vec<u64> {
+    bytes.chunks_exact(8).map(|c| u64::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+fn parse_uuid(s: &str) -> anyhow::Result<Uuid> {
+    Uuid::parse_str(s).with_context(|| format!("bad uuid {s:?} in the database"))
+}
+
+impl Store {
+    /// Connects (creating a SQLite file if missing) and applies the migrations.
+    pub async fn connect(config: &Config) -> anyhow::Result<Store> {
+        sqlx::any::install_default_drivers();
+        let url = config.database_url.trim();
+        let (backend, url) = if url.starts_with("sqlite:") {
+            create_parent_dir(url)?;
+            let url = if url.contains("mode=") {
+                url.to_string()
+            } else if url.contains('?') {
+                format!("{url}&mode=rwc")
+            } else {
+                format!("{url}?mode=rwc")
+            };
+            (Backend::Sqlite, url)
+        } else if url.starts_with("postgres:") || url.starts_with("postgresql:") {
+            (Backend::Postgres, url.to_string())
+        } else {
+            anyhow::bail!("database URL must start with sqlite:// or postgres://, got {url:?}");
+        };
+        let options = AnyConnectOptions::from_str(&url).context("parsing the database URL")?;
+        let synchronous = match config.sqlite_synchronous {
+            SqliteSync::Normal => "NORMAL",
+            SqliteSync::Full => "FULL",
+        };
+        let pool = AnyPoolOptions::new()
+            .max_connections(config.db_max_connections.max(1))
+            .acquire_timeout(Duration::from_secs(10))
+            .after_connect(move |conn, _meta| {
+                Box::pin(async move {
+                    if backend == Backend::Sqlite {
+                        conn.execute(
+                            format!(
+                                "PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; \
+                                 PRAGMA synchronous={synchronous}; PRAGMA foreign_keys=ON;"
+                            )
+                            .as_str(),
+                        )
+                        .await?;
+                    }
+                    Ok(())
+                })
+            })
+            .connect_with(options)
+            .await
+            .with_context(|| format!("connecting to {}", redact(&config.database_url)))?;
+        let migrator = match backend {
+            Backend::Sqlite => &SQLITE_MIGRATIONS,
+            Backend::Postgres => &POSTGRES_MIGRATIONS,
+        };
+        migrator.run(&pool).await.context("applying migrations")?;
+        Ok(Store { pool, backend })
+    }
+
+    pub fn backend(&self) -> Backend {
+        self.backend
+    }
+
+    pub fn pool(&self) -> &AnyPool {
+        &self.pool
+    }
+
+    /// The statement that opens a write transaction: SQLite takes the write lock up front.
+    pub fn begin_statement(&self) -> &'static str {
+        match self.backend {
+            Backend::Sqlite => "BEGIN IMMEDIATE",
+            Backend::Postgres => "BEGIN",
+        }
+    }
+
+    /// Is the database reachable?
+    pub async fn ping(&self) -> anyhow::Result<()> {
+        sqlx::query("SELECT 1").execute(&self.pool).await?;
+        Ok(())
+    }
+
+    /// At start, with SQLite (one process owns the file), strokes left `open` by a crash are
+    /// `interrupted`. With PostgreSQL other replicas may be drawing them, so they stay.
+    pub async fn interrupt_orphans(&self) -> anyhow::Result<u64> {
+        if self.backend != Backend::Sqlite {
+            return Ok(0);
+        }
+        let done = sqlx::query(
+            "UPDATE strokes SET status = 'interrupted', updated_at = $1 WHERE status = 'open'",
+        )
+        .bind(now_ms())
+        .execute(&self.pool)
+        .await?;
+        Ok(done.rows_affected())
+    }
+
+    pub async fn create_session(&self, id: Uuid, token_hash: &str) -> anyhow::Result<()> {
+        let mut conn = self.pool.acquire().await?;
+        let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
+        sqlx::query("INSERT INTO sessions (id, token_hash, created_at) VALUES ($1, $2, $3)")
+            .bind(id.to_string())
+            .bind(token_hash)
+            .bind(now_ms())
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    /// The session a token belongs to.
+    pub async fn session_for_token_hash(&self, token_hash: &str) -> anyhow::Result<Option<Uuid>> {
+        let row = sqlx::query("SELECT id FROM sessions WHERE token_hash = $1")
+            .bind(token_hash)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| parse_uuid(&r.try_get::<String, _>("id")?)).transpose()
+    }
+
+    pub async fn stroke(&self, id: Uuid) -> anyhow::Result<Option<StrokeRow>> {
+        let row = sqlx::query(&format!("{STROKE_SELECT} WHERE s.id = $1"))
+            .bind(id.to_string())
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| stroke_from_row(&r)).transpose()
+    }
+
+    pub async fn list_strokes(&self, session: Uuid) -> anyhow::Result<Vec<StrokeRow>> {
+        let rows =
+            sqlx::query(&format!("{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"))
+                .bind(session.to_string())
+                .fetch_all(&self.pool)
+                .await?;
+        rows.iter().map(stroke_from_row).collect()
+    }
+
+    /// Every stored raw sample of a stroke, in order.
+    pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
+        let rows = sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+            .bind(stroke.to_string())
+            .fetch_all(&self.pool)
+            .await?;
+        let mut samples = Vec::new();
+        for row in rows {
+            let seq: i64 = row.try_get("seq")?;
+            let n: i64 = row.try_get("n")?;
+            let data: Vec<u8> = row.try_get("data")?;
+            anyhow::ensure!(
+                seq as usize == samples.len(),
+                "stroke {stroke}: chunk at seq {seq} follows {} samples",
+                samples.len()
+            );
+            let chunk = decode_samples(&data)?;
+            anyhow::ensure!(chunk.len() as i64 == n, "stroke {stroke}: chunk at seq {seq} has a bad length");
+            samples.extend(chunk);
+        }
+        Ok(samples)
+    }
+
+    pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
+        let row = sqlx::query("SELECT indices, data FROM simplified WHERE stroke_id = $1")
+            .bind(stroke.to_string())
+            .fetch_optional(&self.pool)
+            .await?;
+        let Some(row) = row else { return Ok(None) };
+        let indices: Vec<u8> = row.try_get("indices")?;
+        let data: Vec<u8> = row.try_get("data")?;
+        Ok(Some(Simplified { indices: decode_indices(&indices), samples: decode_samples(&data)? }))
+    }
+
+    /// Stores (or replaces) a stroke's mesh.
+    pub async fn put_mesh(&self, stroke: Uuid, mesh: &MeshRow) -> anyhow::Result<()> {
+        let mut conn = self.pool.acquire().await?;
+        let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
+        sqlx::query(
+            "INSERT INTO meshes (stroke_id, glb, vertices, triangles, uploader, created_at) \
+             VALUES ($1, $2, $3, $4, $5, $6) \
+             ON CONFLICT (stroke_id) DO UPDATE SET glb = excluded.glb, vertices = excluded.vertices, \
+             triangles = excluded.triangles, uploader = excluded.uploader, created_at = excluded.created_at",
+        )
+        .bind(stroke.to_string())
+        .bind(mesh.glb.clone())
+        .bind(mesh.vertices as i64)
+        .bind(mesh.triangles as i64)
+        .bind(mesh.uploader.clone())
+        .bind(mesh.created_at)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    pub async fn mesh(&self, stroke: Uuid) -> anyhow::Result<Option<MeshRow>> {
+        let row = sqlx::query(
+            "SELECT glb, vertices, triangles, uploader, created_at FROM meshes WHERE stroke_id = $1",
+        )
+        .bind(stroke.to_string())
+        .fetch_optional(&self.pool)
+        .await?;
+        let Some(row) = row else { return Ok(None) };
+        Ok(Some(MeshRow {
+            glb: row.try_get("glb")?,
+            vertices: row.try_get::<i64, _>("vertices")? as u64,
+            triangles: row.try_get::<i64, _>("triangles")? as u64,
+            uploader: row.try_get("uploader")?,
+            created_at: row.try_get("created_at")?,
+        }))
+    }
+}
+
+const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, s.params, s.device, \
+     s.status, s.n_points, s.n_retained, s.created_at, s.updated_at, \
+     (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = s.id) AS n_meshes FROM strokes s";
+
+fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
+    let status: String = row.try_get("status")?;
+    let brush: String = row.try_get("brush")?;
+    let params: String = row.try_get("params")?;
+    Ok(StrokeRow {
+        id: parse_uuid(&row.try_get::<String, _>("id")?)?,
+        session_id: parse_uuid(&row.try_get::<String, _>("session_id")?)?,
+        participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
+        brush: serde_json::from_str(&brush).context("stored brush")?,
+        params: serde_json::from_str(&params).context("stored params")?,
+        device: row.try_get("device")?,
+        status: StrokeStatus::parse(&status)
+            .with_context(|| format!("stored status {status:?}"))?,
+        n_points: row.try_get::<i64, _>("n_points")? as u64,
+        n_retained: row.try_get::<i64, _>("n_retained")? as u64,
+        created_at: row.try_get("created_at")?,
+        updated_at: row.try_get("updated_at")?,
+        has_mesh: row.try_get::<i64, _>("n_meshes")? > 0,
+    })
+}
+
+/// Creates the folder of a SQLite file, so a fresh path works.
+fn create_parent_dir(url: &str) -> anyhow::Result<()> {
+    let path = url.trim_start_matches("sqlite:").trim_start_matches("//");
+    let path = path.split('?').next().unwrap_or_default();
+    if path.is_empty() || path == ":memory:" {
+        return Ok(());
+    }
+    if let Some(parent) = std::path::Path::new(path).parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating the database folder {}", parent.display()))?;
+    }
+    Ok(())
+}
+
+/// A database URL with its password hidden, for logs.
+pub fn redact(url: &str) -> String {
+    match (url.find("://"), url.rfind('@')) {
+        (Some(scheme), Some(at)) if at > scheme => {
+            let userinfo = &url[scheme + 3..at];
+            match userinfo.find(':') {
+                Some(colon) => {
+                    format!("{}{}:***{}", &url[..scheme + 3], &userinfo[..colon], &url[at..])
+                }
+                None => url.to_string(),
+            }
+        }
+        _ => url.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_round_trip_through_the_blob() {
+        let samples = vec![Sample::new(1.5, -2.0, 3.25, 0.5), Sample::new(0.0, 0.0, 4.0, 1.0)];
+        assert_eq!(decode_samples(&encode_samples(&samples)).unwrap(), samples);
+        assert!(decode_samples(&[0; 31]).is_err());
+    }
+
+    #[test]
+    fn redacts_passwords() {
+        assert_eq!(redact("postgres://u:secret@h/db"), "postgres://u:***@h/db");
+        assert_eq!(redact("sqlite://x.db"), "sqlite://x.db");
+    }
+}

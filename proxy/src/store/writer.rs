@@ -1,0 +1,295 @@
+//! Group commit: one task owns the write connection and commits the pending writes of every
+//! connection in one transaction, then tells each requester.
+//!
+//! Connections send [`WriteOp`]s over a bounded queue (a full queue makes them wait: back
+//! pressure, never unbounded memory). The writer takes the first request, waits until at least
+//! `commit_interval` has passed since its previous commit began, drains whatever else is
+//! pending (up to `commit_max_requests`), and commits it all in ONE transaction. Only then does
+//! each requester hear `Ok`, so an `Ack` always means "committed". If the group transaction
+//! fails, each request is retried in a transaction of its own, so one bad request cannot fail
+//! the others.
+
+use std::time::{Duration, Instant};
+
+use penmesh::{AcutsParams, Brush, Kept, Sample};
+use sqlx::{AnyConnection, Connection};
+use tokio::sync::{mpsc, oneshot};
+use tokio_util::sync::CancellationToken;
+use uuid::Uuid;
+
+use super::{Store, encode_indices, encode_samples, now_ms};
+
+/// One change to the database.
+#[derive(Debug, Clone)]
+pub enum WriteOp {
+    /// Creates a stroke (nothing if it exists already).
+    BeginStroke {
+        stroke: Uuid,
+        session: Uuid,
+        participant: Uuid,
+        brush: Brush,
+        params: AcutsParams,
+        device: Option<String>,
+    },
+    /// Appends the samples `seq..seq + samples.len()` of a stroke.
+    Append { stroke: Uuid, seq: u64, samples: Vec<Sample> },
+    /// Stores the simplified stroke and marks it `done`.
+    Finish { stroke: Uuid, n_points: u64, kept: Vec<Kept> },
+    /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
+    SetStatus { stroke: Uuid, status: &'static str },
+}
+
+impl WriteOp {
+    fn n_samples(&self) -> usize {
+        match self {
+            WriteOp::Append { samples, .. } => samples.len(),
+            _ => 0,
+        }
+    }
+}
+
+/// The writer failed to commit a request.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum WriteError {
+    #[error("the writer has stopped")]
+    Closed,
+    #[error("database write failed: {0}")]
+    Database(String),
+}
+
+struct WriteRequest {
+    ops: Vec<WriteOp>,
+    done: oneshot::Sender<Result<(), WriteError>>,
+}
+
+/// The sending side, cloned into every connection.
+#[derive(Debug, Clone)]
+pub struct Writer {
+    tx: mpsc::Sender<WriteRequest>,
+}
+
+impl Writer {
+    /// Queues `ops` (waiting while the queue is full) and returns a future that resolves once
+    /// they are committed.
+    pub async fn submit(
+        &self,
+        ops: Vec<WriteOp>,
+    ) -> impl Future<Output = Result<(), WriteError>> + Send + 'static {
+        let (done, rx) = oneshot::channel();
+        let queued = self.tx.send(WriteRequest { ops, done }).await.is_ok();
+        async move {
+            if !queued {
+                return Err(WriteError::Closed);
+            }
+            rx.await.unwrap_or(Err(WriteError::Closed))
+        }
+    }
+
+    /// Queues `ops` and waits for the commit.
+    pub async fn write(&self, ops: Vec<WriteOp>) -> Result<(), WriteError> {
+        self.submit(ops).await.await
+    }
+}
+
+/// The task that owns the write connection.
+#[derive(Debug)]
+pub struct WriterTask {
+    handle: tokio::task::JoinHandle<()>,
+    stop: CancellationToken,
+}
+
+impl WriterTask {
+    /// Opens the write connection and starts the writer.
+    pub async fn start(
+        store: &Store,
+        commit_interval: Duration,
+        max_requests: usize,
+        queue: usize,
+    ) -> anyhow::Result<(Writer, WriterTask)> {
+        let conn = store.pool().acquire().await?.detach();
+        let (tx, rx) = mpsc::channel(queue.max(1));
+        let stop = CancellationToken::new();
+        let state = WriterLoop {
+            conn,
+            begin: store.begin_statement(),
+            rx,
+            interval: commit_interval,
+            max_requests: max_requests.max(1),
+            stop: stop.clone(),
+        };
+        let handle = tokio::spawn(state.run());
+        Ok((Writer { tx }, WriterTask { handle, stop }))
+    }
+
+    /// Commits whatever is queued, then stops. Requests sent later get [`WriteError::Closed`].
+    pub async fn stop(self) {
+        self.stop.cancel();
+        let _ = self.handle.await;
+    }
+}
+
+struct WriterLoop {
+    conn: AnyConnection,
+    begin: &'static str,
+    rx: mpsc::Receiver<WriteRequest>,
+    interval: Duration,
+    max_requests: usize,
+    stop: CancellationToken,
+}
+
+impl WriterLoop {
+    async fn run(mut self) {
+        let mut last_commit = Instant::now() - self.interval;
+        let mut batch = Vec::with_capacity(self.max_requests);
+        loop {
+            let first = tokio::select! {
+                req = self.rx.recv() => req,
+                _ = self.stop.cancelled() => None,
+            };
+            let Some(first) = first else { break };
+            batch.push(first);
+            let wait_until = last_commit + self.interval;
+            if Instant::now() < wait_until && !self.stop.is_cancelled() {
+                tokio::time::sleep_until(wait_until.into()).await;
+            }
+            while batch.len() < self.max_requests {
+                match self.rx.try_recv() {
+                    Ok(req) => batch.push(req),
+                    Err(_) => break,
+                }
+            }
+            last_commit = Instant::now();
+            self.commit_batch(&mut batch).await;
+        }
+        // Stopping: commit what is still queued, then refuse the rest.
+        self.rx.close();
+        while let Ok(req) = self.rx.try_recv() {
+            batch.push(req);
+            if batch.len() >= self.max_requests {
+                self.commit_batch(&mut batch).await;
+            }
+        }
+        self.commit_batch(&mut batch).await;
+    }
+
+    async fn commit_batch(&mut self, batch: &mut Vec<WriteRequest>) {
+        if batch.is_empty() {
+            return;
+        }
+        let started = Instant::now();
+        let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
+        let result = self.commit(batch.iter().flat_map(|r| &r.ops)).await;
+        metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
+        metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
+        metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
+        match result {
+            Ok(()) => {
+                for req in batch.drain(..) {
+                    let _ = req.done.send(Ok(()));
+                }
+            }
+            Err(err) if batch.len() == 1 => {
+                tracing::error!(error = %err, "write failed");
+                metrics::counter!("penmesh_commit_failures_total").increment(1);
+                let req = batch.pop().expect("one request");
+                let _ = req.done.send(Err(WriteError::Database(err.to_string())));
+            }
+            Err(err) => {
+                tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
+                for req in batch.drain(..) {
+                    let result = self.commit(req.ops.iter()).await;
+                    if let Err(err) = &result {
+                        tracing::error!(error = %err, "write failed");
+                        metrics::counter!("penmesh_commit_failures_total").increment(1);
+                    }
+                    let _ = req.done.send(result.map_err(|e| WriteError::Database(e.to_string())));
+                }
+            }
+        }
+    }
+
+    async fn commit<'a>(&mut self, ops: impl Iterator<Item = &'a WriteOp>) -> anyhow::Result<()> {
+        let mut tx = self.conn.begin_with(self.begin).await?;
+        let now = now_ms();
+        for op in ops {
+            apply(&mut tx, op, now).await?;
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+}
+
+async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<()> {
+    match op {
+        WriteOp::BeginStroke { stroke, session, participant, brush, params, device } => {
+            sqlx::query(
+                "INSERT INTO strokes (id, session_id, participant, brush, params, device, status, \
+                 n_points, n_retained, created_at, updated_at) \
+                 VALUES ($1, $2, $3, $4, $5, $6, 'open', 0, 0, $7, $7) ON CONFLICT (id) DO NOTHING",
+            )
+            .bind(stroke.to_string())
+            .bind(session.to_string())
+            .bind(participant.to_string())
+            .bind(serde_json::to_string(brush)?)
+            .bind(serde_json::to_string(params)?)
+            .bind(device.clone())
+            .bind(now)
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::Append { stroke, seq, samples } => {
+            sqlx::query(
+                "INSERT INTO stroke_chunks (stroke_id, seq, n, data) VALUES ($1, $2, $3, $4) \
+                 ON CONFLICT (stroke_id, seq) DO NOTHING",
+            )
+            .bind(stroke.to_string())
+            .bind(*seq as i64)
+            .bind(samples.len() as i64)
+            .bind(encode_samples(samples))
+            .execute(&mut *conn)
+            .await?;
+            sqlx::query(
+                "UPDATE strokes SET n_points = $1, updated_at = $2 WHERE id = $3 AND n_points < $1",
+            )
+            .bind((*seq + samples.len() as u64) as i64)
+            .bind(now)
+            .bind(stroke.to_string())
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::Finish { stroke, n_points, kept } => {
+            let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
+            let samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
+            sqlx::query(
+                "INSERT INTO simplified (stroke_id, indices, data) VALUES ($1, $2, $3) \
+                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, data = excluded.data",
+            )
+            .bind(stroke.to_string())
+            .bind(encode_indices(&indices))
+            .bind(encode_samples(&samples))
+            .execute(&mut *conn)
+            .await?;
+            sqlx::query(
+                "UPDATE strokes SET status = 'done', n_points = $1, n_retained = $2, updated_at = $3 \
+                 WHERE id = $4",
+            )
+            .bind(*n_points as i64)
+            .bind(kept.len() as i64)
+            .bind(now)
+            .bind(stroke.to_string())
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::SetStatus { stroke, status } => {
+            sqlx::query(
+                "UPDATE strokes SET status = $1, updated_at = $2 WHERE id = $3 AND status <> 'done'",
+            )
+            .bind(*status)
+            .bind(now)
+            .bind(stroke.to_string())
+            .execute(&mut *conn)
+            .await?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,754 @@
+//! The WebSocket connection: decoding, the per-connection protocol state, acks after commit,
+//! and the wind-down when a connection ends.
+//!
+//! [`serve`] is written against a generic `Sink`/`Stream` of [`Frame`]s, so a unit test drives
+//! it with channels; [`ws_handler`] adapts axum's WebSocket to it.
+//!
+//! Protocol decisions (see also `docs/storage.md`):
+//! - Every bad input is answered with `Error {code, message, stroke}` and the connection goes
+//!   on. The connection is closed only for: a first message that is not `Hello` or a protocol
+//!   version this proxy does not speak (close 1002), a message past the hard size limit (1009),
+//!   a full session (1008), the idle timeout (1000), shutdown (1001), and a reader too slow for
+//!   its outgoing queue (dropped without a close frame, since the queue is full).
+//! - Answers go out in the form (binary or JSON) of the client's latest frame.
+//! - `StrokeBegin` is acknowledged with `Ack {upto_seq}` once the stroke row is committed.
+//! - Resume: a stroke named in `Hello.resume` (or begun again with `StrokeBegin`) that is
+//!   `open` or `interrupted` is rebuilt by replaying its committed samples through a fresh
+//!   simplifier. Every sample retained so far is then sent again as one `Retained {first: 0}`
+//!   (split in batches), so a client that lost some in the drop has them all; `first` lets a
+//!   client that kept them drop the repeat.
+
+use std::collections::{HashMap, HashSet};
+use std::time::Duration;
+
+use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Path, Query, State};
+use axum::http::HeaderMap;
+use axum::response::{IntoResponse, Response};
+use futures_util::future::BoxFuture;
+use futures_util::stream::FuturesOrdered;
+use futures_util::{FutureExt, Sink, SinkExt, Stream, StreamExt};
+use penmesh::protocol::{
+    Ack, ClientMessage, CodecError, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION, PointBatch,
+    Points, ResumeState, Retained, ServerMessage, StrokeBegin, StrokeDone, StrokeEnd, StrokeId,
+    StrokeStatus, Welcome, decode_client, decode_client_json, encode_server, encode_server_json,
+};
+use penmesh::{Kept, Sample};
+use serde::Deserialize;
+use tokio::sync::mpsc;
+use tokio::time::Instant;
+use uuid::Uuid;
+
+use crate::http::{AppError, authorize_session};
+use crate::ingest::{Accepted, Refusal, StrokeLimits, StrokeState};
+use crate::state::{AppState, SessionGuard};
+use crate::store::{WriteError, WriteOp};
+
+/// A WebSocket frame, independent of the WebSocket library.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Frame {
+    Text(String),
+    Binary(Vec<u8>),
+    Ping(Vec<u8>),
+    Pong(Vec<u8>),
+    Close(Option<(u16, String)>),
+}
+
+/// Close codes this proxy sends.
+pub mod close_code {
+    pub const NORMAL: u16 = 1000;
+    pub const GOING_AWAY: u16 = 1001;
+    pub const PROTOCOL: u16 = 1002;
+    pub const POLICY: u16 = 1008;
+    pub const TOO_BIG: u16 = 1009;
+}
+
+#[derive(Debug, Deserialize)]
+pub struct TokenQuery {
+    token: Option<String>,
+}
+
+/// `GET /v1/sessions/{session}/ws`: authenticates, then upgrades.
+pub async fn ws_handler(
+    State(state): State<AppState>,
+    Path(session): Path<String>,
+    Query(query): Query<TokenQuery>,
+    headers: HeaderMap,
+    upgrade: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
+) -> Result<Response, AppError> {
+    if state.shutdown.is_cancelled() {
+        return Err(AppError::ShuttingDown);
+    }
+    let session = authorize_session(&state, &headers, query.token.as_deref(), &session).await?;
+    let upgrade = match upgrade {
+        Ok(upgrade) => upgrade,
+        Err(rejection) => return Ok(rejection.into_response()),
+    };
+    let hard = state.config.hard_message_limit();
+    let guard = state.join_session(session);
+    let tracked = state.tracker.token();
+    Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
+        let _tracked = tracked;
+        let (sink, stream) = split(socket);
+        match guard {
+            Some(guard) => serve(state, session, guard, sink, stream).await,
+            None => refuse_full_session(state, sink).await,
+        }
+    }))
+}
+
+type FrameSink = std::pin::Pin<Box<dyn Sink<Frame, Error = axum::Error> + Send>>;
+type FrameStream = std::pin::Pin<Box<dyn Stream<Item = Result<Frame, axum::Error>> + Send>>;
+
+fn split(socket: WebSocket) -> (FrameSink, FrameStream) {
+    let (sink, stream) = socket.split();
+    let sink = sink.with(|frame: Frame| {
+        futures_util::future::ready(Ok::<_, axum::Error>(match frame {
+            Frame::Text(text) => Message::Text(text.into()),
+            Frame::Binary(bytes) => Message::Binary(bytes.into()),
+            Frame::Ping(bytes) => Message::Ping(bytes.into()),
+            Frame::Pong(bytes) => Message::Pong(bytes.into()),
+            Frame::Close(close) => Message::Close(
+                close.map(|(code, reason)| CloseFrame { code, reason: reason.into() }),
+            ),
+        }))
+    });
+    let stream = stream.map(|msg| {
+        msg.map(|msg| match msg {
+            Message::Text(text) => Frame::Text(text.to_string()),
+            Message::Binary(bytes) => Frame::Binary(bytes.to_vec()),
+            Message::Ping(bytes) => Frame::Ping(bytes.to_vec()),
+            Message::Pong(bytes) => Frame::Pong(bytes.to_vec()),
+            Message::Close(close) => Frame::Close(close.map(|c| (c.code, c.reason.to_string()))),
+        })
+    });
+    (Box::pin(sink), Box::pin(stream))
+}
+
+async fn refuse_full_session(state: AppState, mut sink: FrameSink) {
+    metrics::counter!("penmesh_errors_total", "code" => ErrorCode::TooManyConnections.as_str())
+        .increment(1);
+    let msg = ServerMessage::Error(ErrorMessage {
+        code: ErrorCode::TooManyConnections,
+        message: format!(
+            "this session already has {} connections, the limit",
+            state.config.max_connections_per_session
+        ),
+        stroke: None,
+    });
+    // The client has said nothing yet: JSON is readable by everyone.
+    let _ = sink.send(Frame::Text(encode_server_json(&msg))).await;
+    let _ = sink
+        .send(Frame::Close(Some((close_code::POLICY, "too many connections".into()))))
+        .await;
+}
+
+/// Which encoding the client used last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Form {
+    Binary,
+    Json,
+}
+
+/// Why a connection ended.
+#[derive(Debug, Clone, PartialEq)]
+enum End {
+    /// The client closed or vanished.
+    Gone,
+    /// Close with this code and reason.
+    Close(u16, String),
+    /// The outgoing queue is full: drop the connection.
+    SlowReader,
+}
+
+/// What to send once a write request commits.
+#[derive(Debug)]
+enum AfterCommit {
+    Ack { stroke: StrokeId, upto_seq: u64 },
+    Done { stroke: StrokeId, n_retained: u64 },
+}
+
+type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommit)>;
+
+/// Runs one connection to its end.
+pub async fn serve<Si, St, E>(
+    state: AppState,
+    session: Uuid,
+    guard: SessionGuard,
+    sink: Si,
+    mut stream: St,
+) where
+    Si: Sink<Frame> + Send + 'static,
+    St: Stream<Item = Result<Frame, E>> + Unpin + Send,
+    E: std::fmt::Display,
+{
+    let (out, out_rx) = mpsc::channel(state.config.outgoing_queue.max(1));
+    let sender = tokio::spawn(forward(out_rx, sink));
+    let mut conn = Connection {
+        id: state.next_connection_id(),
+        participant: Uuid::new_v4(),
+        session,
+        _guard: guard,
+        form: Form::Binary,
+        hello: false,
+        strokes: HashMap::new(),
+        finishing: HashSet::new(),
+        out,
+        pending: FuturesOrdered::new(),
+        end: None,
+        state: state.clone(),
+    };
+    metrics::gauge!("penmesh_ws_connections").increment(1.0);
+    metrics::counter!("penmesh_ws_connections_total").increment(1);
+    tracing::debug!(connection = conn.id, %session, "connected");
+    let idle = Duration::from_secs(state.config.idle_timeout_secs);
+    let mut last_heard = Instant::now();
+    let shutdown = state.shutdown.clone();
+    while conn.end.is_none() {
+        let can_read = conn.pending.len() < state.config.max_inflight.max(1);
+        tokio::select! {
+            biased;
+            _ = shutdown.cancelled() => {
+                conn.send_error(ErrorCode::ShuttingDown, "the proxy is shutting down; resume later", None);
+                conn.end_with(End::Close(close_code::GOING_AWAY, "shutting down".into()));
+            }
+            Some((result, after)) = conn.pending.next(), if !conn.pending.is_empty() => {
+                conn.after_commit(result, after);
+            }
+            frame = stream.next(), if can_read => {
+                last_heard = Instant::now();
+                match frame {
+                    None | Some(Ok(Frame::Close(_))) => conn.end_with(End::Gone),
+                    Some(Err(err)) => conn.on_read_error(&err.to_string()),
+                    Some(Ok(frame)) => conn.on_frame(frame).await,
+                }
+            }
+            _ = tokio::time::sleep_until(last_heard + idle) => {
+                conn.send_error(
+                    ErrorCode::IdleTimeout,
+                    format!("nothing received for {} s", idle.as_secs()),
+                    None,
+                );
+                conn.end_with(End::Close(close_code::NORMAL, "idle timeout".into()));
+            }
+        }
+    }
+    conn.wind_down().await;
+    let end = conn.end.take().unwrap_or(End::Gone);
+    let out = conn.out.clone();
+    drop(conn);
+    match end {
+        End::SlowReader => {
+            metrics::counter!("penmesh_ws_slow_reader_disconnects_total").increment(1);
+            sender.abort();
+        }
+        End::Gone => sender.abort(),
+        End::Close(code, reason) => {
+            let grace = Duration::from_secs(2);
+            let _ = tokio::time::timeout(grace, out.send(Frame::Close(Some((code, reason))))).await;
+            drop(out);
+            let mut sender = sender;
+            if tokio::time::timeout(grace, &mut sender).await.is_err() {
+                sender.abort();
+            }
+        }
+    }
+    metrics::gauge!("penmesh_ws_connections").decrement(1.0);
+}
+
+/// Writes queued frames to the socket until the queue closes or a close frame went out.
+async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
+    let mut sink = std::pin::pin!(sink);
+    while let Some(frame) = rx.recv().await {
+        let closing = matches!(frame, Frame::Close(_));
+        if sink.send(frame).await.is_err() || closing {
+            break;
+        }
+    }
+    let _ = sink.close().await;
+}
+
+struct Connection {
+    state: AppState,
+    id: u64,
+    participant: Uuid,
+    session: Uuid,
+    _guard: SessionGuard,
+    form: Form,
+    hello: bool,
+    /// Strokes being drawn on this connection (claimed in [`crate::state::Claims`]).
+    strokes: HashMap<StrokeId, StrokeState>,
+    /// Strokes whose `StrokeEnd` awaits its commit (still claimed).
+    finishing: HashSet<StrokeId>,
+    out: mpsc::Sender<Frame>,
+    pending: FuturesOrdered<Pending>,
+    end: Option<End>,
+}
+
+impl Connection {
+    fn end_with(&mut self, end: End) {
+        if self.end.is_none() {
+            self.end = Some(end);
+        }
+    }
+
+    fn limits(&self) -> StrokeLimits {
+        StrokeLimits {
+            max_batch_samples: self.state.config.max_batch_samples,
+            max_stroke_samples: self.state.config.max_stroke_samples,
+        }
+    }
+
+    fn claim_wait(&self) -> Duration {
+        Duration::from_millis(self.state.config.claim_wait_ms)
+    }
+
+    fn send(&mut self, msg: ServerMessage) {
+        let frame = match self.form {
+            Form::Binary => Frame::Binary(encode_server(&msg)),
+            Form::Json => Frame::Text(encode_server_json(&msg)),
+        };
+        match self.out.try_send(frame) {
+            Ok(()) => {
+                let kind = if self.form == Form::Binary { "binary" } else { "text" };
+                metrics::counter!("penmesh_ws_frames_total", "direction" => "out", "kind" => kind)
+                    .increment(1);
+            }
+            Err(mpsc::error::TrySendError::Full(_)) => {
+                tracing::info!(connection = self.id, "outgoing queue full: disconnecting a slow reader");
+                self.end = Some(End::SlowReader);
+            }
+            Err(mpsc::error::TrySendError::Closed(_)) => self.end_with(End::Gone),
+        }
+    }
+
+    fn send_error(&mut self, code: ErrorCode, message: impl Into<String>, stroke: Option<StrokeId>) {
+        metrics::counter!("penmesh_errors_total", "code" => code.as_str()).increment(1);
+        let message = message.into();
+        tracing::debug!(connection = self.id, code = code.as_str(), %message, "refused");
+        self.send(ServerMessage::Error(ErrorMessage { code, message, stroke }));
+    }
+
+    fn refuse(&mut self, refusal: Refusal, stroke: Option<StrokeId>) {
+        self.send_error(refusal.code, refusal.message, stroke);
+    }
+
+    fn on_read_error(&mut self, err: &str) {
+        if err.contains("too long") || err.contains("Space limit") {
+            self.send_error(ErrorCode::FrameTooLarge, format!("message refused: {err}"), None);
+            self.end_with(End::Close(close_code::TOO_BIG, "message too large".into()));
+        } else {
+            tracing::debug!(connection = self.id, error = err, "read failed");
+            self.end_with(End::Gone);
+        }
+    }
+
+    async fn on_frame(&mut self, frame: Frame) {
+        let limit = self.state.config.max_message_bytes;
+        let decoded = match &frame {
+            Frame::Binary(bytes) => {
+                self.form = Form::Binary;
+                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "binary")
+                    .increment(1);
+                decode_client(bytes, limit).map_err(binary_refusal)
+            }
+            Frame::Text(text) => {
+                self.form = Form::Json;
+                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
+                    .increment(1);
+                decode_client_json(text, limit).map_err(|e| json_refusal(e, text))
+            }
+            // The WebSocket library answers pings itself.
+            Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
+        };
+        match decoded {
+            Ok(msg) => self.on_message(msg).await,
+            Err(refusal) => self.refuse(refusal, None),
+        }
+    }
+
+    async fn on_message(&mut self, msg: ClientMessage) {
+        if !self.hello {
+            match msg {
+                ClientMessage::Hello(hello) => self.on_hello(hello).await,
+                _ => {
+                    self.send_error(ErrorCode::Protocol, "the first message must be hello", None);
+                    self.end_with(End::Close(close_code::PROTOCOL, "hello expected".into()));
+                }
+            }
+            return;
+        }
+        match msg {
+            ClientMessage::Hello(_) => {
+                self.send_error(ErrorCode::Protocol, "hello was already received on this connection", None)
+            }
+            ClientMessage::StrokeBegin(begin) => self.on_stroke_begin(begin).await,
+            ClientMessage::Points(points) => self.on_points(points).await,
+            ClientMessage::StrokeEnd(end) => self.on_stroke_end(end).await,
+            ClientMessage::Ping(ping) => self.send(ServerMessage::Pong(ping)),
+        }
+    }
+
+    async fn on_hello(&mut self, hello: Hello) {
+        if hello.protocol != PROTOCOL_VERSION {
+            self.send_error(
+                ErrorCode::Protocol,
+                format!(
+                    "protocol version {} is not supported; this proxy speaks {PROTOCOL_VERSION}",
+                    hello.protocol
+                ),
+                None,
+            );
+            self.end_with(End::Close(close_code::PROTOCOL, "unsupported protocol".into()));
+            return;
+        }
+        self.hello = true;
+        tracing::debug!(connection = self.id, client = %hello.client, "hello");
+        let mut resume = Vec::with_capacity(hello.resume.len());
+        let mut resent = Vec::new();
+        let mut seen = HashSet::new();
+        for stroke in hello.resume.into_iter().filter(|s| seen.insert(*s)) {
+            let row = match self.state.store.stroke(stroke).await {
+                Ok(row) => row.filter(|row| row.session_id == self.session),
+                Err(err) => {
+                    tracing::error!(error = %err, "reading a stroke to resume");
+                    self.send_error(ErrorCode::Internal, "could not read the stroke", Some(stroke));
+                    None
+                }
+            };
+            let Some(row) = row else {
+                resume.push(ResumeState { stroke, next_seq: 0, status: StrokeStatus::Unknown });
+                continue;
+            };
+            let mut status = row.status;
+            let mut next_seq = row.n_points;
+            if status != StrokeStatus::Done && self.strokes.len() < self.state.config.max_open_strokes {
+                match self.take_over(stroke, row.params).await {
+                    Ok(state) => {
+                        next_seq = state.next_seq();
+                        status = StrokeStatus::Open;
+                        resent.push((stroke, state.kept().to_vec()));
+                        self.strokes.insert(stroke, state);
+                    }
+                    Err(refusal) => self.refuse(refusal, Some(stroke)),
+                }
+            }
+            resume.push(ResumeState { stroke, next_seq, status });
+        }
+        self.send(ServerMessage::Welcome(Welcome {
+            protocol: PROTOCOL_VERSION,
+            session: self.session,
+            participant: self.participant,
+            resume,
+        }));
+        for (stroke, kept) in resent {
+            self.send_retained(stroke, 0, &kept);
+        }
+    }
+
+    /// Claims a stroke that is not on this connection, and rebuilds its state from the
+    /// database. Marks it `open` again.
+    async fn take_over(
+        &mut self,
+        stroke: StrokeId,
+        params: penmesh::AcutsParams,
+    ) -> Result<StrokeState, Refusal> {
+        if !self.state.claims.claim(stroke, self.id, self.claim_wait()).await {
+            return Err(Refusal::new(
+                ErrorCode::StrokeConflict,
+                format!("stroke {stroke} is being drawn on another connection"),
+            ));
+        }
+        let internal = |err: &dyn std::fmt::Display| {
+            tracing::error!(error = %err, %stroke, "resuming a stroke");
+            Refusal::new(ErrorCode::Internal, "could not load the stroke to resume it")
+        };
+        let result = async {
+            let samples = self.state.store.raw_samples(stroke).await.map_err(|e| internal(&e))?;
+            self.state
+                .writer
+                .write(vec![WriteOp::SetStatus { stroke, status: "open" }])
+                .await
+                .map_err(|e| internal(&e))?;
+            Ok(StrokeState::replay(stroke, params, &samples))
+        }
+        .await;
+        if result.is_err() {
+            self.state.claims.release(stroke, self.id);
+        }
+        result
+    }
+
+    fn send_retained(&mut self, stroke: StrokeId, first: u64, kept: &[Kept]) {
+        if kept.is_empty() {
+            return;
+        }
+        metrics::counter!("penmesh_samples_retained_total").increment(kept.len() as u64);
+        let batch = self.state.config.max_batch_samples.max(1);
+        for (i, chunk) in kept.chunks(batch).enumerate() {
+            let points: Vec<Sample> = chunk.iter().map(|k| k.sample).collect();
+            self.send(ServerMessage::Retained(Retained {
+                stroke,
+                first: first + (i * batch) as u64,
+                points: PointBatch(points),
+            }));
+        }
+    }
+
+    fn queue_write(&mut self, pending: impl Future<Output = Result<(), WriteError>> + Send + 'static, after: AfterCommit) {
+        self.pending.push_back(pending.map(move |result| (result, after)).boxed());
+    }
+
+    async fn on_stroke_begin(&mut self, begin: StrokeBegin) {
+        let stroke = begin.stroke;
+        if let Err(err) = begin.brush.validate() {
+            return self.send_error(ErrorCode::BadBrush, err.to_string(), Some(stroke));
+        }
+        let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
+        if let Err(err) = params.validate() {
+            return self.send_error(ErrorCode::BadBrush, format!("params: {err}"), Some(stroke));
+        }
+        if let Some(state) = self.strokes.get(&stroke) {
+            // A repeat on the same connection: already begun.
+            let upto_seq = state.committed_seq;
+            return self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+        }
+        if self.finishing.contains(&stroke) {
+            return self.send_error(ErrorCode::StrokeFinished, format!("stroke {stroke} has ended"), Some(stroke));
+        }
+        if self.strokes.len() >= self.state.config.max_open_strokes {
+            return self.send_error(
+                ErrorCode::TooManyOpenStrokes,
+                format!(
+                    "this connection already has {} open strokes, the limit; end one first",
+                    self.strokes.len()
+                ),
+                Some(stroke),
+            );
+        }
+        if !self.state.claims.claim(stroke, self.id, self.claim_wait()).await {
+            return self.send_error(
+                ErrorCode::StrokeConflict,
+                format!("stroke {stroke} is being drawn on another connection"),
+                Some(stroke),
+            );
+        }
+        let existing = match self.state.store.stroke(stroke).await {
+            Ok(existing) => existing,
+            Err(err) => {
+                tracing::error!(error = %err, "reading a stroke");
+                self.state.claims.release(stroke, self.id);
+                return self.send_error(ErrorCode::Internal, "could not read the stroke", Some(stroke));
+            }
+        };
+        match existing {
+            Some(row) if row.session_id != self.session => {
+                self.state.claims.release(stroke, self.id);
+                self.send_error(
+                    ErrorCode::StrokeConflict,
+                    format!("stroke id {stroke} is already in use; choose a new id"),
+                    Some(stroke),
+                );
+            }
+            Some(row) if row.status == StrokeStatus::Done => {
+                self.state.claims.release(stroke, self.id);
+                self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
+            }
+            Some(row) => match self.take_over(stroke, row.params).await {
+                // Begun before on another connection: resume it.
+                Ok(state) => {
+                    let kept = state.kept().to_vec();
+                    let upto_seq = state.committed_seq;
+                    self.strokes.insert(stroke, state);
+                    self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+                    self.send_retained(stroke, 0, &kept);
+                }
+                Err(refusal) => self.refuse(refusal, Some(stroke)),
+            },
+            None => {
+                let pending = self
+                    .state
+                    .writer
+                    .submit(vec![WriteOp::BeginStroke {
+                        stroke,
+                        session: self.session,
+                        participant: self.participant,
+                        brush: begin.brush,
+                        params,
+                        device: begin.device,
+                    }])
+                    .await;
+                metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
+                self.strokes.insert(stroke, StrokeState::new(stroke, params));
+                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq: 0 });
+            }
+        }
+    }
+
+    /// Why a stroke that is not open on this connection cannot take points or an end.
+    async fn not_open(&mut self, stroke: StrokeId) -> (ErrorCode, String, Option<crate::store::StrokeRow>) {
+        if self.finishing.contains(&stroke) {
+            return (ErrorCode::StrokeFinished, format!("stroke {stroke} has ended"), None);
+        }
+        match self.state.store.stroke(stroke).await {
+            Ok(Some(row)) if row.session_id == self.session && row.status == StrokeStatus::Done => {
+                (ErrorCode::StrokeFinished, format!("stroke {stroke} has ended"), Some(row))
+            }
+            Ok(Some(row)) if row.session_id == self.session => (
+                ErrorCode::UnknownStroke,
+                format!("stroke {stroke} is not open on this connection; resume it with hello.resume or stroke_begin"),
+                Some(row),
+            ),
+            _ => (
+                ErrorCode::UnknownStroke,
+                format!("unknown stroke {stroke}: send stroke_begin first"),
+                None,
+            ),
+        }
+    }
+
+    async fn on_points(&mut self, points: Points) {
+        let stroke = points.stroke;
+        let limits = self.limits();
+        let Some(state) = self.strokes.get_mut(&stroke) else {
+            let (code, message, _) = self.not_open(stroke).await;
+            return self.send_error(code, message, Some(stroke));
+        };
+        metrics::counter!("penmesh_samples_in_total").increment(points.points.0.len() as u64);
+        match state.push_points(points.seq, &points.points.0, &limits) {
+            Err(refusal) => self.refuse(refusal, Some(stroke)),
+            Ok(Accepted::Duplicate) => {
+                let end = points.seq + points.points.0.len() as u64;
+                if end <= state.committed_seq {
+                    let upto_seq = state.committed_seq;
+                    self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+                }
+                // Otherwise the ack of the first copy is on its way.
+            }
+            Ok(Accepted::New { seq, samples, kept, first_kept }) => {
+                let upto_seq = seq + samples.len() as u64;
+                self.send_retained(stroke, first_kept, &kept);
+                let pending =
+                    self.state.writer.submit(vec![WriteOp::Append { stroke, seq, samples }]).await;
+                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq });
+            }
+        }
+    }
+
+    async fn on_stroke_end(&mut self, end: StrokeEnd) {
+        let stroke = end.stroke;
+        let Some(state) = self.strokes.get_mut(&stroke) else {
+            let (code, message, row) = self.not_open(stroke).await;
+            if let Some(row) = row.filter(|r| r.status == StrokeStatus::Done && r.n_points == end.n_points) {
+                // A resent end after a reconnect: say done again.
+                return self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
+            }
+            return self.send_error(code, message, Some(stroke));
+        };
+        let (last, kept) = match state.finish(end.n_points) {
+            Ok(finished) => finished,
+            Err(refusal) => return self.refuse(refusal, Some(stroke)),
+        };
+        self.strokes.remove(&stroke);
+        self.finishing.insert(stroke);
+        if let Some((index, k)) = last {
+            self.send_retained(stroke, index, &[k]);
+        }
+        let n_retained = kept.len() as u64;
+        let pending = self
+            .state
+            .writer
+            .submit(vec![WriteOp::Finish { stroke, n_points: end.n_points, kept }])
+            .await;
+        self.queue_write(pending, AfterCommit::Done { stroke, n_retained });
+    }
+
+    fn after_commit(&mut self, result: Result<(), WriteError>, after: AfterCommit) {
+        match (result, after) {
+            (Ok(()), AfterCommit::Ack { stroke, upto_seq }) => {
+                if let Some(state) = self.strokes.get_mut(&stroke) {
+                    state.committed_seq = state.committed_seq.max(upto_seq);
+                }
+                self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+            }
+            (Ok(()), AfterCommit::Done { stroke, n_retained }) => {
+                self.finishing.remove(&stroke);
+                self.state.claims.release(stroke, self.id);
+                metrics::counter!("penmesh_strokes_total", "event" => "done").increment(1);
+                self.send(ServerMessage::StrokeDone(done_message(stroke, n_retained)));
+            }
+            (Err(err), after) => {
+                let stroke = match after {
+                    AfterCommit::Ack { stroke, .. } | AfterCommit::Done { stroke, .. } => stroke,
+                };
+                // The in-memory state is ahead of the database: drop it, so the client
+                // resumes from what is committed.
+                self.strokes.remove(&stroke);
+                self.finishing.remove(&stroke);
+                self.state.claims.release(stroke, self.id);
+                self.send_error(
+                    ErrorCode::Internal,
+                    format!("storing the stroke failed ({err}); resume it from the last ack"),
+                    Some(stroke),
+                );
+            }
+        }
+    }
+
+    /// Waits for every pending commit (sending its ack if the client still listens), then
+    /// marks the strokes still open `interrupted` and lets go of them.
+    async fn wind_down(&mut self) {
+        while let Some((result, after)) = self.pending.next().await {
+            if matches!(self.end, Some(End::Close(..))) {
+                self.after_commit(result, after);
+            } else if let (Ok(()), AfterCommit::Done { stroke, .. }) = (&result, &after) {
+                self.finishing.remove(stroke);
+                self.state.claims.release(*stroke, self.id);
+                metrics::counter!("penmesh_strokes_total", "event" => "done").increment(1);
+            }
+        }
+        let open: Vec<StrokeId> = self.strokes.keys().copied().collect();
+        if !open.is_empty() {
+            let ops = open
+                .iter()
+                .map(|&stroke| WriteOp::SetStatus { stroke, status: "interrupted" })
+                .collect();
+            if let Err(err) = self.state.writer.write(ops).await {
+                tracing::error!(error = %err, "marking strokes interrupted");
+            }
+            metrics::counter!("penmesh_strokes_total", "event" => "interrupted").increment(open.len() as u64);
+        }
+        for stroke in open.into_iter().chain(self.finishing.drain()) {
+            self.state.claims.release(stroke, self.id);
+        }
+        self.strokes.clear();
+        tracing::debug!(connection = self.id, end = ?self.end, "disconnected");
+    }
+}
+
+fn done_message(stroke: StrokeId, n_retained: u64) -> StrokeDone {
+    StrokeDone { stroke, n_retained, url: format!("/v1/strokes/{stroke}/simplified") }
+}
+
+fn binary_refusal(err: CodecError) -> Refusal {
+    match err {
+        CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
+        CodecError::Malformed(ref m) if m.contains("variant") => {
+            Refusal::new(ErrorCode::UnknownMessage, format!("unknown message: {m}"))
+        }
+        _ => Refusal::new(ErrorCode::Malformed, err.to_string()),
+    }
+}
+
+fn json_refusal(err: CodecError, text: &str) -> Refusal {
+    match err {
+        CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
+        CodecError::BadJson(ref m) if m.contains("unknown variant") => {
+            Refusal::new(ErrorCode::UnknownMessage, format!("unknown message: {m}"))
+        }
+        _ if serde_json::from_str::<serde_json::Value>(text).is_ok_and(|v| !v.is_object()) => {
+            Refusal::new(ErrorCode::UnknownMessage, format!("not a message object: {err}"))
+        }
+        _ => Refusal::new(ErrorCode::BadJson, err.to_string()),
+    }
+}
