@@ -1,0 +1,5 @@
+//! One module per CLI subcommand.
+
+pub mod mesh;
+pub mod simplify;
+pub mod synth;

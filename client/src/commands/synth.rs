@@ -1,0 +1,32 @@
+//! `penmesh synth`: write a generated stroke to a file.
+
+use penmesh::GeneratorParams;
+
+use crate::cli::SynthArgs;
+use crate::io;
+
+pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
+    let params = GeneratorParams {
+        shape: args.shape,
+        speed: args.speed,
+        size: args.size,
+        rate_hz: args.rate,
+        seed: args.seed,
+    };
+    let stroke = penmesh::generate_stroke(&params).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let is_json = args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let strokes = [stroke];
+    let text = if is_json { penmesh::write_json(&strokes) } else { penmesh::write_csv(&strokes) };
+    io::write_file(&args.out, text)?;
+    let stroke = &strokes[0];
+    let duration = stroke.samples().last().map_or(0.0, |s| s.t);
+    println!(
+        "{}: {} {} samples, {:.0} px long, {:.0} ms",
+        args.out.display(),
+        args.shape,
+        stroke.len(),
+        stroke.length(),
+        duration
+    );
+    Ok(())
+}
