@@ -5,6 +5,7 @@
 //! or a state machine, so the proxy, the client and the tests share one implementation.
 
 mod acuts;
+pub mod baselines;
 mod formats;
 mod generator;
 mod glb;

@@ -1,0 +1,1 @@
+//! Baseline simplifiers (being written).
