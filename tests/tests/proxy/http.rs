@@ -1,0 +1,166 @@
+use penmesh::protocol::{ServerMessage, decode_server};
+use penmesh_e2e::{batch_simplified, draw_stroke, spawn_proxy, stroke_samples};
+use uuid::Uuid;
+
+/// A minimal GLB with one indexed triangle list.
+fn glb(vertices: u64, indices: u64) -> Vec<u8> {
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "accessors": [{"count": vertices, "type": "VEC3", "componentType": 5126},
+                      {"count": indices, "type": "SCALAR", "componentType": 5125}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
+    })
+    .to_string()
+    .into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(((20 + json.len()) as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(0x4E4F_534Au32.to_le_bytes());
+    out.extend(json);
+    out
+}
+
+async fn done_stroke(proxy: &penmesh_e2e::TestProxy) -> (penmesh_e2e::TestSession, Uuid, Vec<penmesh::Sample>) {
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    let samples = stroke_samples(120);
+    draw_stroke(&mut ws, stroke, &samples, 30).await;
+    (session, stroke, samples)
+}
+
+#[tokio::test]
+async fn strokes_are_listed_and_served_in_json_and_binary() {
+    let proxy = spawn_proxy().await;
+    let (session, stroke, samples) = done_stroke(&proxy).await;
+    let list = proxy.get_json(&format!("/v1/sessions/{}/strokes", session.session), &session).await;
+    let strokes = list["strokes"].as_array().unwrap();
+    assert_eq!(strokes.len(), 1);
+    assert_eq!(strokes[0]["id"], stroke.to_string());
+    assert_eq!(strokes[0]["n_retained"], batch_simplified(&samples).len());
+    assert_eq!(strokes[0]["has_mesh"], false);
+
+    let simplified = proxy.get_json(&format!("/v1/strokes/{stroke}/simplified"), &session).await;
+    let indices: Vec<usize> = serde_json::from_value(simplified["indices"].clone()).unwrap();
+    assert_eq!(indices, penmesh::simplify(&samples, &penmesh::AcutsParams::default()));
+
+    let response = proxy
+        .get(&format!("/v1/strokes/{stroke}/simplified"), &session)
+        .header("accept", "application/octet-stream")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "application/octet-stream");
+    assert_eq!(response.headers()["x-penmesh-status"], "done");
+    let bytes = response.bytes().await.unwrap();
+    let ServerMessage::Retained(retained) = decode_server(&bytes, usize::MAX).unwrap() else {
+        panic!("binary body is a Retained message")
+    };
+    assert_eq!(retained.points.0, batch_simplified(&samples));
+}
+
+#[tokio::test]
+async fn an_unfinished_stroke_has_raw_samples_but_no_simplified_form_yet() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    ws.points(stroke, 0, &stroke_samples(10)).await;
+    ws.wait_ack(stroke, 10).await;
+    assert_eq!(proxy.raw_samples(&session, stroke).await, stroke_samples(10));
+    let response = proxy.get(&format!("/v1/strokes/{stroke}/simplified"), &session).send().await.unwrap();
+    assert_eq!(response.status(), 409);
+    let response = proxy.get(&format!("/v1/strokes/{}/raw", Uuid::new_v4()), &session).send().await.unwrap();
+    assert_eq!(response.status(), 404);
+}
+
+#[tokio::test]
+async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
+    let proxy = spawn_proxy().await;
+    let (session, stroke, _) = done_stroke(&proxy).await;
+    let url = proxy.url(&format!("/v1/strokes/{stroke}/mesh"));
+    let body = glb(8, 36);
+    let response = proxy
+        .http
+        .put(&url)
+        .bearer_auth(&session.token)
+        .header("content-type", "model/gltf-binary")
+        .header("x-penmesh-uploader", "tester")
+        .body(body.clone())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let info: serde_json::Value = response.json().await.unwrap();
+    assert_eq!((info["vertices"].as_u64(), info["triangles"].as_u64()), (Some(8), Some(12)));
+
+    let response = proxy.get(&format!("/v1/strokes/{stroke}/mesh"), &session).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "model/gltf-binary");
+    assert_eq!(response.bytes().await.unwrap().to_vec(), body);
+    assert_eq!(proxy.stroke_info(&session, stroke).await["has_mesh"], true);
+
+    for (bad, what) in [(b"nope".to_vec(), "short"), ({ let mut b = body.clone(); b[0] = b'g'; b[1] = b'l'; b[2] = b'b'; b }, "magic"),
+        ({ let mut b = body.clone(); b[4] = 1; b }, "version"), ({ let mut b = body.clone(); b.push(0); b }, "length")] {
+        let response = proxy.http.put(&url).bearer_auth(&session.token).body(bad).send().await.unwrap();
+        assert_eq!(response.status(), 400, "{what}");
+        let err: serde_json::Value = response.json().await.unwrap();
+        assert_eq!(err["error"], "bad_request", "{what}");
+    }
+}
+
+#[tokio::test]
+async fn a_mesh_needs_a_done_stroke() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    ws.wait_ack(stroke, 0).await;
+    let response = proxy
+        .http
+        .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
+        .bearer_auth(&session.token)
+        .body(glb(3, 3))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 409);
+}
+
+#[tokio::test]
+async fn health_readiness_metrics_and_openapi_answer() {
+    let proxy = spawn_proxy().await;
+    done_stroke(&proxy).await;
+    for (path, needle) in [
+        ("/healthz", "ok"),
+        ("/readyz", "ready"),
+        ("/metrics", "penmesh_samples_in_total"),
+        ("/v1/openapi.json", "/v1/strokes/{id}/simplified"),
+    ] {
+        let response = proxy.http.get(proxy.url(path)).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{path}");
+        let text = response.text().await.unwrap();
+        assert!(text.contains(needle), "{path} lacks {needle}");
+    }
+    let metrics = proxy.metrics().await;
+    for name in [
+        "penmesh_ws_connections",
+        "penmesh_ws_frames_total",
+        "penmesh_samples_retained_total",
+        "penmesh_strokes_total",
+        "penmesh_commit_seconds_bucket",
+        "penmesh_commit_batch_requests",
+    ] {
+        assert!(metrics.contains(name), "metrics lack {name}");
+    }
+}

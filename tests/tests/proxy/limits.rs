@@ -1,0 +1,215 @@
+use std::time::Duration;
+
+use futures_util::SinkExt;
+use penmesh::Sample;
+use penmesh::protocol::{ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, encode_client};
+use penmesh_e2e::{Incoming, WsClient, spawn_proxy_with, stroke_samples};
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use uuid::Uuid;
+
+#[tokio::test]
+async fn a_message_over_the_limit_is_refused_and_one_over_the_hard_limit_closes() {
+    let proxy = spawn_proxy_with(|c| c.max_message_bytes = 1024).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    ws.send_text(&format!(r#"{{"ping":{{"nonce":1}}, "pad":"{}"}}"#, "x".repeat(2000))).await;
+    let err = ws.expect_error(ErrorCode::FrameTooLarge).await;
+    assert!(err.message.contains("1024"), "{}", err.message);
+    ws.send(&ClientMessage::Ping(penmesh::protocol::Ping { nonce: 2 })).await;
+    ws.recv_until(|m| matches!(m, ServerMessage::Pong(_))).await;
+    // Past four times the limit the WebSocket layer refuses to read it at all.
+    let _ = ws.ws.send(Message::Binary(vec![0u8; 8000].into())).await;
+    let close = ws.expect_close().await;
+    assert!(close.is_none() || close == Some(1009), "{close:?}");
+}
+
+#[tokio::test]
+async fn a_batch_over_the_limit_is_refused() {
+    let proxy = spawn_proxy_with(|c| c.max_batch_samples = 10).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    ws.points(stroke, 0, &stroke_samples(11)).await;
+    let err = ws.expect_error(ErrorCode::BatchTooLarge).await;
+    assert!(err.message.contains("11") && err.message.contains("10"), "{}", err.message);
+    ws.points(stroke, 0, &stroke_samples(10)).await;
+    ws.wait_ack(stroke, 10).await;
+}
+
+#[tokio::test]
+async fn a_stroke_over_the_limit_is_refused() {
+    let proxy = spawn_proxy_with(|c| c.max_stroke_samples = 20).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    let samples = stroke_samples(21);
+    ws.begin(stroke).await;
+    ws.points(stroke, 0, &samples[..15]).await;
+    ws.points(stroke, 15, &samples[15..]).await;
+    let err = ws.expect_error(ErrorCode::StrokeTooLong).await;
+    assert!(err.message.contains("20"), "{}", err.message);
+    ws.end(stroke, 15).await;
+    ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+}
+
+#[tokio::test]
+async fn open_strokes_per_connection_are_limited() {
+    let proxy = spawn_proxy_with(|c| c.max_open_strokes = 2).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let strokes = [Uuid::new_v4(), Uuid::new_v4(), Uuid::new_v4()];
+    for s in &strokes[..2] {
+        ws.begin(*s).await;
+        ws.wait_ack(*s, 0).await;
+    }
+    ws.begin(strokes[2]).await;
+    let err = ws.expect_error(ErrorCode::TooManyOpenStrokes).await;
+    assert_eq!(err.stroke, Some(strokes[2]));
+    ws.end(strokes[0], 0).await;
+    ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    ws.begin(strokes[2]).await;
+    ws.wait_ack(strokes[2], 0).await;
+}
+
+#[tokio::test]
+async fn connections_per_session_are_limited() {
+    let proxy = spawn_proxy_with(|c| c.max_connections_per_session = 2).await;
+    let session = proxy.create_session().await;
+    let mut first = proxy.connect(&session).await;
+    first.hello(vec![]).await;
+    let mut second = proxy.connect(&session).await;
+    second.hello(vec![]).await;
+    let mut third = proxy.connect(&session).await;
+    third.expect_error(ErrorCode::TooManyConnections).await;
+    assert_eq!(third.expect_close().await, Some(1008));
+    // Another session is not affected, and a slot frees when a connection leaves.
+    let other = proxy.create_session().await;
+    proxy.connect(&other).await.hello(vec![]).await;
+    first.ws.close(None).await.unwrap();
+    drop(first);
+    let mut again = None;
+    for _ in 0..50 {
+        let mut ws = proxy.connect(&session).await;
+        ws.send(&ClientMessage::Hello(penmesh::protocol::Hello {
+            protocol: 1,
+            client: "t".into(),
+            name: None,
+            resume: vec![],
+        }))
+        .await;
+        if let ServerMessage::Welcome(_) = ws.recv().await {
+            again = Some(ws);
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(again.is_some(), "a slot frees when a connection leaves");
+}
+
+#[tokio::test]
+async fn an_idle_connection_is_closed_and_its_stroke_interrupted() {
+    let proxy = spawn_proxy_with(|c| c.idle_timeout_secs = 1).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    ws.points(stroke, 0, &stroke_samples(5)).await;
+    ws.wait_ack(stroke, 5).await;
+    ws.expect_error(ErrorCode::IdleTimeout).await;
+    assert_eq!(ws.expect_close().await, Some(1000));
+    let mut status = serde_json::Value::Null;
+    for _ in 0..50 {
+        status = proxy.stroke_info(&session, stroke).await["status"].clone();
+        if status == "interrupted" {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(status, "interrupted");
+}
+
+#[tokio::test]
+async fn the_http_body_size_is_limited() {
+    let proxy = spawn_proxy_with(|c| c.max_body_bytes = 1000).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    penmesh_e2e::draw_stroke(&mut ws, stroke, &stroke_samples(10), 10).await;
+    let response = proxy
+        .http
+        .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
+        .bearer_auth(&session.token)
+        .body(vec![0u8; 2000])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 413);
+    let body: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(body["error"], "too_large");
+}
+
+#[tokio::test]
+async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
+    let proxy = spawn_proxy_with(|c| {
+        c.outgoing_queue = 4;
+        c.max_stroke_samples = 100_000_000;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    // A client with a tiny receive buffer that never reads.
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let stream = socket.connect(format!("127.0.0.1:{}", proxy.port).parse().unwrap()).await.unwrap();
+    let mut request = format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", proxy.port, session.session)
+        .into_client_request()
+        .unwrap();
+    request.headers_mut().insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
+    let (ws, _) = tokio_tungstenite::client_async(request, tokio_tungstenite::MaybeTlsStream::Plain(stream))
+        .await
+        .unwrap();
+    let mut ws = WsClient { ws, json: false };
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    // A zigzag: every sample is retained, so each batch comes back as a large Retained.
+    let batch = 2000usize;
+    let mut sent_all = true;
+    for b in 0..2000usize {
+        let points: Vec<Sample> = (0..batch)
+            .map(|i| {
+                let k = b * batch + i;
+                Sample::new(k as f64 * 4.0, if k % 2 == 0 { 0.0 } else { 50.0 }, k as f64, 0.5)
+            })
+            .collect();
+        let msg = ClientMessage::Points(Points { stroke, seq: (b * batch) as u64, points: PointBatch(points) });
+        let send = ws.ws.send(Message::Binary(encode_client(&msg).into()));
+        match tokio::time::timeout(Duration::from_secs(5), send).await {
+            Ok(Ok(())) => {}
+            _ => {
+                sent_all = false;
+                break;
+            }
+        }
+        if proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total") {
+            sent_all = false;
+            break;
+        }
+    }
+    assert!(!sent_all, "the proxy kept a reader that never reads");
+    // Draining what was buffered ends in the connection's end.
+    loop {
+        match ws.next().await {
+            Incoming::Closed(_) => break,
+            Incoming::Message(_) => continue,
+        }
+    }
+    assert!(proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
+}

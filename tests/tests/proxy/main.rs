@@ -1,0 +1,12 @@
+//! Integration tests of the proxy: one binary, one module per area. Each test starts the real
+//! application on port 0 with a fresh database (SQLite, or PostgreSQL when
+//! `PENMESH_TEST_POSTGRES_URL` is set).
+
+mod auth;
+mod bad_input;
+mod http;
+mod limits;
+mod resume;
+mod shutdown;
+mod ws_binary;
+mod ws_json;
