@@ -1,1 +1,77 @@
-//! Baseline simplifiers (being written).
+//! Baseline simplifiers, to measure ACUTS against: each returns the indices it keeps, so every
+//! metric is computed the same way for all of them.
+//!
+//! | name | kind | guarantee at `tolerance` |
+//! |---|---|---|
+//! | [`DouglasPeucker`] | batch | every removed sample within `tolerance` of its spanning segment |
+//! | [`Visvalingam`] | batch | by area, by count, or (error-bound mode) as Douglas–Peucker |
+//! | [`OpeningWindow`] | online | segment distance, plus an optional angle bound (ISWTC) |
+//! | [`SquishE`] | online | SED of every removed sample `<= tolerance` (error mode), or a count |
+//! | [`Bqs`] | online | segment distance (the bounded quadrant system decides most samples in O(1)) |
+//! | [`Dpts`] | online | segment distance, and every original direction within an angle |
+//! | [`Optimal`] | batch | the fewest samples with every removed one within `tolerance` |
+//!
+//! The *segment distance* of a removed sample `q` is its distance to the retained segment
+//! `a–b` with `a < q < b` ([`segment_distance`]): what `E_max` measures. Every simplifier keeps
+//! the first and the last sample; a stroke of 0, 1 or 2 samples is returned whole.
+
+mod bqs;
+mod douglas_peucker;
+mod dpts;
+mod optimal;
+mod squish_e;
+mod visvalingam;
+mod window;
+
+pub use bqs::Bqs;
+pub use douglas_peucker::DouglasPeucker;
+pub use dpts::{DEFAULT_DPTS_ANGLE_DEG, Dpts};
+pub use optimal::{Optimal, min_points};
+pub use squish_e::{SquishE, sed};
+pub use visvalingam::{Visvalingam, VwStop};
+pub use window::{DEFAULT_WINDOW_ANGLE_DEG, OpeningWindow};
+
+use crate::acuts::segment_distance;
+use crate::model::Sample;
+
+/// A simplifier that keeps a subset of a stroke's samples.
+pub trait Simplify {
+    /// The short name `penmesh eval --algos` uses.
+    fn name(&self) -> &'static str;
+    /// Whether it decides each sample from the samples seen so far, as they arrive.
+    fn is_online(&self) -> bool;
+    /// The kept indices, strictly increasing, always with the first and the last sample.
+    fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize>;
+}
+
+/// The answer for strokes too short to simplify: all of their samples.
+fn whole_if_short(samples: &[Sample]) -> Option<Vec<usize>> {
+    (samples.len() <= 2).then(|| (0..samples.len()).collect())
+}
+
+/// Whether every sample strictly between `a` and `b` lies within `tolerance` of the segment
+/// `a–b`. O(b - a).
+pub fn span_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bool {
+    let (sa, sb) = (&samples[a], &samples[b]);
+    samples[a + 1..b].iter().all(|q| segment_distance(q, sa, sb) <= tolerance)
+}
+
+/// The angle in radians between the vectors `u` and `v` (0 when either is zero).
+fn angle_between(u: glam::DVec2, v: glam::DVec2) -> f64 {
+    u.perp_dot(v).abs().atan2(u.dot(v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // The angle helper is symmetric, unsigned and 0 for a zero vector.
+    #[test]
+    fn angles() {
+        use glam::DVec2;
+        assert!((angle_between(DVec2::X, DVec2::Y) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!((angle_between(DVec2::Y, DVec2::X) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!((angle_between(DVec2::X, -DVec2::X) - std::f64::consts::PI).abs() < 1e-12);
+        assert_eq!(angle_between(DVec2::ZERO, DVec2::X), 0.0);
+    }
+}
