@@ -71,6 +71,10 @@ pub fn strokes_glb(strokes: &[GlbStroke<'_>], options: &GlbOptions) -> Vec<u8> {
         writer.root.extensions_used.push(KHR_MESH_QUANTIZATION.to_owned());
         writer.root.extensions_required.push(KHR_MESH_QUANTIZATION.to_owned());
     }
+    // Room for the largest layout (float attributes, u32 indices), so the buffer never moves.
+    let bin_capacity: usize =
+        strokes.iter().map(|s| 24 * s.mesh.positions.len() + 4 * s.mesh.indices.len() + 12).sum();
+    writer.bin.reserve(bin_capacity);
     let mut nodes = Vec::with_capacity(strokes.len());
     for stroke in strokes {
         nodes.push(writer.add_stroke(stroke, options));
@@ -104,7 +108,11 @@ impl DocumentWriter {
                 node.scale = Some(scale);
                 (positions, self.quantized_normals(mesh))
             } else {
-                (self.float_positions(mesh, lo, hi), self.float_normals(mesh))
+                let (normals_lo, normals_hi) = component_bounds(&mesh.normals);
+                (
+                    self.float_vec3(&mesh.positions, lo, hi),
+                    self.float_vec3(&mesh.normals, normals_lo, normals_hi),
+                )
             };
             let indices = self.indices(mesh);
             let primitive = json::mesh::Primitive {
@@ -131,21 +139,22 @@ impl DocumentWriter {
         self.root.push(node)
     }
 
-    /// Appends `bytes` as a buffer view (4-byte aligned) and returns its index.
+    /// Appends a buffer view (4-byte aligned) filled by `write`, and returns its index.
     fn view(
         &mut self,
-        bytes: &[u8],
         stride: Option<usize>,
         target: json::buffer::Target,
+        write: impl FnOnce(&mut Vec<u8>),
     ) -> json::Index<json::buffer::View> {
         let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
+        write(&mut self.bin);
+        let length = self.bin.len() - offset;
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
         self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
-            byte_length: USize64::from(bytes.len()),
+            byte_length: USize64::from(length),
             byte_offset: Some(USize64::from(offset)),
             byte_stride: stride.map(json::buffer::Stride),
             name: None,
@@ -182,33 +191,22 @@ impl DocumentWriter {
         })
     }
 
-    fn float_positions(
+    /// A float VEC3 attribute with the given per-axis bounds.
+    fn float_vec3(
         &mut self,
-        mesh: &StrokeMesh,
+        values: &[[f32; 3]],
         lo: [f32; 3],
         hi: [f32; 3],
     ) -> json::Index<json::Accessor> {
-        let bytes: Vec<u8> =
-            mesh.positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-        let view = self.view(&bytes, None, json::buffer::Target::ArrayBuffer);
+        let view = self.view(None, json::buffer::Target::ArrayBuffer, |bin| {
+            bin.reserve(12 * values.len());
+            for v in values.iter().flatten() {
+                bin.extend_from_slice(&v.to_le_bytes());
+            }
+        });
         self.accessor(
             view,
-            mesh.positions.len(),
-            json::accessor::ComponentType::F32,
-            json::accessor::Type::Vec3,
-            false,
-            json::Value::from(lo.to_vec()),
-            json::Value::from(hi.to_vec()),
-        )
-    }
-
-    fn float_normals(&mut self, mesh: &StrokeMesh) -> json::Index<json::Accessor> {
-        let bytes: Vec<u8> = mesh.normals.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-        let view = self.view(&bytes, None, json::buffer::Target::ArrayBuffer);
-        let (lo, hi) = component_bounds(&mesh.normals);
-        self.accessor(
-            view,
-            mesh.normals.len(),
+            values.len(),
             json::accessor::ComponentType::F32,
             json::accessor::Type::Vec3,
             false,
@@ -228,20 +226,25 @@ impl DocumentWriter {
             let step = (hi[axis] - lo[axis]) / f32::from(u16::MAX);
             if step > 0.0 && step.is_finite() { step } else { 1.0 }
         });
-        let mut bytes = Vec::with_capacity(8 * mesh.positions.len());
+        let inv_scale = scale.map(|step| 1.0 / step);
         let mut q_lo = [u16::MAX; 3];
         let mut q_hi = [0u16; 3];
-        for p in &mesh.positions {
-            for axis in 0..3 {
-                // `as` saturates, so NaN and out-of-range values cannot panic.
-                let q = ((p[axis] - lo[axis]) / scale[axis]).round() as u16;
-                q_lo[axis] = q_lo[axis].min(q);
-                q_hi[axis] = q_hi[axis].max(q);
-                bytes.extend_from_slice(&q.to_le_bytes());
+        let view = self.view(Some(8), json::buffer::Target::ArrayBuffer, |bin| {
+            bin.reserve(8 * mesh.positions.len());
+            for p in &mesh.positions {
+                let q: [u16; 3] = std::array::from_fn(|axis| {
+                    // Rounds half up (the value is not negative); `as` saturates, so NaN and
+                    // out-of-range values cannot panic.
+                    ((p[axis] - lo[axis]) * inv_scale[axis] + 0.5) as u16
+                });
+                for axis in 0..3 {
+                    q_lo[axis] = q_lo[axis].min(q[axis]);
+                    q_hi[axis] = q_hi[axis].max(q[axis]);
+                }
+                let [x, y, z] = q.map(u16::to_le_bytes);
+                bin.extend_from_slice(&[x[0], x[1], y[0], y[1], z[0], z[1], 0, 0]);
             }
-            bytes.extend_from_slice(&[0, 0]);
-        }
-        let view = self.view(&bytes, Some(8), json::buffer::Target::ArrayBuffer);
+        });
         let accessor = self.accessor(
             view,
             mesh.positions.len(),
@@ -255,19 +258,23 @@ impl DocumentWriter {
     }
 
     fn quantized_normals(&mut self, mesh: &StrokeMesh) -> json::Index<json::Accessor> {
-        let mut bytes = Vec::with_capacity(4 * mesh.normals.len());
         let mut q_lo = [i8::MAX; 3];
         let mut q_hi = [i8::MIN; 3];
-        for n in &mesh.normals {
-            for axis in 0..3 {
-                let q = (n[axis] * 127.0).round().clamp(-127.0, 127.0) as i8;
-                q_lo[axis] = q_lo[axis].min(q);
-                q_hi[axis] = q_hi[axis].max(q);
-                bytes.extend_from_slice(&q.to_le_bytes());
+        let view = self.view(Some(4), json::buffer::Target::ArrayBuffer, |bin| {
+            bin.reserve(4 * mesh.normals.len());
+            for n in &mesh.normals {
+                let q: [i8; 3] = std::array::from_fn(|axis| {
+                    // Rounds half away from zero; `as` truncates towards zero and saturates.
+                    (n[axis] * 127.0 + 0.5f32.copysign(n[axis])).clamp(-127.0, 127.0) as i8
+                });
+                for axis in 0..3 {
+                    q_lo[axis] = q_lo[axis].min(q[axis]);
+                    q_hi[axis] = q_hi[axis].max(q[axis]);
+                }
+                let [x, y, z] = q.map(|v| v.to_le_bytes()[0]);
+                bin.extend_from_slice(&[x, y, z, 0]);
             }
-            bytes.push(0);
-        }
-        let view = self.view(&bytes, Some(4), json::buffer::Target::ArrayBuffer);
+        });
         self.accessor(
             view,
             mesh.normals.len(),
@@ -281,11 +288,19 @@ impl DocumentWriter {
 
     fn indices(&mut self, mesh: &StrokeMesh) -> json::Index<json::Accessor> {
         let narrow = mesh.positions.len() <= usize::from(u16::MAX);
-        let bytes: Vec<u8> = if narrow {
-            mesh.indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect()
-        } else {
-            mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect()
-        };
+        let view = self.view(None, json::buffer::Target::ElementArrayBuffer, |bin| {
+            if narrow {
+                bin.reserve(2 * mesh.indices.len());
+                for &i in &mesh.indices {
+                    bin.extend_from_slice(&(i as u16).to_le_bytes());
+                }
+            } else {
+                bin.reserve(4 * mesh.indices.len());
+                for &i in &mesh.indices {
+                    bin.extend_from_slice(&i.to_le_bytes());
+                }
+            }
+        });
         let component = if narrow {
             json::accessor::ComponentType::U16
         } else {
@@ -293,7 +308,6 @@ impl DocumentWriter {
         };
         let lo = mesh.indices.iter().copied().min().unwrap_or(0);
         let hi = mesh.indices.iter().copied().max().unwrap_or(0);
-        let view = self.view(&bytes, None, json::buffer::Target::ElementArrayBuffer);
         self.accessor(
             view,
             mesh.indices.len(),

@@ -194,14 +194,15 @@ pub fn outline(samples: &[Sample], brush: &Brush, options: &OutlineOptions) -> O
         return Outline::default();
     }
 
+    // Unit direction of each segment; merging guarantees none has zero length.
+    let directions: Vec<DVec2> = centres.windows(2).map(|w| (w[1] - w[0]).normalize()).collect();
     let mut normals = Vec::with_capacity(n_samples);
     let mut upper = Vec::with_capacity(n_samples);
     let mut lower = Vec::with_capacity(n_samples);
     for sample_idx in 0..n_samples {
         let centre = centres[sample_idx];
-        let t_in = (sample_idx > 0).then(|| (centre - centres[sample_idx - 1]).normalize());
-        let t_out =
-            (sample_idx + 1 < n_samples).then(|| (centres[sample_idx + 1] - centre).normalize());
+        let t_in = sample_idx.checked_sub(1).map(|segment_idx| directions[segment_idx]);
+        let t_out = directions.get(sample_idx).copied();
         let (normal, miter_factor) = match (t_in, t_out) {
             (Some(t_in), Some(t_out)) => {
                 let sum = t_in + t_out;

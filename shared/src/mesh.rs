@@ -22,7 +22,7 @@
 //! including cusps and self-overlapping curves (see the tests), though a pathological outline
 //! could fold a strip quad inside out locally.
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 
 use crate::lrpdp::{Outline, OutlineOptions, outline};
 use crate::model::{Brush, Sample};
@@ -127,10 +127,13 @@ pub fn solid_mesh(outline: &Outline, options: &SolidOptions) -> StrokeMesh {
         normals: Vec::with_capacity(2 * n_loop),
         indices: Vec::with_capacity(3 * (8 * n_samples + 4 * (n_start + n_end))),
     };
+    // The tube's normal at a rim point with outward outline normal `o` is `unit(thickness * o ±
+    // z)`; `o` is a unit vector, so one scale serves every vertex.
+    let inv_length = 1.0 / thickness.hypot(1.0);
     for side in [1.0, -1.0] {
         for ((point, normal), radius) in loop_points.iter().zip(&loop_normals).zip(&loop_radii) {
             mesh.positions.push(to_f32(point.extend(side * thickness * radius)));
-            mesh.normals.push(to_f32(rim_normal(*normal, thickness, side)));
+            mesh.normals.push(to_f32((thickness * *normal).extend(side) * inv_length));
         }
     }
 
@@ -181,11 +184,6 @@ pub fn stroke_mesh(
     solid_options: &SolidOptions,
 ) -> StrokeMesh {
     solid_mesh(&outline(samples, brush, outline_options), solid_options)
-}
-
-/// The normal of the elliptic tube at a rim point with outward outline normal `outward`.
-fn rim_normal(outward: DVec2, thickness: f64, side: f64) -> DVec3 {
-    (thickness * outward).extend(side).normalize()
 }
 
 fn to_f32(v: DVec3) -> [f32; 3] {
