@@ -181,9 +181,8 @@ impl Config {
 
     /// The defaults, ignoring flags and the environment (for tests and embedding).
     pub fn defaults() -> Config {
-        let matches = Config::command()
-            .mut_args(|a| a.env(None::<&str>))
-            .get_matches_from(["penmesh-proxy"]);
+        let matches =
+            Config::command().mut_args(|a| a.env(None::<&str>)).get_matches_from(["penmesh-proxy"]);
         Config::from_arg_matches(&matches).expect("defaults parse")
     }
 
@@ -234,8 +233,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("proxy.json");
         std::fs::write(&path, r#"{"prot": 1}"#).unwrap();
-        let err = Config::load_from(["penmesh-proxy", "--config", path.to_str().unwrap()])
-            .unwrap_err();
+        let err =
+            Config::load_from(["penmesh-proxy", "--config", path.to_str().unwrap()]).unwrap_err();
         assert!(err.to_string().contains("prot"), "{err}");
     }
 

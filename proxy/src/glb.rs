@@ -74,7 +74,7 @@ pub(crate) fn tiny_glb(vertices: u64, indices: u64) -> Vec<u8> {
     })
     .to_string();
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len();

@@ -64,7 +64,9 @@ impl IntoResponse for AppError {
         let body = ErrorBody { error: code.into(), message: self.to_string() };
         let mut response = (status, Json(body)).into_response();
         if status == StatusCode::UNAUTHORIZED {
-            response.headers_mut().insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+            response
+                .headers_mut()
+                .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
         }
         response
     }
@@ -82,7 +84,11 @@ pub fn request_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Opti
 }
 
 /// The session the request's token opens.
-pub async fn token_session(state: &AppState, headers: &HeaderMap, query: Option<&str>) -> Result<Uuid, AppError> {
+pub async fn token_session(
+    state: &AppState,
+    headers: &HeaderMap,
+    query: Option<&str>,
+) -> Result<Uuid, AppError> {
     let token = request_token(headers, query).ok_or(AppError::Unauthorized)?;
     state.store.session_for_token_hash(&hash_token(token)).await?.ok_or(AppError::Unauthorized)
 }
@@ -100,7 +106,11 @@ pub async fn authorize_session(
 }
 
 /// The stroke `id` of the token's session.
-async fn authorized_stroke(state: &AppState, headers: &HeaderMap, id: &str) -> Result<StrokeRow, AppError> {
+async fn authorized_stroke(
+    state: &AppState,
+    headers: &HeaderMap,
+    id: &str,
+) -> Result<StrokeRow, AppError> {
     let session = token_session(state, headers, None).await?;
     let not_found = || AppError::NotFound(format!("no stroke {id} in this session"));
     let id = Uuid::parse_str(id).map_err(|_| not_found())?;
@@ -126,7 +136,9 @@ pub struct NewSession {
 /// Creates a session and its token.
 #[utoipa::path(post, path = "/v1/sessions", tag = "sessions",
     responses((status = 201, description = "Session created", body = NewSession)))]
-pub async fn create_session(State(state): State<AppState>) -> Result<(StatusCode, Json<NewSession>), AppError> {
+pub async fn create_session(
+    State(state): State<AppState>,
+) -> Result<(StatusCode, Json<NewSession>), AppError> {
     let mut bytes = [0u8; 32];
     rand::rng().fill_bytes(&mut bytes);
     let token = hex::encode(bytes);
@@ -219,7 +231,8 @@ fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
         first: 0,
         points: PointBatch(body.samples),
     });
-    let mut response = ([(header::CONTENT_TYPE, "application/octet-stream")], encode_server(&msg)).into_response();
+    let mut response =
+        ([(header::CONTENT_TYPE, "application/octet-stream")], encode_server(&msg)).into_response();
     let h = response.headers_mut();
     for (name, value) in [
         ("x-penmesh-status", body.stroke.status.clone()),
@@ -264,7 +277,11 @@ pub async fn simplified(
 #[utoipa::path(get, path = "/v1/strokes/{id}/raw", tag = "strokes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody), (status = 404, body = ErrorBody)))]
-pub async fn raw(State(state): State<AppState>, Path(id): Path<String>, headers: HeaderMap) -> Result<Response, AppError> {
+pub async fn raw(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
     let samples = state.store.raw_samples(row.id).await?;
     Ok(samples_response(&headers, StrokeSamples { stroke: row.into(), indices: None, samples }))
@@ -309,7 +326,8 @@ pub async fn put_mesh(
             row.status.as_str()
         )));
     }
-    let counts = crate::glb::inspect(&body).map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
+    let counts = crate::glb::inspect(&body)
+        .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
     let uploader = headers
         .get("x-penmesh-uploader")
         .and_then(|v| v.to_str().ok())
@@ -337,7 +355,11 @@ pub async fn put_mesh(
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, content_type = "model/gltf-binary", body = Vec<u8>), (status = 401, body = ErrorBody),
         (status = 404, body = ErrorBody)))]
-pub async fn get_mesh(State(state): State<AppState>, Path(id): Path<String>, headers: HeaderMap) -> Result<Response, AppError> {
+pub async fn get_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
     let mesh = state
         .store

@@ -35,6 +35,15 @@ pub enum Accepted {
     New { seq: u64, samples: Vec<Sample>, kept: Vec<Kept>, first_kept: u64 },
 }
 
+/// A stroke at pen-up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finished {
+    /// The pending candidate, kept at pen-up, with its index in the simplified stroke.
+    pub last: Option<(u64, Kept)>,
+    /// The whole simplified stroke.
+    pub kept: Vec<Kept>,
+}
+
 /// One stroke being drawn on a connection.
 #[derive(Debug, Clone)]
 pub struct StrokeState {
@@ -135,24 +144,19 @@ impl StrokeState {
         Ok(Accepted::New { seq, samples: tail.to_vec(), kept, first_kept })
     }
 
-    /// Pen-up: checks the count and finishes the simplifier. Returns the last retained sample
-    /// (if the pending candidate is kept) with its index in the simplified stroke, and the whole
-    /// simplified stroke.
-    pub fn finish(&mut self, n_points: u64) -> Result<(Option<(u64, Kept)>, Vec<Kept>), Refusal> {
+    /// Pen-up: checks the count and finishes the simplifier.
+    pub fn finish(&mut self, n_points: u64) -> Result<Finished, Refusal> {
         if n_points != self.next_seq {
             return Err(Refusal::new(
                 ErrorCode::CountMismatch,
-                format!(
-                    "stroke_end says {n_points} samples, but {} were received",
-                    self.next_seq
-                ),
+                format!("stroke_end says {n_points} samples, but {} were received", self.next_seq),
             ));
         }
         let last = self.simplifier.finish().map(|k| {
             self.kept.push(k);
             (self.kept.len() as u64 - 1, k)
         });
-        Ok((last, std::mem::take(&mut self.kept)))
+        Ok(Finished { last, kept: std::mem::take(&mut self.kept) })
     }
 }
 
@@ -179,7 +183,7 @@ mod tests {
         for (i, chunk) in samples.chunks(7).enumerate() {
             s.push_points((i * 7) as u64, chunk, &LIMITS).unwrap();
         }
-        let (_, kept) = s.finish(60).unwrap();
+        let kept = s.finish(60).unwrap().kept;
         let indices: Vec<usize> = kept.iter().map(|k| k.index).collect();
         assert_eq!(indices, penmesh::simplify(&samples, &AcutsParams::default()));
     }
@@ -212,7 +216,10 @@ mod tests {
         assert_eq!(err.code, ErrorCode::BadSample);
         assert!(err.message.contains("sample 6"), "{}", err.message);
         assert_eq!(s.next_seq(), 5);
-        assert_eq!(s.push_points(0, &line(0, 101), &LIMITS).unwrap_err().code, ErrorCode::BatchTooLarge);
+        assert_eq!(
+            s.push_points(0, &line(0, 101), &LIMITS).unwrap_err().code,
+            ErrorCode::BatchTooLarge
+        );
         assert_eq!(s.finish(4).unwrap_err().code, ErrorCode::CountMismatch);
     }
 
@@ -221,8 +228,9 @@ mod tests {
         let samples = line(0, 40);
         let mut streamed = state();
         streamed.push_points(0, &samples, &LIMITS).unwrap();
-        let mut replayed = StrokeState::replay(uuid::Uuid::nil(), AcutsParams::default(), &samples[..25]);
+        let mut replayed =
+            StrokeState::replay(uuid::Uuid::nil(), AcutsParams::default(), &samples[..25]);
         replayed.push_points(25, &samples[25..], &LIMITS).unwrap();
-        assert_eq!(streamed.finish(40).unwrap().1, replayed.finish(40).unwrap().1);
+        assert_eq!(streamed.finish(40).unwrap().kept, replayed.finish(40).unwrap().kept);
     }
 }

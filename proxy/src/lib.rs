@@ -16,8 +16,10 @@ mod ws;
 
 pub use crate::config::{Config, SqliteSync};
 pub use crate::glb::{MeshCounts, inspect as inspect_glb};
-pub use crate::http::{AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples};
-pub use crate::ingest::{Accepted, Refusal, StrokeLimits, StrokeState};
+pub use crate::http::{
+    AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
+};
+pub use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
 pub use crate::openapi::ApiDoc;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
@@ -28,5 +30,6 @@ pub use crate::ws::{Frame, close_code, serve};
 pub fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    let _ =
+        tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
 }

@@ -51,7 +51,10 @@ fn describe() {
     describe_counter!("penmesh_strokes_total", "Strokes begun, done, interrupted");
     describe_counter!("penmesh_errors_total", "Protocol errors sent, by code");
     describe_counter!("penmesh_http_errors_total", "HTTP error responses, by code");
-    describe_counter!("penmesh_ws_slow_reader_disconnects_total", "Connections dropped for a full outgoing queue");
+    describe_counter!(
+        "penmesh_ws_slow_reader_disconnects_total",
+        "Connections dropped for a full outgoing queue"
+    );
     describe_histogram!("penmesh_commit_seconds", metrics::Unit::Seconds, "Group commit latency");
     describe_histogram!("penmesh_commit_batch_requests", "Write requests per group commit");
     describe_histogram!("penmesh_commit_batch_samples", "Samples per group commit");

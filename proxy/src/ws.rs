@@ -40,7 +40,7 @@ use tokio::time::Instant;
 use uuid::Uuid;
 
 use crate::http::{AppError, authorize_session};
-use crate::ingest::{Accepted, Refusal, StrokeLimits, StrokeState};
+use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
 use crate::state::{AppState, SessionGuard};
 use crate::store::{WriteError, WriteOp};
 
@@ -138,9 +138,8 @@ async fn refuse_full_session(state: AppState, mut sink: FrameSink) {
     });
     // The client has said nothing yet: JSON is readable by everyone.
     let _ = sink.send(Frame::Text(encode_server_json(&msg))).await;
-    let _ = sink
-        .send(Frame::Close(Some((close_code::POLICY, "too many connections".into()))))
-        .await;
+    let _ =
+        sink.send(Frame::Close(Some((close_code::POLICY, "too many connections".into())))).await;
 }
 
 /// Which encoding the client used last.
@@ -315,14 +314,22 @@ impl Connection {
                     .increment(1);
             }
             Err(mpsc::error::TrySendError::Full(_)) => {
-                tracing::info!(connection = self.id, "outgoing queue full: disconnecting a slow reader");
+                tracing::info!(
+                    connection = self.id,
+                    "outgoing queue full: disconnecting a slow reader"
+                );
                 self.end = Some(End::SlowReader);
             }
             Err(mpsc::error::TrySendError::Closed(_)) => self.end_with(End::Gone),
         }
     }
 
-    fn send_error(&mut self, code: ErrorCode, message: impl Into<String>, stroke: Option<StrokeId>) {
+    fn send_error(
+        &mut self,
+        code: ErrorCode,
+        message: impl Into<String>,
+        stroke: Option<StrokeId>,
+    ) {
         metrics::counter!("penmesh_errors_total", "code" => code.as_str()).increment(1);
         let message = message.into();
         tracing::debug!(connection = self.id, code = code.as_str(), %message, "refused");
@@ -379,9 +386,11 @@ impl Connection {
             return;
         }
         match msg {
-            ClientMessage::Hello(_) => {
-                self.send_error(ErrorCode::Protocol, "hello was already received on this connection", None)
-            }
+            ClientMessage::Hello(_) => self.send_error(
+                ErrorCode::Protocol,
+                "hello was already received on this connection",
+                None,
+            ),
             ClientMessage::StrokeBegin(begin) => self.on_stroke_begin(begin).await,
             ClientMessage::Points(points) => self.on_points(points).await,
             ClientMessage::StrokeEnd(end) => self.on_stroke_end(end).await,
@@ -422,7 +431,9 @@ impl Connection {
             };
             let mut status = row.status;
             let mut next_seq = row.n_points;
-            if status != StrokeStatus::Done && self.strokes.len() < self.state.config.max_open_strokes {
+            if status != StrokeStatus::Done
+                && self.strokes.len() < self.state.config.max_open_strokes
+            {
                 match self.take_over(stroke, row.params).await {
                     Ok(state) => {
                         next_seq = state.next_seq();
@@ -495,7 +506,11 @@ impl Connection {
         }
     }
 
-    fn queue_write(&mut self, pending: impl Future<Output = Result<(), WriteError>> + Send + 'static, after: AfterCommit) {
+    fn queue_write(
+        &mut self,
+        pending: impl Future<Output = Result<(), WriteError>> + Send + 'static,
+        after: AfterCommit,
+    ) {
         self.pending.push_back(pending.map(move |result| (result, after)).boxed());
     }
 
@@ -514,7 +529,11 @@ impl Connection {
             return self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
         }
         if self.finishing.contains(&stroke) {
-            return self.send_error(ErrorCode::StrokeFinished, format!("stroke {stroke} has ended"), Some(stroke));
+            return self.send_error(
+                ErrorCode::StrokeFinished,
+                format!("stroke {stroke} has ended"),
+                Some(stroke),
+            );
         }
         if self.strokes.len() >= self.state.config.max_open_strokes {
             return self.send_error(
@@ -538,7 +557,11 @@ impl Connection {
             Err(err) => {
                 tracing::error!(error = %err, "reading a stroke");
                 self.state.claims.release(stroke, self.id);
-                return self.send_error(ErrorCode::Internal, "could not read the stroke", Some(stroke));
+                return self.send_error(
+                    ErrorCode::Internal,
+                    "could not read the stroke",
+                    Some(stroke),
+                );
             }
         };
         match existing {
@@ -586,7 +609,10 @@ impl Connection {
     }
 
     /// Why a stroke that is not open on this connection cannot take points or an end.
-    async fn not_open(&mut self, stroke: StrokeId) -> (ErrorCode, String, Option<crate::store::StrokeRow>) {
+    async fn not_open(
+        &mut self,
+        stroke: StrokeId,
+    ) -> (ErrorCode, String, Option<crate::store::StrokeRow>) {
         if self.finishing.contains(&stroke) {
             return (ErrorCode::StrokeFinished, format!("stroke {stroke} has ended"), None);
         }
@@ -596,7 +622,9 @@ impl Connection {
             }
             Ok(Some(row)) if row.session_id == self.session => (
                 ErrorCode::UnknownStroke,
-                format!("stroke {stroke} is not open on this connection; resume it with hello.resume or stroke_begin"),
+                format!(
+                    "stroke {stroke} is not open on this connection; resume it with hello.resume or stroke_begin"
+                ),
                 Some(row),
             ),
             _ => (
@@ -639,13 +667,15 @@ impl Connection {
         let stroke = end.stroke;
         let Some(state) = self.strokes.get_mut(&stroke) else {
             let (code, message, row) = self.not_open(stroke).await;
-            if let Some(row) = row.filter(|r| r.status == StrokeStatus::Done && r.n_points == end.n_points) {
+            if let Some(row) =
+                row.filter(|r| r.status == StrokeStatus::Done && r.n_points == end.n_points)
+            {
                 // A resent end after a reconnect: say done again.
                 return self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
             }
             return self.send_error(code, message, Some(stroke));
         };
-        let (last, kept) = match state.finish(end.n_points) {
+        let Finished { last, kept } = match state.finish(end.n_points) {
             Ok(finished) => finished,
             Err(refusal) => return self.refuse(refusal, Some(stroke)),
         };
@@ -716,7 +746,8 @@ impl Connection {
             if let Err(err) = self.state.writer.write(ops).await {
                 tracing::error!(error = %err, "marking strokes interrupted");
             }
-            metrics::counter!("penmesh_strokes_total", "event" => "interrupted").increment(open.len() as u64);
+            metrics::counter!("penmesh_strokes_total", "event" => "interrupted")
+                .increment(open.len() as u64);
         }
         for stroke in open.into_iter().chain(self.finishing.drain()) {
             self.state.claims.release(stroke, self.id);

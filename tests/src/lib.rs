@@ -138,7 +138,8 @@ impl TestProxy {
     }
 
     pub async fn create_session(&self) -> TestSession {
-        let response = self.http.post(self.url("/v1/sessions")).send().await.expect("POST /v1/sessions");
+        let response =
+            self.http.post(self.url("/v1/sessions")).send().await.expect("POST /v1/sessions");
         assert_eq!(response.status(), 201);
         let body: serde_json::Value = response.json().await.unwrap();
         TestSession {
@@ -161,7 +162,8 @@ impl TestProxy {
 
     /// The stroke list entry for `stroke`.
     pub async fn stroke_info(&self, session: &TestSession, stroke: StrokeId) -> serde_json::Value {
-        let list = self.get_json(&format!("/v1/sessions/{}/strokes", session.session), session).await;
+        let list =
+            self.get_json(&format!("/v1/sessions/{}/strokes", session.session), session).await;
         list["strokes"]
             .as_array()
             .unwrap()
@@ -185,9 +187,10 @@ impl TestProxy {
         &self,
         session: &TestSession,
     ) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
-        let mut request = format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", self.port, session.session)
-            .into_client_request()
-            .unwrap();
+        let mut request =
+            format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", self.port, session.session)
+                .into_client_request()
+                .unwrap();
         request
             .headers_mut()
             .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
@@ -196,7 +199,10 @@ impl TestProxy {
     }
 
     /// Connects with a raw URL path and query (for auth tests).
-    pub async fn try_connect_path(&self, path_and_query: &str) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
+    pub async fn try_connect_path(
+        &self,
+        path_and_query: &str,
+    ) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
         let url = format!("ws://127.0.0.1:{}{path_and_query}", self.port);
         let (ws, _) = tokio_tungstenite::connect_async(url).await?;
         Ok(WsClient { ws, json: false })
@@ -265,17 +271,24 @@ impl WsClient {
     /// The next protocol message or the close, skipping WebSocket pings.
     pub async fn next(&mut self) -> Incoming {
         loop {
-            let frame = tokio::time::timeout(TIMEOUT, self.ws.next()).await.expect("a frame in time");
+            let frame =
+                tokio::time::timeout(TIMEOUT, self.ws.next()).await.expect("a frame in time");
             match frame {
                 None | Some(Err(_)) => return Incoming::Closed(None),
                 Some(Ok(Message::Binary(bytes))) => {
-                    return Incoming::Message(decode_server(&bytes, usize::MAX).expect("server binary decodes"));
+                    return Incoming::Message(
+                        decode_server(&bytes, usize::MAX).expect("server binary decodes"),
+                    );
                 }
                 Some(Ok(Message::Text(text))) => {
-                    return Incoming::Message(decode_server_json(&text, usize::MAX).expect("server JSON decodes"));
+                    return Incoming::Message(
+                        decode_server_json(&text, usize::MAX).expect("server JSON decodes"),
+                    );
                 }
                 Some(Ok(Message::Close(frame))) => {
-                    return Incoming::Closed(frame.map(|f| (u16::from(f.code), f.reason.to_string())));
+                    return Incoming::Closed(
+                        frame.map(|f| (u16::from(f.code), f.reason.to_string())),
+                    );
                 }
                 Some(Ok(_)) => continue,
             }
@@ -286,8 +299,12 @@ impl WsClient {
     pub async fn next_is_binary(&mut self) -> (bool, ServerMessage) {
         loop {
             match tokio::time::timeout(TIMEOUT, self.ws.next()).await.expect("a frame in time") {
-                Some(Ok(Message::Binary(bytes))) => return (true, decode_server(&bytes, usize::MAX).unwrap()),
-                Some(Ok(Message::Text(text))) => return (false, decode_server_json(&text, usize::MAX).unwrap()),
+                Some(Ok(Message::Binary(bytes))) => {
+                    return (true, decode_server(&bytes, usize::MAX).unwrap());
+                }
+                Some(Ok(Message::Text(text))) => {
+                    return (false, decode_server_json(&text, usize::MAX).unwrap());
+                }
                 Some(Ok(Message::Ping(_) | Message::Pong(_))) => continue,
                 other => panic!("expected a message, got {other:?}"),
             }
@@ -303,7 +320,10 @@ impl WsClient {
     }
 
     /// Messages until one satisfies `pred` (returned), collecting the others.
-    pub async fn recv_until(&mut self, mut pred: impl FnMut(&ServerMessage) -> bool) -> (ServerMessage, Vec<ServerMessage>) {
+    pub async fn recv_until(
+        &mut self,
+        mut pred: impl FnMut(&ServerMessage) -> bool,
+    ) -> (ServerMessage, Vec<ServerMessage>) {
         let mut others = Vec::new();
         loop {
             let msg = self.recv().await;
@@ -357,8 +377,12 @@ impl WsClient {
     }
 
     pub async fn points(&mut self, stroke: StrokeId, seq: u64, points: &[Sample]) {
-        self.send(&ClientMessage::Points(Points { stroke, seq, points: PointBatch(points.to_vec()) }))
-            .await;
+        self.send(&ClientMessage::Points(Points {
+            stroke,
+            seq,
+            points: PointBatch(points.to_vec()),
+        }))
+        .await;
     }
 
     pub async fn end(&mut self, stroke: StrokeId, n_points: u64) {
@@ -371,8 +395,12 @@ impl WsClient {
         let mut retained = Vec::new();
         loop {
             match self.recv().await {
-                ServerMessage::Ack(ack) if ack.stroke == stroke && ack.upto_seq >= upto => return retained,
-                ServerMessage::Retained(r) if r.stroke == stroke => retained.push((r.first, r.points.0)),
+                ServerMessage::Ack(ack) if ack.stroke == stroke && ack.upto_seq >= upto => {
+                    return retained;
+                }
+                ServerMessage::Retained(r) if r.stroke == stroke => {
+                    retained.push((r.first, r.points.0))
+                }
                 ServerMessage::Error(err) => panic!("unexpected error: {err:?}"),
                 _ => {}
             }
@@ -417,12 +445,20 @@ pub fn stroke_samples(n: usize) -> Vec<Sample> {
 
 /// The streamed result a proxy must give for `samples`: the batch simplification.
 pub fn batch_simplified(samples: &[Sample]) -> Vec<Sample> {
-    penmesh::simplify(samples, &penmesh::AcutsParams::default()).into_iter().map(|i| samples[i]).collect()
+    penmesh::simplify(samples, &penmesh::AcutsParams::default())
+        .into_iter()
+        .map(|i| samples[i])
+        .collect()
 }
 
 /// Sends a whole stroke in batches and waits for `StrokeDone`; returns the retained samples
 /// streamed back and the `StrokeDone` `n_retained`.
-pub async fn draw_stroke(ws: &mut WsClient, stroke: StrokeId, samples: &[Sample], batch: usize) -> (Vec<Sample>, u64) {
+pub async fn draw_stroke(
+    ws: &mut WsClient,
+    stroke: StrokeId,
+    samples: &[Sample],
+    batch: usize,
+) -> (Vec<Sample>, u64) {
     ws.begin(stroke).await;
     let mut pieces = ws.wait_ack(stroke, 0).await;
     for (i, chunk) in samples.chunks(batch).enumerate() {

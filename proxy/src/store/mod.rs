@@ -96,7 +96,11 @@ pub(crate) fn encode_samples(samples: &[Sample]) -> Vec<u8> {
 }
 
 pub(crate) fn decode_samples(bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
-    anyhow::ensure!(bytes.len() % 32 == 0, "sample blob of {} bytes is not a multiple of 32", bytes.len());
+    anyhow::ensure!(
+        bytes.len() % 32 == 0,
+        "sample blob of {} bytes is not a multiple of 32",
+        bytes.len()
+    );
     Ok(bytes
         .chunks_exact(32)
         .map(|c| {
@@ -240,20 +244,22 @@ impl Store {
     }
 
     pub async fn list_strokes(&self, session: Uuid) -> anyhow::Result<Vec<StrokeRow>> {
-        let rows =
-            sqlx::query(&format!("{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"))
-                .bind(session.to_string())
-                .fetch_all(&self.pool)
-                .await?;
+        let rows = sqlx::query(&format!(
+            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+        ))
+        .bind(session.to_string())
+        .fetch_all(&self.pool)
+        .await?;
         rows.iter().map(stroke_from_row).collect()
     }
 
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
-        let rows = sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
-            .bind(stroke.to_string())
-            .fetch_all(&self.pool)
-            .await?;
+        let rows =
+            sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+                .bind(stroke.to_string())
+                .fetch_all(&self.pool)
+                .await?;
         let mut samples = Vec::new();
         for row in rows {
             let seq: i64 = row.try_get("seq")?;
@@ -265,7 +271,10 @@ impl Store {
                 samples.len()
             );
             let chunk = decode_samples(&data)?;
-            anyhow::ensure!(chunk.len() as i64 == n, "stroke {stroke}: chunk at seq {seq} has a bad length");
+            anyhow::ensure!(
+                chunk.len() as i64 == n,
+                "stroke {stroke}: chunk at seq {seq} has a bad length"
+            );
             samples.extend(chunk);
         }
         Ok(samples)
@@ -354,7 +363,8 @@ fn create_parent_dir(url: &str) -> anyhow::Result<()> {
     if path.is_empty() || path == ":memory:" {
         return Ok(());
     }
-    if let Some(parent) = std::path::Path::new(path).parent().filter(|p| !p.as_os_str().is_empty()) {
+    if let Some(parent) = std::path::Path::new(path).parent().filter(|p| !p.as_os_str().is_empty())
+    {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating the database folder {}", parent.display()))?;
     }

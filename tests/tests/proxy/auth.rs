@@ -27,7 +27,10 @@ async fn websocket_needs_the_session_token_and_reveals_nothing() {
         assert_eq!(status_of(proxy.try_connect_path(&path).await), 401, "{path}");
     }
     // The query token works as well as the header.
-    let mut ws = proxy.try_connect_path(&format!("/v1/sessions/{s}/ws?token={}", session.token)).await.unwrap();
+    let mut ws = proxy
+        .try_connect_path(&format!("/v1/sessions/{s}/ws?token={}", session.token))
+        .await
+        .unwrap();
     ws.hello(vec![]).await;
 }
 
@@ -44,7 +47,15 @@ async fn http_reads_need_the_token_of_the_strokes_session() {
     let list = format!("/v1/sessions/{}/strokes", session.session);
     assert_eq!(proxy.http.get(proxy.url(&list)).send().await.unwrap().status(), 401);
     assert_eq!(proxy.get(&list, &other).send().await.unwrap().status(), 401);
-    assert_eq!(proxy.get(&format!("/v1/sessions/{}/strokes", Uuid::new_v4()), &session).send().await.unwrap().status(), 401);
+    assert_eq!(
+        proxy
+            .get(&format!("/v1/sessions/{}/strokes", Uuid::new_v4()), &session)
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        401
+    );
     for path in ["simplified", "raw", "mesh"] {
         let url = format!("/v1/strokes/{stroke}/{path}");
         assert_eq!(proxy.http.get(proxy.url(&url)).send().await.unwrap().status(), 401, "{url}");

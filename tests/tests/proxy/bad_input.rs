@@ -83,9 +83,14 @@ async fn non_finite_coordinates_are_refused_naming_the_sample() {
 async fn pressure_outside_the_unit_range_is_refused() {
     let proxy = spawn_proxy().await;
     let (mut ws, stroke) = with_stroke(&proxy, 5).await;
-    let mut ws = { ws.json = true; ws };
-    ws.send_text(&format!(r#"{{"points":{{"stroke":"{stroke}","seq":5,"points":[[1,1,100,1.5]]}}}}"#))
-        .await;
+    let mut ws = {
+        ws.json = true;
+        ws
+    };
+    ws.send_text(&format!(
+        r#"{{"points":{{"stroke":"{stroke}","seq":5,"points":[[1,1,100,1.5]]}}}}"#
+    ))
+    .await;
     let err = ws.expect_error(ErrorCode::BadSample).await;
     assert!(err.message.contains("pressure"), "{}", err.message);
     assert!(err.message.contains("sample 5"), "{}", err.message);
@@ -100,8 +105,12 @@ async fn time_going_backwards_is_refused_within_and_across_batches() {
     ws.points(stroke, 5, &[Sample::new(0.0, 0.0, last_t - 1.0, 0.5)]).await;
     let err = ws.expect_error(ErrorCode::BadSample).await;
     assert!(err.message.contains("time goes backwards"), "{}", err.message);
-    ws.points(stroke, 5, &[Sample::new(0.0, 0.0, last_t + 10.0, 0.5), Sample::new(0.0, 0.0, last_t + 5.0, 0.5)])
-        .await;
+    ws.points(
+        stroke,
+        5,
+        &[Sample::new(0.0, 0.0, last_t + 10.0, 0.5), Sample::new(0.0, 0.0, last_t + 5.0, 0.5)],
+    )
+    .await;
     let err = ws.expect_error(ErrorCode::BadSample).await;
     assert!(err.message.contains("sample 6"), "{}", err.message);
     // Nothing of the refused batches was taken: seq 5 is still next.
@@ -155,10 +164,14 @@ async fn a_stroke_id_of_another_session_is_a_conflict_and_a_bad_brush_is_refused
     let (_, mut other) = ready(&proxy).await;
     other.begin(stroke).await;
     other.expect_error(ErrorCode::StrokeConflict).await;
-    let mut brush = penmesh::Brush::default();
-    brush.pressure_response = 3.0;
+    let brush = penmesh::Brush { pressure_response: 3.0, ..Default::default() };
     other
-        .send(&ClientMessage::StrokeBegin(StrokeBegin { stroke: Uuid::new_v4(), brush, device: None, params: None }))
+        .send(&ClientMessage::StrokeBegin(StrokeBegin {
+            stroke: Uuid::new_v4(),
+            brush,
+            device: None,
+            params: None,
+        }))
         .await;
     let err = other.expect_error(ErrorCode::BadBrush).await;
     assert!(err.message.contains("pressure_response"), "{}", err.message);
@@ -195,8 +208,13 @@ async fn a_wrong_protocol_version_closes_and_a_second_hello_does_not() {
 
     let mut ws = proxy.connect(&session).await;
     ws.hello(vec![]).await;
-    ws.send(&ClientMessage::Hello(Hello { protocol: 1, client: "again".into(), name: None, resume: vec![] }))
-        .await;
+    ws.send(&ClientMessage::Hello(Hello {
+        protocol: 1,
+        client: "again".into(),
+        name: None,
+        resume: vec![],
+    }))
+    .await;
     ws.expect_error(ErrorCode::Protocol).await;
     still_alive(&mut ws).await;
 }

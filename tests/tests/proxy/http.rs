@@ -12,7 +12,7 @@ fn glb(vertices: u64, indices: u64) -> Vec<u8> {
     })
     .to_string()
     .into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut out = b"glTF".to_vec();
@@ -24,7 +24,9 @@ fn glb(vertices: u64, indices: u64) -> Vec<u8> {
     out
 }
 
-async fn done_stroke(proxy: &penmesh_e2e::TestProxy) -> (penmesh_e2e::TestSession, Uuid, Vec<penmesh::Sample>) {
+async fn done_stroke(
+    proxy: &penmesh_e2e::TestProxy,
+) -> (penmesh_e2e::TestSession, Uuid, Vec<penmesh::Sample>) {
     let session = proxy.create_session().await;
     let mut ws = proxy.connect(&session).await;
     ws.hello(vec![]).await;
@@ -76,9 +78,11 @@ async fn an_unfinished_stroke_has_raw_samples_but_no_simplified_form_yet() {
     ws.points(stroke, 0, &stroke_samples(10)).await;
     ws.wait_ack(stroke, 10).await;
     assert_eq!(proxy.raw_samples(&session, stroke).await, stroke_samples(10));
-    let response = proxy.get(&format!("/v1/strokes/{stroke}/simplified"), &session).send().await.unwrap();
+    let response =
+        proxy.get(&format!("/v1/strokes/{stroke}/simplified"), &session).send().await.unwrap();
     assert_eq!(response.status(), 409);
-    let response = proxy.get(&format!("/v1/strokes/{}/raw", Uuid::new_v4()), &session).send().await.unwrap();
+    let response =
+        proxy.get(&format!("/v1/strokes/{}/raw", Uuid::new_v4()), &session).send().await.unwrap();
     assert_eq!(response.status(), 404);
 }
 
@@ -108,9 +112,37 @@ async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
     assert_eq!(response.bytes().await.unwrap().to_vec(), body);
     assert_eq!(proxy.stroke_info(&session, stroke).await["has_mesh"], true);
 
-    for (bad, what) in [(b"nope".to_vec(), "short"), ({ let mut b = body.clone(); b[0] = b'g'; b[1] = b'l'; b[2] = b'b'; b }, "magic"),
-        ({ let mut b = body.clone(); b[4] = 1; b }, "version"), ({ let mut b = body.clone(); b.push(0); b }, "length")] {
-        let response = proxy.http.put(&url).bearer_auth(&session.token).body(bad).send().await.unwrap();
+    for (bad, what) in [
+        (b"nope".to_vec(), "short"),
+        (
+            {
+                let mut b = body.clone();
+                b[0] = b'g';
+                b[1] = b'l';
+                b[2] = b'b';
+                b
+            },
+            "magic",
+        ),
+        (
+            {
+                let mut b = body.clone();
+                b[4] = 1;
+                b
+            },
+            "version",
+        ),
+        (
+            {
+                let mut b = body.clone();
+                b.push(0);
+                b
+            },
+            "length",
+        ),
+    ] {
+        let response =
+            proxy.http.put(&url).bearer_auth(&session.token).body(bad).send().await.unwrap();
         assert_eq!(response.status(), 400, "{what}");
         let err: serde_json::Value = response.json().await.unwrap();
         assert_eq!(err["error"], "bad_request", "{what}");

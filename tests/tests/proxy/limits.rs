@@ -2,7 +2,9 @@ use std::time::Duration;
 
 use futures_util::SinkExt;
 use penmesh::Sample;
-use penmesh::protocol::{ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, encode_client};
+use penmesh::protocol::{
+    ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, encode_client,
+};
 use penmesh_e2e::{Incoming, WsClient, spawn_proxy_with, stroke_samples};
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
@@ -167,14 +169,18 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
     // A client with a tiny receive buffer that never reads.
     let socket = tokio::net::TcpSocket::new_v4().unwrap();
     socket.set_recv_buffer_size(4096).unwrap();
-    let stream = socket.connect(format!("127.0.0.1:{}", proxy.port).parse().unwrap()).await.unwrap();
+    let stream =
+        socket.connect(format!("127.0.0.1:{}", proxy.port).parse().unwrap()).await.unwrap();
     let mut request = format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", proxy.port, session.session)
         .into_client_request()
         .unwrap();
-    request.headers_mut().insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
-    let (ws, _) = tokio_tungstenite::client_async(request, tokio_tungstenite::MaybeTlsStream::Plain(stream))
-        .await
-        .unwrap();
+    request
+        .headers_mut()
+        .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
+    let (ws, _) =
+        tokio_tungstenite::client_async(request, tokio_tungstenite::MaybeTlsStream::Plain(stream))
+            .await
+            .unwrap();
     let mut ws = WsClient { ws, json: false };
     ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
@@ -186,10 +192,19 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
         let points: Vec<Sample> = (0..batch)
             .map(|i| {
                 let k = b * batch + i;
-                Sample::new(k as f64 * 4.0, if k % 2 == 0 { 0.0 } else { 50.0 }, k as f64, 0.5)
+                Sample::new(
+                    k as f64 * 4.0,
+                    if k.is_multiple_of(2) { 0.0 } else { 50.0 },
+                    k as f64,
+                    0.5,
+                )
             })
             .collect();
-        let msg = ClientMessage::Points(Points { stroke, seq: (b * batch) as u64, points: PointBatch(points) });
+        let msg = ClientMessage::Points(Points {
+            stroke,
+            seq: (b * batch) as u64,
+            points: PointBatch(points),
+        });
         let send = ws.ws.send(Message::Binary(encode_client(&msg).into()));
         match tokio::time::timeout(Duration::from_secs(5), send).await {
             Ok(Ok(())) => {}

@@ -1,7 +1,9 @@
 use axum::body::Body;
 use axum::http::Request;
 use penmesh::protocol::{ErrorCode, ServerMessage};
-use penmesh_e2e::{TestDatabase, count_rows, spawn_proxy, spawn_proxy_on, stroke_samples, test_config};
+use penmesh_e2e::{
+    TestDatabase, count_rows, spawn_proxy, spawn_proxy_on, stroke_samples, test_config,
+};
 use tower::ServiceExt;
 use uuid::Uuid;
 
@@ -55,7 +57,7 @@ async fn shutdown_keeps_every_acknowledged_sample_and_closes_with_1001() {
     let stored = proxy.raw_samples(&session, busy).await;
     assert!(stored.len() as u64 >= acked_busy, "acked {acked_busy}, stored {}", stored.len());
     assert_eq!(stored, samples[..stored.len()].to_vec());
-    let n = count_rows(&proxy.db, &format!("SELECT COALESCE(SUM(n), 0) FROM stroke_chunks WHERE stroke_id = '{busy}'")).await;
+    let n = count_rows(&proxy.db, &format!("SELECT CAST(COALESCE(SUM(n), 0) AS BIGINT) FROM stroke_chunks WHERE stroke_id = '{busy}'")).await;
     assert_eq!(n as usize, stored.len());
 
     // And the interrupted stroke resumes on the new proxy.
