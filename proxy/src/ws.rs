@@ -783,3 +783,74 @@ fn json_refusal(err: CodecError, text: &str) -> Refusal {
         _ => Refusal::new(ErrorCode::BadJson, err.to_string()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use penmesh::protocol::{
+        Ping, decode_server, decode_server_json, encode_client, encode_client_json,
+    };
+    use tokio_util::sync::{CancellationToken, PollSender};
+
+    use super::*;
+    use crate::config::Config;
+    use crate::store::{Store, WriterTask};
+
+    /// The connection loop driven through channels, with no socket.
+    #[tokio::test]
+    async fn serve_speaks_the_protocol_over_channels() {
+        let dir = std::env::temp_dir().join(format!("penmesh-ws-{}", Uuid::new_v4()));
+        let mut config = Config::defaults();
+        config.database_url = format!("sqlite://{}", dir.join("t.db").display());
+        let store = Store::connect(&config).await.unwrap();
+        let (writer, writer_task) =
+            WriterTask::start(&store, Duration::from_millis(1), 100, 100).await.unwrap();
+        let session = Uuid::new_v4();
+        store.create_session(session, "hash").await.unwrap();
+        let state = AppState::new(
+            config,
+            store,
+            writer,
+            CancellationToken::new(),
+            crate::metrics::install(),
+        );
+        let guard = state.join_session(session).unwrap();
+        let (to_server, from_client) = mpsc::channel::<Frame>(16);
+        let (to_client, mut from_server) = mpsc::channel::<Frame>(16);
+        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
+            rx.recv().await.map(|f| (Ok::<_, std::convert::Infallible>(f), rx))
+        })
+        .boxed();
+        let task = tokio::spawn(serve(state, session, guard, PollSender::new(to_client), stream));
+        let recv = |frame: Option<Frame>| match frame {
+            Some(Frame::Binary(b)) => decode_server(&b, usize::MAX).unwrap(),
+            Some(Frame::Text(t)) => decode_server_json(&t, usize::MAX).unwrap(),
+            other => panic!("{other:?}"),
+        };
+
+        let hello = ClientMessage::Hello(Hello {
+            protocol: PROTOCOL_VERSION,
+            client: "unit".into(),
+            name: None,
+            resume: vec![],
+        });
+        to_server.send(Frame::Binary(encode_client(&hello))).await.unwrap();
+        assert!(matches!(recv(from_server.recv().await), ServerMessage::Welcome(_)));
+        let ping = ClientMessage::Ping(Ping { nonce: 3 });
+        to_server.send(Frame::Text(encode_client_json(&ping))).await.unwrap();
+        assert!(matches!(from_server.recv().await, Some(Frame::Text(_))));
+        let stroke = Uuid::new_v4();
+        let begin = ClientMessage::StrokeBegin(StrokeBegin {
+            stroke,
+            brush: Default::default(),
+            device: None,
+            params: None,
+        });
+        to_server.send(Frame::Binary(encode_client(&begin))).await.unwrap();
+        assert_eq!(recv(from_server.recv().await), ServerMessage::Ack(Ack { stroke, upto_seq: 0 }));
+
+        drop(to_server);
+        task.await.unwrap();
+        writer_task.stop().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}

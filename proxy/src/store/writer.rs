@@ -110,6 +110,7 @@ impl WriterTask {
         let (tx, rx) = mpsc::channel(queue.max(1));
         let stop = CancellationToken::new();
         let state = WriterLoop {
+            store: store.clone(),
             conn,
             begin: store.begin_statement(),
             rx,
@@ -129,6 +130,7 @@ impl WriterTask {
 }
 
 struct WriterLoop {
+    store: Store,
     conn: AnyConnection,
     begin: &'static str,
     rx: mpsc::Receiver<WriteRequest>,
@@ -209,6 +211,26 @@ impl WriterLoop {
     }
 
     async fn commit<'a>(&mut self, ops: impl Iterator<Item = &'a WriteOp>) -> anyhow::Result<()> {
+        let result = self.try_commit(ops).await;
+        if result.is_err() && self.conn.ping().await.is_err() {
+            // The connection itself broke (a database restart): open a new one for what follows.
+            match self.store.pool().acquire().await {
+                Ok(conn) => {
+                    tracing::warn!("the write connection broke; reconnected");
+                    self.conn = conn.detach();
+                }
+                Err(err) => {
+                    tracing::error!(error = %err, "the write connection broke; reconnecting failed")
+                }
+            }
+        }
+        result
+    }
+
+    async fn try_commit<'a>(
+        &mut self,
+        ops: impl Iterator<Item = &'a WriteOp>,
+    ) -> anyhow::Result<()> {
         let mut tx = self.conn.begin_with(self.begin).await?;
         let now = now_ms();
         for op in ops {
