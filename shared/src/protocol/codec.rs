@@ -62,9 +62,9 @@
 //! [`MAX_STEPS`]), arithmetic is checked, and nothing is allocated ahead of the bytes that back
 //! it (the sample vector grows as samples are read, each of which costs at least 4 bits).
 //!
-//! Real pen data (SVC2004 at 100 Hz, SigComp2011 at 200 Hz) costs about 7.4 to 8.2 bytes for a
-//! one-sample batch, under 6 bytes per sample from two samples per batch, about 3 from 16 and
-//! 2 to 3 for whole strokes: see `tests/codec.rs`.
+//! Real pen data (SVC2004 at 100 Hz, SigComp2011 Dutch at 200 Hz, tablet units) costs, in
+//! payload bytes per sample: 7.5 to 8.1 for one-sample batches, 5.6 to 5.9 for two, 4.4 to 5.1
+//! for three, 2.4 to 3.4 for 16, and 1.9 to 3.1 for whole strokes (table in `tests/codec.rs`).
 
 use serde::de::{DeserializeOwned, SeqAccess, Visitor};
 use serde::ser::SerializeTuple;
@@ -405,59 +405,78 @@ fn encode_batch(samples: &[Sample]) -> Vec<u8> {
     });
     let xy_grid = steps[CH_X].is_some() && steps[CH_Y].is_some();
     let grid = [xy_grid, xy_grid, steps[CH_T].is_some(), steps[CH_P].is_some()];
-    let steps: [Vec<i64>; 4] = std::array::from_fn(|c| {
-        if grid[c] { steps[c].clone().unwrap_or_default() } else { Vec::new() }
-    });
-
-    // Largest usable shift per header group (xy, t, p), and the default when usable.
-    let groups: [&[usize]; 3] = [&[CH_X, CH_Y], &[CH_T], &[CH_P]];
-    let mut candidates: Vec<[ChannelMode; 3]> = vec![[ChannelMode::Raw; 3]];
-    for (g, channels) in groups.iter().enumerate() {
-        if !grid[channels[0]] {
-            continue;
-        }
-        let vals: Vec<&[i64]> = channels.iter().map(|&c| steps[c].as_slice()).collect();
-        let usable = common_shift(&vals);
-        let default = default_shift(channels[0]);
-        let mut options = vec![usable];
-        if default < usable {
-            options.push(default);
-        }
-        candidates = candidates
-            .into_iter()
-            .flat_map(|cand| {
-                options.iter().map(move |&shift| {
-                    let mut cand = cand;
-                    cand[g] = ChannelMode::Grid { shift };
-                    cand
-                })
-            })
-            .collect();
-    }
+    let steps: [Vec<i64>; 4] = {
+        let mut steps = steps;
+        std::array::from_fn(
+            |c| if grid[c] { steps[c].take().unwrap_or_default() } else { Vec::new() },
+        )
+    };
 
     let non_negative = (0..4).all(|c| !grid[c] || steps[c][0] >= 0)
         && (!grid[CH_T] || samples.len() < 2 || steps[CH_T][1] >= steps[CH_T][0]);
 
-    let mut best: Option<Vec<u8>> = None;
-    for cand in candidates {
-        let modes = [cand[0], cand[0], cand[1], cand[2]];
-        let mut w = BitWriter::default();
-        if non_negative {
-            w.bits(0b1, 1);
-        } else {
-            w.bits(0b01, 2);
+    // Per header group (xy, t, p): the largest usable shift, or the default when usable and
+    // cheaper. Groups are coded independently, so choosing each alone gives the shortest batch.
+    let mut group_modes = [ChannelMode::Raw; 3];
+    let groups: [&[usize]; 3] = [&[CH_X, CH_Y], &[CH_T], &[CH_P]];
+    for (g, channels) in groups.iter().enumerate() {
+        if !grid[channels[0]] {
+            continue;
         }
-        w.exp_golomb(samples.len() as u64 - 1, 0);
-        write_header(&mut w, modes[CH_X], default_shift(CH_X));
-        write_header(&mut w, modes[CH_T], default_shift(CH_T));
-        write_header(&mut w, modes[CH_P], default_shift(CH_P));
-        write_samples(&mut w, samples, &steps, &modes, non_negative);
-        let bytes = w.finish();
-        if best.as_ref().is_none_or(|b| bytes.len() < b.len()) {
-            best = Some(bytes);
-        }
+        let usable =
+            common_shift(&channels.iter().map(|&c| steps[c].as_slice()).collect::<Vec<_>>());
+        let default = default_shift(channels[0]);
+        let cost = |shift: u32, header: u64| {
+            header
+                + channels
+                    .iter()
+                    .map(|&c| grid_bits(&steps[c], c, shift, non_negative))
+                    .sum::<u64>()
+        };
+        let shift =
+            if default <= usable && cost(default, 1) <= cost(usable, 4) { default } else { usable };
+        group_modes[g] = ChannelMode::Grid { shift };
     }
-    best.unwrap_or_default()
+    let modes = [group_modes[0], group_modes[0], group_modes[1], group_modes[2]];
+
+    if non_negative {
+        w.bits(0b1, 1);
+    } else {
+        w.bits(0b01, 2);
+    }
+    w.exp_golomb(samples.len() as u64 - 1, 0);
+    write_header(&mut w, modes[CH_X], default_shift(CH_X));
+    write_header(&mut w, modes[CH_T], default_shift(CH_T));
+    write_header(&mut w, modes[CH_P], default_shift(CH_P));
+    write_samples(&mut w, samples, &steps, &modes, non_negative);
+    w.finish()
+}
+
+/// Length of an Exp-Golomb code of order `k` for `u`.
+fn exp_golomb_bits(u: u64, k: u32) -> u64 {
+    let len = 64 - (u + (1u64 << k)).leading_zeros();
+    u64::from(2 * len - 1 - k)
+}
+
+/// Bits the grid channel `channel` (its step counts `steps`) takes with `shift`.
+fn grid_bits(steps: &[i64], channel: usize, shift: u32, non_negative: bool) -> u64 {
+    let mut adaptive = Adaptive::new(K_SECOND[channel]);
+    let mut bits = 0;
+    for i in 0..steps.len() {
+        let r = residual(steps, i) >> shift;
+        let plain = non_negative && (i == 0 || (i == 1 && channel == CH_T));
+        let u = if plain { r as u64 } else { zigzag(r) };
+        bits += match i {
+            0 => exp_golomb_bits(u, K_HEAD[channel]),
+            1 => exp_golomb_bits(u, K_DELTA[channel]),
+            _ => {
+                let k = adaptive.order();
+                adaptive.update(u);
+                exp_golomb_bits(u, k)
+            }
+        };
+    }
+    bits
 }
 
 fn read_header<R: ByteSource>(
@@ -604,9 +623,10 @@ fn config() -> impl bincode::config::Config {
 }
 
 fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
-    let mut out = vec![PROTOCOL_VERSION as u8];
-    bincode::serde::encode_into_std_write(msg, &mut out, config())
-        .expect("encoding into a Vec cannot fail");
+    let body = bincode::serde::encode_to_vec(msg, config()).expect("messages always encode");
+    let mut out = Vec::with_capacity(body.len() + 1);
+    out.push(PROTOCOL_VERSION as u8);
+    out.extend_from_slice(&body);
     out
 }
 
