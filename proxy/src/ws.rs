@@ -363,7 +363,7 @@ impl Connection {
                 self.form = Form::Json;
                 metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
                     .increment(1);
-                decode_client_json(text, limit).map_err(|e| json_refusal(e, text))
+                decode_client_json(text, limit).map_err(json_refusal)
             }
             // The WebSocket library answers pings itself.
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
@@ -521,7 +521,7 @@ impl Connection {
         }
         let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
         if let Err(err) = params.validate() {
-            return self.send_error(ErrorCode::BadBrush, format!("params: {err}"), Some(stroke));
+            return self.send_error(ErrorCode::BadParams, format!("params: {err}"), Some(stroke));
         }
         if let Some(state) = self.strokes.get(&stroke) {
             // A repeat on the same connection: already begun.
@@ -764,22 +764,15 @@ fn done_message(stroke: StrokeId, n_retained: u64) -> StrokeDone {
 fn binary_refusal(err: CodecError) -> Refusal {
     match err {
         CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
-        CodecError::Malformed(ref m) if m.contains("variant") => {
-            Refusal::new(ErrorCode::UnknownMessage, format!("unknown message: {m}"))
-        }
+        CodecError::UnknownMessage(_) => Refusal::new(ErrorCode::UnknownMessage, err.to_string()),
         _ => Refusal::new(ErrorCode::Malformed, err.to_string()),
     }
 }
 
-fn json_refusal(err: CodecError, text: &str) -> Refusal {
+fn json_refusal(err: CodecError) -> Refusal {
     match err {
         CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
-        CodecError::BadJson(ref m) if m.contains("unknown variant") => {
-            Refusal::new(ErrorCode::UnknownMessage, format!("unknown message: {m}"))
-        }
-        _ if serde_json::from_str::<serde_json::Value>(text).is_ok_and(|v| !v.is_object()) => {
-            Refusal::new(ErrorCode::UnknownMessage, format!("not a message object: {err}"))
-        }
+        CodecError::UnknownMessage(_) => Refusal::new(ErrorCode::UnknownMessage, err.to_string()),
         _ => Refusal::new(ErrorCode::BadJson, err.to_string()),
     }
 }

@@ -170,8 +170,13 @@ fn json_keeps_samples_exact_and_accepts_integers() {
 
 #[test]
 fn json_refuses_unknown_messages_bad_text_and_oversized_frames() {
+    for text in [r#"{"nope":{}}"#, r#""nope""#, "[1, 2]", "42"] {
+        assert!(
+            matches!(decode_client_json(text, LIMIT), Err(CodecError::UnknownMessage(_))),
+            "{text}"
+        );
+    }
     for text in [
-        r#"{"nope":{}}"#,
         r#"{"ping":{}}"#,
         r#"{"ping":{"nonce":-1}}"#,
         "not json",
@@ -204,11 +209,13 @@ fn binary_refuses_empty_oversized_bad_version_trailing_and_unknown_frames() {
     assert!(
         matches!(decode_client(&trailing, LIMIT), Err(CodecError::Malformed(m)) if m.contains("trailing"))
     );
-    // Variant index 200 is no message.
-    assert!(matches!(
-        decode_client(&[PROTOCOL_VERSION as u8, 200], LIMIT),
-        Err(CodecError::Malformed(_))
-    ));
+    // Variant indices 5 and 200 are no client message.
+    for index in [5, 200] {
+        assert!(matches!(
+            decode_client(&[PROTOCOL_VERSION as u8, index], LIMIT),
+            Err(CodecError::UnknownMessage(_))
+        ));
+    }
     // A server message is not a client message.
     let welcome = encode_server(&server_messages()[0]);
     assert!(decode_client(&welcome, LIMIT).is_err());

@@ -114,6 +114,9 @@ pub enum CodecError {
     Malformed(String),
     #[error("bad JSON message: {0}")]
     BadJson(String),
+    /// Well-formed framing that names a message this protocol version does not have.
+    #[error("unknown message: {0}")]
+    UnknownMessage(String),
 }
 
 /// The step count of `v` on a grid of `step`, if it is finite and within [`MAX_STEPS`].
@@ -630,7 +633,35 @@ fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
     out
 }
 
-fn decode<T: DeserializeOwned>(bytes: &[u8], limit: usize) -> Result<T, CodecError> {
+/// The variant names and count of a message enum, so decoding can tell an unknown message from
+/// a malformed one without reading error texts.
+trait MessageKind {
+    const NAMES: &'static [&'static str];
+}
+
+impl MessageKind for ClientMessage {
+    const NAMES: &'static [&'static str] =
+        &["hello", "stroke_begin", "points", "stroke_end", "ping"];
+}
+
+impl MessageKind for ServerMessage {
+    const NAMES: &'static [&'static str] = &[
+        "welcome",
+        "ack",
+        "retained",
+        "stroke_done",
+        "pong",
+        "error",
+        "peer_joined",
+        "peer_left",
+        "peer_stroke_begin",
+        "peer_retained",
+        "peer_stroke_done",
+        "peer_mesh",
+    ];
+}
+
+fn decode<T: DeserializeOwned + MessageKind>(bytes: &[u8], limit: usize) -> Result<T, CodecError> {
     let limit = limit.min(BINCODE_LIMIT);
     if bytes.len() > limit {
         return Err(CodecError::TooLarge { size: bytes.len(), limit });
@@ -638,6 +669,15 @@ fn decode<T: DeserializeOwned>(bytes: &[u8], limit: usize) -> Result<T, CodecErr
     let (&version, body) = bytes.split_first().ok_or(CodecError::Empty)?;
     if u16::from(version) != PROTOCOL_VERSION {
         return Err(CodecError::Version(version));
+    }
+    // The enum's variant index is bincode's first varint; one byte below 251.
+    if let Some(&index) = body.first()
+        && usize::from(index) >= T::NAMES.len()
+    {
+        return Err(CodecError::UnknownMessage(format!(
+            "variant index {index}; this version has {} messages",
+            T::NAMES.len()
+        )));
     }
     let (msg, used) = bincode::serde::decode_from_slice(body, config())
         .map_err(|e| CodecError::Malformed(e.to_string()))?;
@@ -647,11 +687,45 @@ fn decode<T: DeserializeOwned>(bytes: &[u8], limit: usize) -> Result<T, CodecErr
     Ok(msg)
 }
 
-fn decode_json<T: DeserializeOwned>(text: &str, limit: usize) -> Result<T, CodecError> {
+fn decode_json<T: DeserializeOwned + MessageKind>(
+    text: &str,
+    limit: usize,
+) -> Result<T, CodecError> {
     if text.len() > limit {
         return Err(CodecError::TooLarge { size: text.len(), limit });
     }
-    serde_json::from_str(text).map_err(|e| CodecError::BadJson(e.to_string()))
+    serde_json::from_str(text).map_err(|e| {
+        // Only on the error path: look again to tell an unknown message from bad JSON.
+        match serde_json::from_str::<serde_json::Value>(text) {
+            Ok(serde_json::Value::Object(map)) if map.len() == 1 => {
+                let name = map.keys().next().map(String::as_str).unwrap_or_default();
+                if T::NAMES.contains(&name) {
+                    CodecError::BadJson(e.to_string())
+                } else {
+                    CodecError::UnknownMessage(format!("{name:?}"))
+                }
+            }
+            Ok(serde_json::Value::String(name)) if !T::NAMES.contains(&name.as_str()) => {
+                CodecError::UnknownMessage(format!("{name:?}"))
+            }
+            Ok(other) if !other.is_object() => CodecError::UnknownMessage(format!(
+                "expected an object with one message, got {}",
+                json_kind(&other)
+            )),
+            _ => CodecError::BadJson(e.to_string()),
+        }
+    })
+}
+
+fn json_kind(value: &serde_json::Value) -> &'static str {
+    match value {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
 }
 
 /// A binary frame of a client message.

@@ -199,6 +199,8 @@ pub enum ErrorCode {
     /// A non-finite value, pressure outside [0, 1], time going backwards.
     BadSample,
     BadBrush,
+    /// ACUTS parameters out of range.
+    BadParams,
     UnknownStroke,
     StrokeFinished,
     /// A `StrokeBegin` for a stroke id already in use by someone else.
@@ -227,6 +229,7 @@ impl ErrorCode {
             ErrorCode::Protocol => "protocol",
             ErrorCode::BadSample => "bad_sample",
             ErrorCode::BadBrush => "bad_brush",
+            ErrorCode::BadParams => "bad_params",
             ErrorCode::UnknownStroke => "unknown_stroke",
             ErrorCode::StrokeFinished => "stroke_finished",
             ErrorCode::StrokeConflict => "stroke_conflict",
