@@ -1,5 +1,19 @@
 #!/usr/bin/env bash
-# The test command of the README: every test of the workspace.
+# The test command of the README: every test of the workspace on the embedded default (SQLite),
+# then, when PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
+# database per test; a Postgres test that cannot run fails, it never skips).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo test --workspace --all-targets
+pg_url=${PENMESH_TEST_POSTGRES_URL:-}
+
+env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets
+
+if [ -n "$pg_url" ]; then
+  echo "== end-to-end suite on PostgreSQL"
+  PENMESH_TEST_POSTGRES_URL=$pg_url cargo test -p penmesh-e2e --all-targets
+  # Each test made its own database; drop them so runs do not pile up.
+  if command -v psql >/dev/null 2>&1; then
+    psql "$pg_url" -Atc "select datname from pg_database where datname like 'penmesh\_%'" 2>/dev/null |
+      while read -r db; do psql "$pg_url" -qc "drop database if exists \"$db\"" >/dev/null 2>&1 || true; done
+  fi
+fi
