@@ -22,6 +22,10 @@ pub enum Command {
     Mesh(MeshArgs),
     /// Generate a stroke like a person draws on a tablet and write it as CSV or JSON.
     Synth(SynthArgs),
+    /// Draw into a proxy session live: resample, stream, reconstruct, upload the meshes.
+    Draw(DrawArgs),
+    /// Start a proxy in process and let simulated people draw at once through the real path.
+    Demo(DemoArgs),
 }
 
 /// ACUTS settings shared by the commands that simplify.
@@ -123,12 +127,131 @@ pub struct SynthArgs {
     pub seed: u64,
 }
 
+/// Settings of the live path shared by `draw` and `demo`.
+#[derive(Debug, Clone, Args)]
+pub struct LiveArgs {
+    /// Send what the resampler kept at least every this many milliseconds.
+    #[arg(long, default_value_t = crate::live::DEFAULT_BATCH_MS)]
+    pub batch_ms: u64,
+    /// Send as soon as this many kept samples wait.
+    #[arg(long, default_value_t = crate::live::DEFAULT_BATCH_SAMPLES)]
+    pub batch_size: usize,
+    /// After a lost connection, keep trying to resume this many seconds.
+    #[arg(long, default_value_t = crate::live::DEFAULT_RETRY_SECS)]
+    pub retry_for: u64,
+    /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.
+    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
+    pub resample: f64,
+    /// Brush size E (px): the radius at full pressure with a pressure response of 1.
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
+    pub brush_size: f64,
+    /// Pressure response chi in [0, 1].
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
+    pub pressure_response: f64,
+    /// Print exactly one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Log what happens to stderr (-v: info, -vv: debug).
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["input", "synth", "device"])))]
+pub struct DrawArgs {
+    /// The proxy, e.g. http://127.0.0.1:8080.
+    #[arg(long, env = "PENMESH_SERVER")]
+    pub server: String,
+    /// The session id (from POST /v1/sessions or `penmesh demo --keep-serving`).
+    #[arg(long, env = "PENMESH_SESSION")]
+    pub session: uuid::Uuid,
+    /// The session's bearer token.
+    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
+    pub token: String,
+    /// Replay the strokes of a file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
+    #[arg(long, value_name = "FILE")]
+    pub input: Option<PathBuf>,
+    /// Draw generated strokes: figure8, semicircles, chromosome, leaf or scribble.
+    #[arg(long, value_name = "SHAPE")]
+    pub synth: Option<penmesh::Shape>,
+    /// Read a tablet through evdev, e.g. /dev/input/event5 (or a recorded event file).
+    #[arg(long, value_name = "PATH")]
+    pub device: Option<PathBuf>,
+    /// Replay at the recorded pace instead of as fast as possible (files and synth).
+    #[arg(long)]
+    pub realtime: bool,
+    /// Write each stroke's GLB into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Your name in the session.
+    #[arg(long, default_value = "penmesh")]
+    pub name: String,
+    /// Synth: how many strokes to draw (seeds SEED, SEED+1, ...).
+    #[arg(long, default_value_t = 1)]
+    pub count: u32,
+    /// Synth: average pen speed, px/s.
+    #[arg(long, default_value_t = penmesh::DEFAULT_SPEED_PX_PER_S)]
+    pub speed: f64,
+    /// Synth: longer side of the shape's bounding box, px.
+    #[arg(long, default_value_t = penmesh::DEFAULT_SHAPE_SIZE_PX)]
+    pub size: f64,
+    /// Synth: tablet sampling rate, Hz.
+    #[arg(long, default_value_t = penmesh::DEFAULT_SAMPLE_RATE_HZ)]
+    pub rate: f64,
+    /// Synth: seed of the hand's jitter and timing.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// evdev: ABS_X range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_x: Option<crate::input::AxisRange>,
+    /// evdev: ABS_Y range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_y: Option<crate::input::AxisRange>,
+    /// evdev: ABS_PRESSURE range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_pressure: Option<crate::input::AxisRange>,
+    /// evdev: pixels spanned by the tablet's width (y uses the same scale).
+    #[arg(long, default_value_t = 1920.0)]
+    pub canvas_width: f64,
+    #[command(flatten)]
+    pub live: LiveArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// The SQLite database file (created if missing). Default: a temporary one, removed on exit.
+    #[arg(long, value_name = "PATH")]
+    pub db: Option<PathBuf>,
+    /// Where to write the GLB files.
+    #[arg(long, value_name = "DIR", default_value = "penmesh-demo-out")]
+    pub out: PathBuf,
+    /// Draw as fast as possible instead of at the people's real pace.
+    #[arg(long)]
+    pub fast: bool,
+    /// Leave the proxy up after the drawing, until Ctrl-C, so other clients can join.
+    #[arg(long)]
+    pub keep_serving: bool,
+    /// How many simulated people draw at once (0 with --keep-serving: only serve).
+    #[arg(long, default_value_t = 4)]
+    pub people: usize,
+    /// Address of the proxy.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Port of the proxy (0 picks a free one).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    #[command(flatten)]
+    pub live: LiveArgs,
+}
+
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Simplify(args) => commands::simplify::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Synth(args) => commands::synth::run(&args),
+        Command::Draw(args) => commands::draw::run(&args),
+        Command::Demo(args) => commands::demo::run(&args),
     }
 }
 

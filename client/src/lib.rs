@@ -4,4 +4,8 @@
 
 pub mod cli;
 mod commands;
+pub mod input;
 mod io;
+pub mod live;
+pub mod reconstruct;
+pub mod report;

@@ -1,5 +1,7 @@
 //! One module per CLI subcommand.
 
+pub mod demo;
+pub mod draw;
 pub mod mesh;
 pub mod simplify;
 pub mod synth;
