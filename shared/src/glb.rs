@@ -65,16 +65,15 @@ pub fn stroke_glb(mesh: &StrokeMesh, meta: &GlbMeta, options: &GlbOptions) -> Ve
 }
 
 /// A GLB file of several strokes, one mesh and node each, in order.
+///
+/// The document is planned first (views, accessors, bounds), so the file is allocated once at
+/// its exact size and the attributes are written straight into it.
 pub fn strokes_glb(strokes: &[GlbStroke<'_>], options: &GlbOptions) -> Vec<u8> {
     let mut writer = DocumentWriter::default();
     if options.quantize {
         writer.root.extensions_used.push(KHR_MESH_QUANTIZATION.to_owned());
         writer.root.extensions_required.push(KHR_MESH_QUANTIZATION.to_owned());
     }
-    // Room for the largest layout (float attributes, u32 indices), so the buffer never moves.
-    let bin_capacity: usize =
-        strokes.iter().map(|s| 24 * s.mesh.positions.len() + 4 * s.mesh.indices.len() + 12).sum();
-    writer.bin.reserve(bin_capacity);
     let mut nodes = Vec::with_capacity(strokes.len());
     for stroke in strokes {
         nodes.push(writer.add_stroke(stroke, options));
@@ -84,35 +83,133 @@ pub fn strokes_glb(strokes: &[GlbStroke<'_>], options: &GlbOptions) -> Vec<u8> {
     writer.finish()
 }
 
-#[derive(Default)]
-struct DocumentWriter {
-    root: json::Root,
-    bin: Vec<u8>,
+/// The bytes of one buffer view, written when the file is assembled.
+enum Payload<'a> {
+    /// `f32` VEC3, tightly packed.
+    Floats(&'a [[f32; 3]]),
+    /// `u16` VEC3 steps from `lo`, padded to 8 bytes.
+    QuantizedPositions {
+        positions: &'a [[f32; 3]],
+        lo: [f32; 3],
+        inv_step: [f32; 3],
+    },
+    /// Normalised `i8` VEC3, padded to 4 bytes.
+    QuantizedNormals(&'a [[f32; 3]]),
+    Indices16(&'a [u32]),
+    Indices32(&'a [u32]),
 }
 
-impl DocumentWriter {
+impl Payload<'_> {
+    fn byte_length(&self) -> usize {
+        match self {
+            Payload::Floats(values) => 12 * values.len(),
+            Payload::QuantizedPositions { positions, .. } => 8 * positions.len(),
+            Payload::QuantizedNormals(normals) => 4 * normals.len(),
+            Payload::Indices16(indices) => 2 * indices.len(),
+            Payload::Indices32(indices) => 4 * indices.len(),
+        }
+    }
+
+    /// Writes into `out`, which is `byte_length()` zeroed bytes.
+    fn write(&self, out: &mut [u8]) {
+        match self {
+            Payload::Floats(values) => {
+                for (bytes, v) in out.chunks_exact_mut(4).zip(values.as_flattened()) {
+                    bytes.copy_from_slice(&v.to_le_bytes());
+                }
+            }
+            Payload::QuantizedPositions { positions, lo, inv_step } => {
+                for (bytes, p) in out.chunks_exact_mut(8).zip(*positions) {
+                    for axis in 0..3 {
+                        let q = quantize_position(p[axis], lo[axis], inv_step[axis]);
+                        bytes[2 * axis..2 * axis + 2].copy_from_slice(&q.to_le_bytes());
+                    }
+                }
+            }
+            Payload::QuantizedNormals(normals) => {
+                for (bytes, n) in out.chunks_exact_mut(4).zip(*normals) {
+                    for axis in 0..3 {
+                        bytes[axis] = quantize_normal(n[axis]).to_le_bytes()[0];
+                    }
+                }
+            }
+            Payload::Indices16(indices) => {
+                for (bytes, &i) in out.chunks_exact_mut(2).zip(*indices) {
+                    bytes.copy_from_slice(&(i as u16).to_le_bytes());
+                }
+            }
+            Payload::Indices32(indices) => {
+                for (bytes, i) in out.chunks_exact_mut(4).zip(*indices) {
+                    bytes.copy_from_slice(&i.to_le_bytes());
+                }
+            }
+        }
+    }
+}
+
+/// Steps of `inv_step⁻¹` from `lo`, rounded half up (the value is not negative); `as`
+/// saturates, so NaN and out-of-range values cannot panic.
+fn quantize_position(value: f32, lo: f32, inv_step: f32) -> u16 {
+    ((value - lo) * inv_step + 0.5) as u16
+}
+
+/// A normalised `i8`, rounded half away from zero (`as` truncates towards zero).
+fn quantize_normal(value: f32) -> i8 {
+    (value * 127.0 + 0.5f32.copysign(value)).clamp(-127.0, 127.0) as i8
+}
+
+#[derive(Default)]
+struct DocumentWriter<'a> {
+    root: json::Root,
+    /// Each view's payload and its offset in the binary chunk.
+    payloads: Vec<(usize, Payload<'a>)>,
+    bin_length: usize,
+}
+
+impl<'a> DocumentWriter<'a> {
     fn add_stroke(
         &mut self,
-        stroke: &GlbStroke<'_>,
+        stroke: &GlbStroke<'a>,
         options: &GlbOptions,
     ) -> json::Index<json::Node> {
         let meta = serde_json::value::to_raw_value(stroke.meta).ok();
         let name = Some(stroke.meta.stroke.to_string());
         let mut node =
             json::Node { extras: meta.clone(), name: name.clone(), ..Default::default() };
-        let mesh = stroke.mesh;
+        let mesh: &'a StrokeMesh = stroke.mesh;
         if let Some((lo, hi)) = mesh.bounds().filter(|_| !mesh.is_empty()) {
             let (positions, normals) = if options.quantize {
-                let (positions, translation, scale) = self.quantized_positions(mesh, lo, hi);
-                node.translation = Some(translation);
-                node.scale = Some(scale);
-                (positions, self.quantized_normals(mesh))
+                let step: [f32; 3] = std::array::from_fn(|axis| {
+                    let step = (hi[axis] - lo[axis]) / f32::from(u16::MAX);
+                    if step > 0.0 && step.is_finite() { step } else { 1.0 }
+                });
+                node.translation = Some(lo);
+                node.scale = Some(step);
+                (self.quantized_positions(mesh, lo, hi, step), self.quantized_normals(mesh))
             } else {
                 let (normals_lo, normals_hi) = component_bounds(&mesh.normals);
-                (
-                    self.float_vec3(&mesh.positions, lo, hi),
-                    self.float_vec3(&mesh.normals, normals_lo, normals_hi),
-                )
+                let positions = self.accessor(
+                    Payload::Floats(&mesh.positions),
+                    None,
+                    json::buffer::Target::ArrayBuffer,
+                    json::accessor::ComponentType::F32,
+                    json::accessor::Type::Vec3,
+                    false,
+                    (json::Value::from(lo.to_vec()), json::Value::from(hi.to_vec())),
+                );
+                let normals = self.accessor(
+                    Payload::Floats(&mesh.normals),
+                    None,
+                    json::buffer::Target::ArrayBuffer,
+                    json::accessor::ComponentType::F32,
+                    json::accessor::Type::Vec3,
+                    false,
+                    (
+                        json::Value::from(normals_lo.to_vec()),
+                        json::Value::from(normals_hi.to_vec()),
+                    ),
+                );
+                (positions, normals)
             };
             let indices = self.indices(mesh);
             let primitive = json::mesh::Primitive {
@@ -139,20 +236,29 @@ impl DocumentWriter {
         self.root.push(node)
     }
 
-    /// Appends a buffer view (4-byte aligned) filled by `write`, and returns its index.
-    fn view(
+    /// Plans a buffer view (4-byte aligned) for `payload` and an accessor reading all of it.
+    #[allow(clippy::too_many_arguments)]
+    fn accessor(
         &mut self,
+        payload: Payload<'a>,
         stride: Option<usize>,
         target: json::buffer::Target,
-        write: impl FnOnce(&mut Vec<u8>),
-    ) -> json::Index<json::buffer::View> {
-        let offset = self.bin.len();
-        write(&mut self.bin);
-        let length = self.bin.len() - offset;
-        while self.bin.len() % 4 != 0 {
-            self.bin.push(0);
-        }
-        self.root.push(json::buffer::View {
+        component: json::accessor::ComponentType,
+        type_: json::accessor::Type,
+        normalized: bool,
+        (min, max): (json::Value, json::Value),
+    ) -> json::Index<json::Accessor> {
+        let offset = self.bin_length;
+        let length = payload.byte_length();
+        let count = match &payload {
+            Payload::Floats(values) => values.len(),
+            Payload::QuantizedPositions { positions, .. } => positions.len(),
+            Payload::QuantizedNormals(normals) => normals.len(),
+            Payload::Indices16(indices) | Payload::Indices32(indices) => indices.len(),
+        };
+        self.bin_length = (offset + length).next_multiple_of(4);
+        self.payloads.push((offset, payload));
+        let view = self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
             byte_length: USize64::from(length),
             byte_offset: Some(USize64::from(offset)),
@@ -161,20 +267,7 @@ impl DocumentWriter {
             target: Some(Valid(target)),
             extensions: None,
             extras: None,
-        })
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn accessor(
-        &mut self,
-        view: json::Index<json::buffer::View>,
-        count: usize,
-        component: json::accessor::ComponentType,
-        type_: json::accessor::Type,
-        normalized: bool,
-        min: json::Value,
-        max: json::Value,
-    ) -> json::Index<json::Accessor> {
+        });
         self.root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: Some(USize64(0)),
@@ -191,138 +284,67 @@ impl DocumentWriter {
         })
     }
 
-    /// A float VEC3 attribute with the given per-axis bounds.
-    fn float_vec3(
-        &mut self,
-        values: &[[f32; 3]],
-        lo: [f32; 3],
-        hi: [f32; 3],
-    ) -> json::Index<json::Accessor> {
-        let view = self.view(None, json::buffer::Target::ArrayBuffer, |bin| {
-            bin.reserve(12 * values.len());
-            for v in values.iter().flatten() {
-                bin.extend_from_slice(&v.to_le_bytes());
-            }
-        });
-        self.accessor(
-            view,
-            values.len(),
-            json::accessor::ComponentType::F32,
-            json::accessor::Type::Vec3,
-            false,
-            json::Value::from(lo.to_vec()),
-            json::Value::from(hi.to_vec()),
-        )
-    }
-
-    /// Positions as `u16` steps across the bounding box; returns the node's translation and scale.
+    /// Positions as `u16` steps of `step` across the bounding box `lo..hi`. Quantisation is
+    /// monotonic, so the bounds in steps are the quantised bounds.
     fn quantized_positions(
         &mut self,
-        mesh: &StrokeMesh,
+        mesh: &'a StrokeMesh,
         lo: [f32; 3],
         hi: [f32; 3],
-    ) -> (json::Index<json::Accessor>, [f32; 3], [f32; 3]) {
-        let scale: [f32; 3] = std::array::from_fn(|axis| {
-            let step = (hi[axis] - lo[axis]) / f32::from(u16::MAX);
-            if step > 0.0 && step.is_finite() { step } else { 1.0 }
-        });
-        let inv_scale = scale.map(|step| 1.0 / step);
-        let mut q_lo = [u16::MAX; 3];
-        let mut q_hi = [0u16; 3];
-        let view = self.view(Some(8), json::buffer::Target::ArrayBuffer, |bin| {
-            bin.reserve(8 * mesh.positions.len());
-            for p in &mesh.positions {
-                let q: [u16; 3] = std::array::from_fn(|axis| {
-                    // Rounds half up (the value is not negative); `as` saturates, so NaN and
-                    // out-of-range values cannot panic.
-                    ((p[axis] - lo[axis]) * inv_scale[axis] + 0.5) as u16
-                });
-                for axis in 0..3 {
-                    q_lo[axis] = q_lo[axis].min(q[axis]);
-                    q_hi[axis] = q_hi[axis].max(q[axis]);
-                }
-                let [x, y, z] = q.map(u16::to_le_bytes);
-                bin.extend_from_slice(&[x[0], x[1], y[0], y[1], z[0], z[1], 0, 0]);
-            }
-        });
-        let accessor = self.accessor(
-            view,
-            mesh.positions.len(),
+        step: [f32; 3],
+    ) -> json::Index<json::Accessor> {
+        let inv_step = step.map(|step| 1.0 / step);
+        let q_lo: [u16; 3] = std::array::from_fn(|a| quantize_position(lo[a], lo[a], inv_step[a]));
+        let q_hi: [u16; 3] = std::array::from_fn(|a| quantize_position(hi[a], lo[a], inv_step[a]));
+        self.accessor(
+            Payload::QuantizedPositions { positions: &mesh.positions, lo, inv_step },
+            Some(8),
+            json::buffer::Target::ArrayBuffer,
             json::accessor::ComponentType::U16,
             json::accessor::Type::Vec3,
             false,
-            json::Value::from(q_lo.to_vec()),
-            json::Value::from(q_hi.to_vec()),
-        );
-        (accessor, lo, scale)
-    }
-
-    fn quantized_normals(&mut self, mesh: &StrokeMesh) -> json::Index<json::Accessor> {
-        let mut q_lo = [i8::MAX; 3];
-        let mut q_hi = [i8::MIN; 3];
-        let view = self.view(Some(4), json::buffer::Target::ArrayBuffer, |bin| {
-            bin.reserve(4 * mesh.normals.len());
-            for n in &mesh.normals {
-                let q: [i8; 3] = std::array::from_fn(|axis| {
-                    // Rounds half away from zero; `as` truncates towards zero and saturates.
-                    (n[axis] * 127.0 + 0.5f32.copysign(n[axis])).clamp(-127.0, 127.0) as i8
-                });
-                for axis in 0..3 {
-                    q_lo[axis] = q_lo[axis].min(q[axis]);
-                    q_hi[axis] = q_hi[axis].max(q[axis]);
-                }
-                let [x, y, z] = q.map(|v| v.to_le_bytes()[0]);
-                bin.extend_from_slice(&[x, y, z, 0]);
-            }
-        });
-        self.accessor(
-            view,
-            mesh.normals.len(),
-            json::accessor::ComponentType::I8,
-            json::accessor::Type::Vec3,
-            true,
-            json::Value::from(q_lo.to_vec()),
-            json::Value::from(q_hi.to_vec()),
+            (json::Value::from(q_lo.to_vec()), json::Value::from(q_hi.to_vec())),
         )
     }
 
-    fn indices(&mut self, mesh: &StrokeMesh) -> json::Index<json::Accessor> {
-        let narrow = mesh.positions.len() <= usize::from(u16::MAX);
-        let view = self.view(None, json::buffer::Target::ElementArrayBuffer, |bin| {
-            if narrow {
-                bin.reserve(2 * mesh.indices.len());
-                for &i in &mesh.indices {
-                    bin.extend_from_slice(&(i as u16).to_le_bytes());
-                }
-            } else {
-                bin.reserve(4 * mesh.indices.len());
-                for &i in &mesh.indices {
-                    bin.extend_from_slice(&i.to_le_bytes());
-                }
-            }
-        });
-        let component = if narrow {
-            json::accessor::ComponentType::U16
-        } else {
-            json::accessor::ComponentType::U32
-        };
+    fn quantized_normals(&mut self, mesh: &'a StrokeMesh) -> json::Index<json::Accessor> {
+        let (lo, hi) = component_bounds(&mesh.normals);
+        let (q_lo, q_hi) = (lo.map(quantize_normal), hi.map(quantize_normal));
+        self.accessor(
+            Payload::QuantizedNormals(&mesh.normals),
+            Some(4),
+            json::buffer::Target::ArrayBuffer,
+            json::accessor::ComponentType::I8,
+            json::accessor::Type::Vec3,
+            true,
+            (json::Value::from(q_lo.to_vec()), json::Value::from(q_hi.to_vec())),
+        )
+    }
+
+    fn indices(&mut self, mesh: &'a StrokeMesh) -> json::Index<json::Accessor> {
         let lo = mesh.indices.iter().copied().min().unwrap_or(0);
         let hi = mesh.indices.iter().copied().max().unwrap_or(0);
+        let (payload, component) = if mesh.positions.len() <= usize::from(u16::MAX) {
+            (Payload::Indices16(&mesh.indices), json::accessor::ComponentType::U16)
+        } else {
+            (Payload::Indices32(&mesh.indices), json::accessor::ComponentType::U32)
+        };
         self.accessor(
-            view,
-            mesh.indices.len(),
+            payload,
+            None,
+            json::buffer::Target::ElementArrayBuffer,
             component,
             json::accessor::Type::Scalar,
             false,
-            json::Value::from(vec![lo]),
-            json::Value::from(vec![hi]),
+            (json::Value::from(vec![lo]), json::Value::from(vec![hi])),
         )
     }
 
     fn finish(mut self) -> Vec<u8> {
-        if !self.bin.is_empty() {
+        let bin_length = self.bin_length;
+        if bin_length > 0 {
             self.root.push(json::Buffer {
-                byte_length: USize64::from(self.bin.len()),
+                byte_length: USize64::from(bin_length),
                 name: None,
                 uri: None,
                 extensions: None,
@@ -337,7 +359,7 @@ impl DocumentWriter {
         while json_bytes.len() % 4 != 0 {
             json_bytes.push(b' ');
         }
-        let bin_chunk = if self.bin.is_empty() { 0 } else { 8 + self.bin.len() };
+        let bin_chunk = if bin_length == 0 { 0 } else { 8 + bin_length };
         let total = 12 + 8 + json_bytes.len() + bin_chunk;
         let mut glb = Vec::with_capacity(total);
         glb.extend_from_slice(GLB_MAGIC);
@@ -346,10 +368,16 @@ impl DocumentWriter {
         glb.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
         glb.extend_from_slice(&CHUNK_JSON.to_le_bytes());
         glb.extend_from_slice(&json_bytes);
-        if !self.bin.is_empty() {
-            glb.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
+        if bin_length > 0 {
+            glb.extend_from_slice(&(bin_length as u32).to_le_bytes());
             glb.extend_from_slice(&CHUNK_BIN.to_le_bytes());
-            glb.extend_from_slice(&self.bin);
+            let bin_start = glb.len();
+            // Zeroed, so the padding between views is zero as GLB requires.
+            glb.resize(total, 0);
+            for (offset, payload) in &self.payloads {
+                let at = bin_start + offset;
+                payload.write(&mut glb[at..at + payload.byte_length()]);
+            }
         }
         glb
     }

@@ -124,37 +124,35 @@ impl Outline {
     /// The closed counter-clockwise outline `T_c = T_f, T_u, T_e, reverse(T_v)` (not repeating
     /// its first point at the end).
     pub fn closed(&self) -> Vec<DVec2> {
-        let mut points = Vec::with_capacity(self.n_closed());
-        points.extend_from_slice(&self.start_cap);
-        points.extend_from_slice(&self.upper);
-        points.extend_from_slice(&self.end_cap);
-        points.extend(self.lower.iter().rev());
-        points
+        self.closed_iter().map(|(point, _, _)| point).collect()
     }
 
     /// The outward unit normal at each point of [`Outline::closed`]: `n_k` on `T_u`, `-n_k` on
     /// `T_v`, radial on the caps.
     pub fn closed_normals(&self) -> Vec<DVec2> {
-        let mut normals = Vec::with_capacity(self.n_closed());
-        normals.extend_from_slice(&self.start_cap_normals);
-        normals.extend_from_slice(&self.normals);
-        normals.extend_from_slice(&self.end_cap_normals);
-        normals.extend(self.normals.iter().rev().map(|n| -*n));
-        normals
+        self.closed_iter().map(|(_, normal, _)| normal).collect()
     }
 
     /// The radius that belongs to each point of [`Outline::closed`] (the end sample's radius on
     /// the caps).
     pub fn closed_radii(&self) -> Vec<f64> {
-        let (Some(&first), Some(&last)) = (self.radii.first(), self.radii.last()) else {
-            return Vec::new();
-        };
-        let mut radii = Vec::with_capacity(self.n_closed());
-        radii.extend(std::iter::repeat_n(first, self.start_cap.len()));
-        radii.extend_from_slice(&self.radii);
-        radii.extend(std::iter::repeat_n(last, self.end_cap.len()));
-        radii.extend(self.radii.iter().rev());
-        radii
+        self.closed_iter().map(|(_, _, radius)| radius).collect()
+    }
+
+    /// Point, outward unit normal and radius of each point of `T_c`, in order.
+    pub fn closed_iter(&self) -> impl Iterator<Item = (DVec2, DVec2, f64)> + '_ {
+        let first_radius = self.radii.first().copied().unwrap_or(0.0);
+        let last_radius = self.radii.last().copied().unwrap_or(0.0);
+        let start_cap = (self.start_cap.iter().zip(&self.start_cap_normals))
+            .map(move |(p, n)| (*p, *n, first_radius));
+        let upper =
+            (self.upper.iter().zip(&self.normals).zip(&self.radii)).map(|((p, n), r)| (*p, *n, *r));
+        let end_cap = (self.end_cap.iter().zip(&self.end_cap_normals))
+            .map(move |(p, n)| (*p, *n, last_radius));
+        let lower = (self.lower.iter().zip(&self.normals).zip(&self.radii))
+            .rev()
+            .map(|((p, n), r)| (*p, -*n, *r));
+        start_cap.chain(upper).chain(end_cap).chain(lower)
     }
 }
 

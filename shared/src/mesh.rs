@@ -118,10 +118,6 @@ pub fn solid_mesh(outline: &Outline, options: &SolidOptions) -> StrokeMesh {
     let n_end = outline.end_cap.len();
     let n_loop = outline.n_closed();
 
-    let loop_points = outline.closed();
-    let loop_normals = outline.closed_normals();
-    let loop_radii = outline.closed_radii();
-
     let mut mesh = StrokeMesh {
         positions: Vec::with_capacity(2 * n_loop),
         normals: Vec::with_capacity(2 * n_loop),
@@ -130,11 +126,17 @@ pub fn solid_mesh(outline: &Outline, options: &SolidOptions) -> StrokeMesh {
     // The tube's normal at a rim point with outward outline normal `o` is `unit(thickness * o ±
     // z)`; `o` is a unit vector, so one scale serves every vertex.
     let inv_length = 1.0 / thickness.hypot(1.0);
-    for side in [1.0, -1.0] {
-        for ((point, normal), radius) in loop_points.iter().zip(&loop_normals).zip(&loop_radii) {
-            mesh.positions.push(to_f32(point.extend(side * thickness * radius)));
-            mesh.normals.push(to_f32((thickness * *normal).extend(side) * inv_length));
-        }
+    for (point, normal, radius) in outline.closed_iter() {
+        mesh.positions.push(to_f32(point.extend(thickness * radius)));
+        mesh.normals.push(to_f32((thickness * normal).extend(1.0) * inv_length));
+    }
+    // The bottom copy mirrors the top in z.
+    let mirror = |v: &[f32; 3]| [v[0], v[1], -v[2]];
+    mesh.positions.extend_from_within(..);
+    mesh.normals.extend_from_within(..);
+    for (position, normal) in mesh.positions[n_loop..].iter_mut().zip(&mut mesh.normals[n_loop..]) {
+        *position = mirror(position);
+        *normal = mirror(normal);
     }
 
     // Loop indices of the outline's parts (see `Outline::closed`).
@@ -144,29 +146,30 @@ pub fn solid_mesh(outline: &Outline, options: &SolidOptions) -> StrokeMesh {
     let end_cap = |j: usize| (n_start + n_samples + j) as u32;
 
     // The top face, counter-clockwise seen from +z.
-    let mut top: Vec<[u32; 3]> = Vec::with_capacity(2 * n_samples + n_start + n_end);
+    let top = &mut mesh.indices;
     for k in 0..n_samples - 1 {
-        top.push([upper(k), upper(k + 1), lower(k + 1)]);
-        top.push([upper(k), lower(k + 1), lower(k)]);
+        top.extend_from_slice(&[upper(k), upper(k + 1), lower(k + 1)]);
+        top.extend_from_slice(&[upper(k), lower(k + 1), lower(k)]);
     }
     // Start cap: the half disc lower[0], cap..., upper[0], fanned from lower[0].
-    let start_chain: Vec<u32> = (0..n_start).map(start_cap).chain([upper(0)]).collect();
-    for pair in start_chain.windows(2) {
-        top.push([lower(0), pair[0], pair[1]]);
+    for j in 0..n_start {
+        let next = if j + 1 < n_start { start_cap(j + 1) } else { upper(0) };
+        top.extend_from_slice(&[lower(0), start_cap(j), next]);
     }
     // End cap: the half disc upper[last], cap..., lower[last], fanned from upper[last].
     let last = n_samples - 1;
-    let end_chain: Vec<u32> = (0..n_end).map(end_cap).chain([lower(last)]).collect();
-    for pair in end_chain.windows(2) {
-        top.push([upper(last), pair[0], pair[1]]);
+    for j in 0..n_end {
+        let next = if j + 1 < n_end { end_cap(j + 1) } else { lower(last) };
+        top.extend_from_slice(&[upper(last), end_cap(j), next]);
     }
 
+    // The bottom face: the top's triangles on the bottom vertices, wound the other way.
+    let n_top = mesh.indices.len();
     let bottom = |i: u32| i + n_loop as u32;
-    for [a, b, c] in &top {
-        mesh.indices.extend_from_slice(&[*a, *b, *c]);
-    }
-    for [a, b, c] in &top {
-        mesh.indices.extend_from_slice(&[bottom(*a), bottom(*c), bottom(*b)]);
+    mesh.indices.extend_from_within(..);
+    for triangle in mesh.indices[n_top..].chunks_exact_mut(3) {
+        let [a, b, c] = [triangle[0], triangle[1], triangle[2]];
+        triangle.copy_from_slice(&[bottom(a), bottom(c), bottom(b)]);
     }
     // Walls: each outline edge a -> b (counter-clockwise) becomes an outward quad.
     for a in 0..n_loop as u32 {
