@@ -1,0 +1,49 @@
+//! `penmesh demo --fast`: everything it reports is in the database, with the counts it printed.
+
+use std::collections::HashMap;
+
+use crate::helpers::{assert_stored_complete, json_of, penmesh, run, stored_strokes};
+
+#[tokio::test]
+async fn demo_stores_every_stroke_and_mesh_it_reports() {
+    // Arrange
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("demo.db");
+    let out_dir = dir.path().join("glb");
+
+    // Act
+    let out = run(penmesh()
+        .args(["demo", "--fast", "--json", "--people", "3", "--db"])
+        .arg(&db)
+        .arg("--out")
+        .arg(&out_dir));
+
+    // Assert
+    let summary = json_of(&out);
+    let reported = summary["strokes"].as_array().unwrap();
+    assert_eq!(reported.len(), 3 * penmesh::Shape::ALL.len());
+    assert_eq!(summary["totals"]["strokes"], reported.len());
+    let stored: HashMap<String, _> =
+        stored_strokes(&db).await.into_iter().map(|s| (s.id.clone(), s)).collect();
+    assert_eq!(stored.len(), reported.len(), "the database holds other strokes than reported");
+    for r in reported {
+        let id = r["stroke"].as_str().unwrap();
+        let s = &stored[id];
+        assert_stored_complete(s);
+        assert_eq!(s.session, summary["session"].as_str().unwrap());
+        assert_eq!(s.n_points, r["n_resampled"].as_u64().unwrap(), "stroke {id}");
+        assert_eq!(s.n_retained, r["n_retained"].as_u64().unwrap(), "stroke {id}");
+        let (bytes, vertices, triangles) = s.mesh.unwrap();
+        assert_eq!(bytes, r["glb_bytes"].as_u64().unwrap());
+        assert_eq!(vertices, r["vertices"].as_u64().unwrap());
+        assert_eq!(triangles, r["triangles"].as_u64().unwrap());
+        assert!(r["exact"].as_bool().unwrap(), "stroke {id}: simplified differs from drawn");
+        assert!(r["n_drawn"].as_u64().unwrap() >= s.n_points);
+        let file = std::fs::read(r["glb_path"].as_str().unwrap()).unwrap();
+        assert_eq!(
+            Some(&file),
+            s.glb.as_ref(),
+            "stroke {id}: the GLB file differs from the stored one"
+        );
+    }
+}
