@@ -111,6 +111,9 @@ pub struct DrawOptions {
     pub out_dir: Option<PathBuf>,
     /// Advanced by one per drawn sample.
     pub progress: Option<ProgressBar>,
+    /// Counts interrupts (Ctrl-C): the first ends the input as if the source ended, so what
+    /// was drawn is still stored and meshed; the second gives up at once.
+    pub interrupts: Option<tokio::sync::watch::Receiver<u32>>,
 }
 
 impl DrawOptions {
@@ -124,6 +127,7 @@ impl DrawOptions {
             retry_for: Duration::from_secs(DEFAULT_RETRY_SECS),
             out_dir: None,
             progress: None,
+            interrupts: None,
         }
     }
 }
@@ -255,6 +259,7 @@ impl Live {
         let mut backoff = BACKOFF_FIRST;
         let mut attempts = 0u32;
         let mut retry_at = Instant::now();
+        let mut interrupts = self.options.interrupts.clone();
         let mut tick =
             tokio::time::interval(self.options.batch_interval.max(Duration::from_millis(1)));
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -355,6 +360,14 @@ impl Live {
                     }
                 }
                 _ = tokio::time::sleep_until(retry_at), if link.is_none() => {}
+                n = interrupted(&mut interrupts) => {
+                    if n >= 2 || !source_open {
+                        anyhow::bail!("interrupted");
+                    }
+                    tracing::warn!("interrupted: storing what was drawn (interrupt again to quit at once)");
+                    self.pen_up();
+                    source_open = false;
+                }
             }
         }
     }
@@ -718,6 +731,20 @@ async fn send(link: &mut Link, msg: &ClientMessage) -> anyhow::Result<()> {
         .context("sending to the proxy")?;
     link.last_sent = Instant::now();
     Ok(())
+}
+
+/// The number of interrupts so far, once it changes; pending forever without a watch.
+async fn interrupted(interrupts: &mut Option<tokio::sync::watch::Receiver<u32>>) -> u32 {
+    match interrupts {
+        Some(rx) => match rx.changed().await {
+            Ok(()) => *rx.borrow_and_update(),
+            Err(_) => {
+                *interrupts = None;
+                std::future::pending().await
+            }
+        },
+        None => std::future::pending().await,
+    }
 }
 
 /// The next message of the link; pending forever without one.

@@ -27,7 +27,12 @@ pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     options.progress = progress.clone();
 
     let runtime = runtime()?;
-    let reports = runtime.block_on(live::draw(&endpoint, source, &options));
+    let reports = runtime.block_on(async {
+        options.interrupts = Some(interrupts());
+        live::draw(&endpoint, source, &options).await
+    });
+    // A tablet's reading thread may sit in a blocking read: do not wait for it.
+    runtime.shutdown_timeout(Duration::from_millis(100));
     if let Some(progress) = &progress {
         progress.finish_and_clear();
     }
@@ -140,6 +145,17 @@ pub(crate) fn progress_bar(total: Option<u64>, name: &str) -> ProgressBar {
     bar.with_prefix(name.to_string())
 }
 
+/// Counts Ctrl-C presses: the first ends the input, the second gives up at once.
+fn interrupts() -> tokio::sync::watch::Receiver<u32> {
+    let (tx, rx) = tokio::sync::watch::channel(0u32);
+    tokio::spawn(async move {
+        while tokio::signal::ctrl_c().await.is_ok() {
+            tx.send_modify(|n| *n += 1);
+        }
+    });
+    rx
+}
+
 pub(crate) fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")
 }
@@ -153,6 +169,9 @@ pub(crate) fn init_tracing(verbose: u8) {
     };
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    let _ =
-        tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .try_init();
 }

@@ -15,7 +15,7 @@ async fn two_drawers_in_one_session_store_everything_once() {
     let proxy = Proxy::start(&dir.path().join("p.db"), 0);
     let csv = dir.path().join("leaf.csv");
     let leaf = synth(Shape::Leaf, 350.0, 250.0, 7);
-    std::fs::write(&csv, penmesh::write_csv(&[leaf.clone()])).unwrap();
+    std::fs::write(&csv, penmesh::write_csv(std::slice::from_ref(&leaf))).unwrap();
 
     // Act: both at once, one from the generator, one from a file.
     let first = proxy
