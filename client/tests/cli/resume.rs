@@ -61,3 +61,69 @@ async fn a_killed_proxy_loses_and_duplicates_nothing() {
     );
     assert!(stored[0].chunks.len() > 1);
 }
+
+/// Forwards TCP connections to `upstream` until told to cut every open one.
+async fn relay(upstream: u16) -> (u16, tokio::sync::watch::Sender<u32>) {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let (cut, cuts) = tokio::sync::watch::channel(0u32);
+    tokio::spawn(async move {
+        loop {
+            let Ok((mut downstream, _)) = listener.accept().await else { return };
+            let mut cuts = cuts.clone();
+            cuts.mark_unchanged();
+            tokio::spawn(async move {
+                let Ok(mut up) = tokio::net::TcpStream::connect(("127.0.0.1", upstream)).await
+                else {
+                    return;
+                };
+                tokio::select! {
+                    _ = tokio::io::copy_bidirectional(&mut downstream, &mut up) => {}
+                    _ = cuts.changed() => {}
+                }
+            });
+        }
+    });
+    (port, cut)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn network_blips_mid_stroke_lose_and_duplicate_nothing() {
+    // Arrange: the client reaches a live proxy through a relay that drops every connection.
+    let dir = tempfile::tempdir().unwrap();
+    let proxy = Proxy::start(&dir.path().join("p.db"), 0);
+    let (relay_port, cut) = relay(proxy.port).await;
+    let (speed, size, seed) = (300.0, 400.0, 5);
+    let drawn = synth(Shape::Scribble, speed, size, seed);
+
+    // Act: two blips while the stroke is being drawn.
+    let mut cmd = crate::helpers::penmesh();
+    cmd.args(["draw", "--json", "--server", &format!("http://127.0.0.1:{relay_port}")])
+        .args(["--session", &proxy.session, "--token", &proxy.token])
+        .args(["--synth", "scribble", "--realtime", "-v"])
+        .args([
+            "--speed",
+            &speed.to_string(),
+            "--size",
+            &size.to_string(),
+            "--seed",
+            &seed.to_string(),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let client = cmd.spawn().unwrap();
+    for _ in 0..2 {
+        tokio::time::sleep(Duration::from_millis(1200)).await;
+        cut.send_modify(|n| *n += 1);
+    }
+    let out = tokio::task::spawn_blocking(move || wait(client)).await.unwrap();
+
+    // Assert
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "draw failed: {stderr}");
+    assert_eq!(stderr.matches("connection lost; resuming").count(), 2, "{stderr}");
+    let stored = stored_strokes(&proxy.db).await;
+    assert_eq!(stored.len(), 1);
+    assert_stored_complete(&stored[0]);
+    assert_eq!(stored[0].raw, expected_resampled(drawn.samples()));
+}
