@@ -271,8 +271,16 @@ pub fn report_parse_error(err: clap::Error) -> ExitCode {
         }
         _ => {
             let rendered = err.render().to_string();
-            let first = rendered.lines().next().unwrap_or("error: bad command line");
-            eprintln!("{first} (see 'penmesh --help')");
+            // Clap puts what is missing on the lines after the first: keep them on one line.
+            let line = rendered
+                .lines()
+                .take_while(|l| !l.starts_with("Usage:"))
+                .map(str::trim)
+                .filter(|l| !l.is_empty() && !l.starts_with("tip:") && !l.starts_with("For more"))
+                .collect::<Vec<_>>()
+                .join(" ");
+            let line = if line.is_empty() { "error: bad command line".to_string() } else { line };
+            eprintln!("{line} (see 'penmesh --help')");
             ExitCode::from(2)
         }
     }
