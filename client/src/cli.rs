@@ -22,6 +22,8 @@ pub enum Command {
     Mesh(MeshArgs),
     /// Generate a stroke like a person draws on a tablet and write it as CSV or JSON.
     Synth(SynthArgs),
+    /// Evaluate ACUTS against the baselines and optimal min-#: tables, sweeps, plots.
+    Eval(commands::eval::EvalArgs),
     /// Draw into a proxy session live: resample, stream, reconstruct, upload the meshes.
     Draw(DrawArgs),
     /// Start a proxy in process and let simulated people draw at once through the real path.
@@ -250,6 +252,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simplify(args) => commands::simplify::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Synth(args) => commands::synth::run(&args),
+        Command::Eval(args) => commands::eval::run(&args),
         Command::Draw(args) => commands::draw::run(&args),
         Command::Demo(args) => commands::demo::run(&args),
     }

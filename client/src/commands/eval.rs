@@ -1,0 +1,824 @@
+//! `penmesh eval`: ACUTS and the baselines over every stroke of one or more data sets, with the
+//! paper's table 6 metrics, the equal-error comparison against optimal min-#, rate–distortion
+//! sweeps and the mesh table (table 8).
+//!
+//! **Units.** Every distance is in CSS px (96 per inch). Tablet files are converted at read time:
+//! SVC2004 `.txt` at 2540 lines per inch (the WACOM Intuos of SVC2004: 0.01 mm per unit, so
+//! 96 / 2540 px per unit) and SigComp2011 `.hwr` at 5080 lines per inch (the WACOM Intuos3 of
+//! SigComp2011: 0.005 mm per unit). CSV and JSON are taken as px. `--px-per-unit` overrides the
+//! tablet factor. So the default tolerance of 0.74 px means the same on-screen error on every
+//! data set (0.20 mm, about 20 SVC2004 units or 39 SigComp2011 units).
+//!
+//! **The bound.** Every method is compared at one *guaranteed* bound `B` on the distance of a
+//! removed sample to its spanning retained segment: ACUTS guarantees `d_d + l_eps` (stage 1
+//! drops samples within `l_eps` of a sample that stage 2 then bounds by `d_d`), the others their
+//! tolerance. So the baselines and optimal min-# run at `B = d_d + l_eps`. In a sweep, ACUTS
+//! keeps the ratio of `d_d` to `l_eps` and scales both to each bound.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use penmesh::baselines::{
+    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, Simplify, SquishE, Visvalingam, VwStop,
+    min_points,
+};
+use penmesh::{
+    AcutsParams, Brush, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample, SolidOptions,
+    SvgStroke,
+};
+use serde::Serialize;
+
+use crate::io;
+
+/// Every algorithm `--algos` knows, in the order of the tables.
+pub const ALGOS: [&str; 11] = [
+    "acuts",
+    "acuts-paper",
+    "dp",
+    "vw",
+    "window",
+    "window-d",
+    "squish-e",
+    "bqs",
+    "fbqs",
+    "dpts",
+    "optimal",
+];
+const DEFAULT_ALGOS: &str = "acuts,acuts-paper,dp,vw,window,squish-e,bqs,fbqs,dpts,optimal";
+/// The bounds of `--sweep`, px.
+const SWEEP_BOUNDS: [f64; 10] = [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0];
+/// Px per SVC2004 tablet unit (2540 lines per inch).
+pub const SVC2004_PX_PER_UNIT: f64 = 96.0 / 2540.0;
+/// Px per SigComp2011 tablet unit (5080 lines per inch).
+pub const HWR_PX_PER_UNIT: f64 = 96.0 / 5080.0;
+/// The ACUTS setting the paper and the spec give (table 3), for before/after comparisons.
+const PAPER_TOLERANCE: f64 = 0.74;
+const PAPER_RESAMPLE: f64 = 1.0;
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Data: directories (searched recursively for .txt, .hwr, .csv, .json) or files. Each
+    /// folder is one data set.
+    pub inputs: Vec<PathBuf>,
+    /// Algorithms, comma separated: acuts, acuts-paper, dp, vw, window, window-d, squish-e, bqs,
+    /// fbqs, dpts, optimal.
+    #[arg(long, value_delimiter = ',', default_value = DEFAULT_ALGOS)]
+    pub algos: Vec<String>,
+    /// ACUTS chord-height tolerance d_d, px.
+    #[arg(long, default_value_t = penmesh::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    /// ACUTS stage-1 resampling distance l_eps, px. The bound of every method is d_d + l_eps.
+    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
+    pub resample: f64,
+    /// ACUTS angle threshold, degrees.
+    #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
+    pub angle: f64,
+    /// ACUTS pressure-variance threshold.
+    #[arg(long = "pressure-var", default_value_t = penmesh::DEFAULT_PRESSURE_VARIANCE)]
+    pub pressure_var: f64,
+    /// Px per tablet unit for .txt and .hwr files (default: per format, see the docs).
+    #[arg(long)]
+    pub px_per_unit: Option<f64>,
+    /// Also evaluate generated strokes: the four classic contours and scribbles at 200-500 px/s.
+    #[arg(long)]
+    pub synth: bool,
+    /// Rate-distortion sweep over bounds from 0.25 to 8 px.
+    #[arg(long)]
+    pub sweep: bool,
+    /// Write the whole report as JSON.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Write the tables as Markdown.
+    #[arg(long, value_name = "OUT")]
+    pub markdown: Option<PathBuf>,
+    /// Write SVG figures (rate-distortion curves, overlays of one signature) into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
+}
+
+/// One file's strokes, in px.
+#[derive(Debug)]
+pub struct DataFile {
+    pub name: String,
+    pub strokes: Vec<Vec<Sample>>,
+}
+
+/// A named collection of files.
+#[derive(Debug)]
+pub struct DataSet {
+    pub name: String,
+    pub files: Vec<DataFile>,
+}
+
+impl DataSet {
+    fn strokes(&self) -> impl Iterator<Item = &[Sample]> + '_ {
+        self.files.iter().flat_map(|f| f.strokes.iter().map(Vec::as_slice))
+    }
+
+    fn n_strokes(&self) -> usize {
+        self.files.iter().map(|f| f.strokes.len()).sum()
+    }
+}
+
+/// An algorithm under evaluation, run at a guaranteed bound.
+pub enum Method {
+    /// ACUTS with its setting; at another bound, `d_d` and `l_eps` are scaled together.
+    Acuts {
+        resample: f64,
+        params: AcutsParams,
+    },
+    Baseline(Box<dyn Simplify>),
+}
+
+impl std::fmt::Debug for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Method::Acuts { resample, params } => {
+                write!(f, "Acuts {{ resample: {resample}, params: {params:?} }}")
+            }
+            Method::Baseline(b) => write!(f, "Baseline({})", b.name()),
+        }
+    }
+}
+
+#[derive(Debug)]
+pub struct Algo {
+    pub name: String,
+    pub online: bool,
+    pub method: Method,
+}
+
+impl Algo {
+    /// The kept indices with every removed sample guaranteed within `bound`.
+    pub fn run(&self, samples: &[Sample], bound: f64) -> Vec<usize> {
+        match &self.method {
+            Method::Acuts { resample, params } => {
+                let (tolerance, resample) = split_bound(params.tolerance, *resample, bound);
+                let params = AcutsParams { tolerance, ..*params };
+                penmesh::acuts(samples, resample, &params).kept
+            }
+            Method::Baseline(b) => b.run(samples, bound),
+        }
+    }
+}
+
+/// `(d_d, l_eps)` scaled so that they add up to `bound`, in the ratio of the setting.
+fn split_bound(tolerance: f64, resample: f64, bound: f64) -> (f64, f64) {
+    let total = tolerance + resample;
+    if total > 0.0 { (bound * tolerance / total, bound * resample / total) } else { (bound, 0.0) }
+}
+
+/// Builds the algorithms named in `names`.
+pub fn algos(names: &[String], args_acuts: (f64, AcutsParams)) -> anyhow::Result<Vec<Algo>> {
+    let paper = AcutsParams { tolerance: PAPER_TOLERANCE, ..AcutsParams::default() };
+    names
+        .iter()
+        .map(|name| {
+            let name = name.trim().to_ascii_lowercase();
+            let (online, method) = match name.as_str() {
+                "acuts" => (true, Method::Acuts { resample: args_acuts.0, params: args_acuts.1 }),
+                "acuts-paper" => {
+                    let params =
+                        AcutsParams { tolerance: paper.tolerance, ..AcutsParams::default() };
+                    (true, Method::Acuts { resample: PAPER_RESAMPLE, params })
+                }
+                "dp" => (false, Method::Baseline(Box::new(DouglasPeucker))),
+                "vw" => {
+                    (false, Method::Baseline(Box::new(Visvalingam { stop: VwStop::ErrorBound })))
+                }
+                "window" => (true, Method::Baseline(Box::new(OpeningWindow::default()))),
+                "window-d" => (true, Method::Baseline(Box::new(OpeningWindow { angle_deg: None }))),
+                "squish-e" => (true, Method::Baseline(Box::new(SquishE::default()))),
+                "bqs" => (true, Method::Baseline(Box::new(Bqs { fast: false }))),
+                "fbqs" => (true, Method::Baseline(Box::new(Bqs { fast: true }))),
+                "dpts" => (true, Method::Baseline(Box::new(Dpts::default()))),
+                "optimal" => (false, Method::Baseline(Box::new(Optimal))),
+                other => anyhow::bail!("unknown algorithm {other:?}: expected one of {ALGOS:?}"),
+            };
+            Ok(Algo { name, online, method })
+        })
+        .collect()
+}
+
+/// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub algo: String,
+    pub online: bool,
+    pub n_strokes: usize,
+    pub n: usize,
+    pub c: usize,
+    pub cr: f64,
+    /// Mean synchronised Euclidean distance over all samples, px.
+    pub sed: f64,
+    /// Largest segment distance over the data set, px.
+    pub e_max: f64,
+    /// Mean of the strokes' E_max, px.
+    pub e_max_mean: f64,
+    /// Relative loss of polyline length over the data set, %.
+    pub e_l: f64,
+    pub time_ms: f64,
+    /// Points kept over optimal min-# at the same guaranteed bound.
+    pub ratio_at_bound: f64,
+    /// Points kept over optimal min-# at the E_max each stroke actually reached.
+    pub ratio_at_reached: f64,
+}
+
+/// Table 8's row: the meshes of the simplified strokes against those of the originals.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshRow {
+    pub algo: String,
+    /// Samples the meshes are built from.
+    pub samples: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+    /// GLB bytes (one file per signature).
+    pub bytes: usize,
+    pub time_ms: f64,
+    /// Reductions against the unsimplified strokes' meshes, %.
+    pub eta_vertices: f64,
+    pub eta_triangles: f64,
+    pub eta_bytes: f64,
+    pub eta_time: f64,
+}
+
+/// One point of a rate–distortion curve.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepPoint {
+    pub algo: String,
+    pub bound: f64,
+    pub kept_percent: f64,
+    pub e_max_mean: f64,
+    pub sed: f64,
+    pub ratio_at_bound: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DataSetReport {
+    pub name: String,
+    pub n_files: usize,
+    pub n_strokes: usize,
+    pub bound: f64,
+    /// The file the overlay figures show.
+    pub overlay_file: Option<String>,
+    pub rows: Vec<Row>,
+    pub mesh: Vec<MeshRow>,
+    pub sweep: Vec<SweepPoint>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalReport {
+    pub tolerance: f64,
+    pub resample: f64,
+    pub angle_deg: f64,
+    pub pressure_variance: f64,
+    pub bound: f64,
+    pub data_sets: Vec<DataSetReport>,
+}
+
+pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
+    let params = AcutsParams {
+        tolerance: args.tolerance,
+        angle_deg: args.angle,
+        pressure_variance: args.pressure_var,
+    };
+    params.validate().map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
+    anyhow::ensure!(
+        args.resample.is_finite() && args.resample >= 0.0,
+        "bad ACUTS setting: resample = {} must be a finite number >= 0",
+        args.resample
+    );
+    if let Some(scale) = args.px_per_unit {
+        anyhow::ensure!(scale.is_finite() && scale > 0.0, "--px-per-unit must be > 0");
+    }
+    let algos = algos(&args.algos, (args.resample, params))?;
+    let mut data_sets = load_data_sets(&args.inputs, args.px_per_unit)?;
+    if args.synth {
+        data_sets.push(synthetic_data_set()?);
+    }
+    anyhow::ensure!(!data_sets.is_empty(), "nothing to evaluate: give files, folders or --synth");
+    let bound = args.tolerance + args.resample;
+
+    let work: usize = data_sets
+        .iter()
+        .map(|d| {
+            d.n_strokes() * algos.len() * (2 + if args.sweep { SWEEP_BOUNDS.len() } else { 0 })
+        })
+        .sum();
+    let progress = ProgressBar::new(work as u64).with_style(
+        ProgressStyle::with_template("{msg:>18} [{bar:40}] {pos}/{len} ({eta})")
+            .context("progress bar style")?
+            .progress_chars("=> "),
+    );
+    let mut reports = Vec::with_capacity(data_sets.len());
+    for data_set in &data_sets {
+        progress.set_message(data_set.name.clone());
+        reports.push(evaluate(data_set, &algos, bound, args.sweep, &progress)?);
+        if let Some(dir) = &args.plots {
+            write_plots(dir, data_set, &reports[reports.len() - 1], &algos, bound)?;
+        }
+    }
+    progress.finish_and_clear();
+
+    let report = EvalReport {
+        tolerance: args.tolerance,
+        resample: args.resample,
+        angle_deg: args.angle,
+        pressure_variance: args.pressure_var,
+        bound,
+        data_sets: reports,
+    };
+    let markdown = markdown(&report);
+    print!("{markdown}");
+    if let Some(path) = &args.markdown {
+        io::write_file(path, &markdown)?;
+    }
+    if let Some(path) = &args.json {
+        io::write_file(path, serde_json::to_string_pretty(&report)?)?;
+    }
+    Ok(())
+}
+
+/// Reads every file under the inputs, grouped into data sets by their folder's name.
+pub fn load_data_sets(
+    inputs: &[PathBuf],
+    px_per_unit: Option<f64>,
+) -> anyhow::Result<Vec<DataSet>> {
+    let mut files = Vec::new();
+    for input in inputs {
+        collect_files(input, &mut files)?;
+    }
+    files.sort();
+    files.dedup();
+    let mut by_folder: BTreeMap<String, Vec<DataFile>> = BTreeMap::new();
+    for path in files {
+        let folder = path
+            .parent()
+            .and_then(|p| p.file_name())
+            .and_then(|n| n.to_str())
+            .unwrap_or("data")
+            .to_string();
+        let scale = match extension(&path).as_str() {
+            "txt" => px_per_unit.unwrap_or(SVC2004_PX_PER_UNIT),
+            "hwr" => px_per_unit.unwrap_or(HWR_PX_PER_UNIT),
+            _ => 1.0,
+        };
+        let strokes = io::read_strokes(&path)?
+            .into_iter()
+            .map(|stroke| {
+                stroke
+                    .samples()
+                    .iter()
+                    .map(|s| Sample::new(s.x * scale, s.y * scale, s.t, s.p))
+                    .collect()
+            })
+            .collect();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+        by_folder.entry(folder).or_default().push(DataFile { name, strokes });
+    }
+    Ok(by_folder.into_iter().map(|(name, files)| DataSet { name, files }).collect())
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase()
+}
+
+fn collect_files(path: &Path, out: &mut Vec<PathBuf>) -> anyhow::Result<()> {
+    if path.is_dir() {
+        let entries =
+            std::fs::read_dir(path).with_context(|| format!("cannot list {}", path.display()))?;
+        for entry in entries {
+            let entry = entry.with_context(|| format!("cannot list {}", path.display()))?;
+            let child = entry.path();
+            if child.is_dir() || ["txt", "hwr", "csv", "json"].contains(&extension(&child).as_str())
+            {
+                collect_files(&child, out)?;
+            }
+        }
+    } else {
+        out.push(path.to_path_buf());
+    }
+    Ok(())
+}
+
+/// The generated strokes: the five shapes at 200, 300, 400 and 500 px/s, two seeds each.
+pub fn synthetic_data_set() -> anyhow::Result<DataSet> {
+    let mut files = Vec::new();
+    for shape in penmesh::Shape::ALL {
+        for speed in [200.0, 300.0, 400.0, 500.0] {
+            for seed in 0..2 {
+                let params = penmesh::GeneratorParams {
+                    shape,
+                    speed,
+                    seed,
+                    ..penmesh::GeneratorParams::default()
+                };
+                let stroke = penmesh::generate_stroke(&params)
+                    .map_err(|e| anyhow::anyhow!("generator: {e}"))?;
+                files.push(DataFile {
+                    name: format!("{shape}-{speed}-{seed}"),
+                    strokes: vec![stroke.into_samples()],
+                });
+            }
+        }
+    }
+    Ok(DataSet { name: "synthetic".into(), files })
+}
+
+/// Sums over the strokes of a data set for one algorithm at one bound.
+#[derive(Debug, Default)]
+struct Totals {
+    n: usize,
+    c: usize,
+    sed_sum: f64,
+    e_max: f64,
+    e_max_sum: f64,
+    length_in: f64,
+    length_out: f64,
+    seconds: f64,
+    optimal_at_bound: usize,
+    optimal_at_reached: usize,
+    n_strokes: usize,
+}
+
+/// Runs `algo` over every stroke at `bound`; `optimal` holds optimal min-# per stroke at `bound`.
+fn measure(
+    data_set: &DataSet,
+    algo: &Algo,
+    bound: f64,
+    optimal: &[usize],
+    at_reached: bool,
+    progress: &ProgressBar,
+) -> anyhow::Result<(Totals, Vec<Vec<usize>>)> {
+    let mut totals = Totals::default();
+    let mut all_kept = Vec::with_capacity(optimal.len());
+    for (samples, &n_optimal) in data_set.strokes().zip(optimal) {
+        let started = Instant::now();
+        let kept = algo.run(samples, bound);
+        totals.seconds += started.elapsed().as_secs_f64();
+        let m = penmesh::simplification_metrics(samples, &kept)
+            .with_context(|| format!("{} on {}", algo.name, data_set.name))?;
+        totals.n += samples.len();
+        totals.c += kept.len();
+        totals.sed_sum += m.sed * samples.len() as f64;
+        totals.e_max = totals.e_max.max(m.e_max);
+        totals.e_max_sum += m.e_max;
+        totals.length_in += penmesh::polyline_length(samples);
+        totals.length_out += penmesh::polyline_length(&picked(samples, &kept));
+        totals.optimal_at_bound += n_optimal;
+        if at_reached {
+            totals.optimal_at_reached += min_points(samples, m.e_max).len();
+        }
+        totals.n_strokes += 1;
+        all_kept.push(kept);
+        progress.inc(1);
+    }
+    Ok((totals, all_kept))
+}
+
+fn picked(samples: &[Sample], kept: &[usize]) -> Vec<Sample> {
+    kept.iter().map(|&i| samples[i]).collect()
+}
+
+fn ratio(a: usize, b: usize) -> f64 {
+    if b == 0 { 1.0 } else { a as f64 / b as f64 }
+}
+
+fn evaluate(
+    data_set: &DataSet,
+    algos: &[Algo],
+    bound: f64,
+    sweep: bool,
+    progress: &ProgressBar,
+) -> anyhow::Result<DataSetReport> {
+    let optimal_at = |b: f64| -> Vec<usize> {
+        data_set.strokes().map(|samples| min_points(samples, b).len()).collect()
+    };
+    let optimal = optimal_at(bound);
+    let mut rows = Vec::with_capacity(algos.len());
+    let mut kept_by_algo = Vec::with_capacity(algos.len());
+    for algo in algos {
+        let (t, kept) = measure(data_set, algo, bound, &optimal, true, progress)?;
+        rows.push(Row {
+            algo: algo.name.clone(),
+            online: algo.online,
+            n_strokes: t.n_strokes,
+            n: t.n,
+            c: t.c,
+            cr: (1.0 - ratio(t.c, t.n)) * 100.0,
+            sed: t.sed_sum / t.n.max(1) as f64,
+            e_max: t.e_max,
+            e_max_mean: t.e_max_sum / t.n_strokes.max(1) as f64,
+            e_l: if t.length_in > 0.0 {
+                (t.length_in - t.length_out) / t.length_in * 100.0
+            } else {
+                0.0
+            },
+            time_ms: t.seconds * 1e3,
+            ratio_at_bound: ratio(t.c, t.optimal_at_bound),
+            ratio_at_reached: ratio(t.c, t.optimal_at_reached),
+        });
+        kept_by_algo.push(kept);
+    }
+    let mesh = mesh_table(data_set, algos, &kept_by_algo, progress);
+
+    let mut points = Vec::new();
+    if sweep {
+        for &b in &SWEEP_BOUNDS {
+            let optimal = optimal_at(b);
+            for algo in algos {
+                let (t, _) = measure(data_set, algo, b, &optimal, false, progress)?;
+                points.push(SweepPoint {
+                    algo: algo.name.clone(),
+                    bound: b,
+                    kept_percent: ratio(t.c, t.n) * 100.0,
+                    e_max_mean: t.e_max_sum / t.n_strokes.max(1) as f64,
+                    sed: t.sed_sum / t.n.max(1) as f64,
+                    ratio_at_bound: ratio(t.c, t.optimal_at_bound),
+                });
+            }
+        }
+    }
+    Ok(DataSetReport {
+        name: data_set.name.clone(),
+        n_files: data_set.files.len(),
+        n_strokes: data_set.n_strokes(),
+        bound,
+        overlay_file: data_set.files.first().map(|f| f.name.clone()),
+        rows,
+        mesh,
+        sweep: points,
+    })
+}
+
+/// Builds the LRPDP solid and one GLB per file from the original strokes and from each
+/// algorithm's simplification.
+fn mesh_table(
+    data_set: &DataSet,
+    algos: &[Algo],
+    kept_by_algo: &[Vec<Vec<usize>>],
+    progress: &ProgressBar,
+) -> Vec<MeshRow> {
+    let brush = Brush::default();
+    let build = |select: &dyn Fn(usize, &[Sample]) -> Vec<Sample>| {
+        let (mut samples, mut vertices, mut triangles, mut bytes) = (0, 0, 0, 0);
+        let mut seconds = 0.0;
+        let mut stroke_idx = 0;
+        for file in &data_set.files {
+            let simplified: Vec<Vec<Sample>> = file
+                .strokes
+                .iter()
+                .map(|s| {
+                    stroke_idx += 1;
+                    select(stroke_idx - 1, s)
+                })
+                .collect();
+            let started = Instant::now();
+            let meshes: Vec<penmesh::StrokeMesh> = simplified
+                .iter()
+                .map(|s| {
+                    penmesh::stroke_mesh(
+                        s,
+                        &brush,
+                        &OutlineOptions::default(),
+                        &SolidOptions::default(),
+                    )
+                })
+                .collect();
+            let metas: Vec<GlbMeta> = meshes
+                .iter()
+                .map(|_| GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush })
+                .collect();
+            let strokes: Vec<GlbStroke<'_>> =
+                meshes.iter().zip(&metas).map(|(mesh, meta)| GlbStroke { mesh, meta }).collect();
+            let glb = penmesh::strokes_glb(&strokes, &GlbOptions::default());
+            seconds += started.elapsed().as_secs_f64();
+            samples += simplified.iter().map(Vec::len).sum::<usize>();
+            vertices += meshes.iter().map(|m| m.stats().vertices).sum::<usize>();
+            triangles += meshes.iter().map(|m| m.stats().triangles).sum::<usize>();
+            bytes += glb.len();
+        }
+        (samples, vertices, triangles, bytes, seconds * 1e3)
+    };
+    let reduction = |x: f64, reference: f64| {
+        if reference > 0.0 { (1.0 - x / reference) * 100.0 } else { 0.0 }
+    };
+    let reference = build(&|_, s| s.to_vec());
+    let row = |algo: &str, r: (usize, usize, usize, usize, f64)| MeshRow {
+        algo: algo.to_string(),
+        samples: r.0,
+        vertices: r.1,
+        triangles: r.2,
+        bytes: r.3,
+        time_ms: r.4,
+        eta_vertices: reduction(r.1 as f64, reference.1 as f64),
+        eta_triangles: reduction(r.2 as f64, reference.2 as f64),
+        eta_bytes: reduction(r.3 as f64, reference.3 as f64),
+        eta_time: reduction(r.4, reference.4),
+    };
+    let mut rows = vec![row("original", reference)];
+    for (algo, kept) in algos.iter().zip(kept_by_algo) {
+        rows.push(row(&algo.name, build(&|i, s| picked(s, &kept[i]))));
+        progress.inc(data_set.n_strokes() as u64);
+    }
+    rows
+}
+
+/// The Markdown tables of the whole report.
+pub fn markdown(report: &EvalReport) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "ACUTS: d_d = {} px, l_eps = {} px, angle = {}°, pressure variance = {}; \
+         guaranteed bound B = d_d + l_eps = {} px (the baselines' tolerance).\n",
+        report.tolerance, report.resample, report.angle_deg, report.pressure_variance, report.bound
+    );
+    for d in &report.data_sets {
+        let _ = writeln!(
+            md,
+            "### {} ({} files, {} strokes, {} samples)\n",
+            d.name,
+            d.n_files,
+            d.n_strokes,
+            d.rows.first().map_or(0, |r| r.n)
+        );
+        let _ = writeln!(
+            md,
+            "| algorithm | online | N | C | CR % | SED px | E_max px | mean E_max px | E_l % | time ms | C / opt at B | C / opt at reached E_max |"
+        );
+        let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+        for r in &d.rows {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.3} |",
+                r.algo,
+                if r.online { "yes" } else { "no" },
+                r.n,
+                r.c,
+                r.cr,
+                r.sed,
+                r.e_max,
+                r.e_max_mean,
+                r.e_l,
+                r.time_ms,
+                r.ratio_at_bound,
+                r.ratio_at_reached
+            );
+        }
+        let _ = writeln!(md, "\nMeshes (LRPDP solid, default brush, one GLB per file):\n");
+        let _ = writeln!(
+            md,
+            "| from | samples | N' vertices | F triangles | S bytes | T ms | eta N' % | eta F % | eta S % | eta T % |"
+        );
+        let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+        for r in &d.mesh {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                r.algo,
+                r.samples,
+                r.vertices,
+                r.triangles,
+                r.bytes,
+                r.time_ms,
+                r.eta_vertices,
+                r.eta_triangles,
+                r.eta_bytes,
+                r.eta_time
+            );
+        }
+        if !d.sweep.is_empty() {
+            let algos: Vec<&str> =
+                d.sweep.iter().map(|p| p.algo.as_str()).fold(Vec::new(), |mut v, a| {
+                    if !v.contains(&a) {
+                        v.push(a);
+                    }
+                    v
+                });
+            let _ = writeln!(md, "\nSweep: points kept / optimal min-# at each bound B:\n");
+            let _ = write!(md, "| B px |");
+            for a in &algos {
+                let _ = write!(md, " {a} |");
+            }
+            let _ = writeln!(md);
+            let _ = writeln!(md, "|---:|{}", "---:|".repeat(algos.len()));
+            for &b in &SWEEP_BOUNDS {
+                let _ = write!(md, "| {b} |");
+                for a in &algos {
+                    let p = d.sweep.iter().find(|p| p.bound == b && p.algo == *a);
+                    let _ = write!(
+                        md,
+                        " {} |",
+                        p.map_or("".into(), |p| format!("{:.3}", p.ratio_at_bound))
+                    );
+                }
+                let _ = writeln!(md);
+            }
+        }
+        let _ = writeln!(md);
+    }
+    md
+}
+
+/// Line colours, one per algorithm in turn.
+const COLOURS: [(u8, u8, u8); 11] = [
+    (214, 39, 40),
+    (255, 152, 150),
+    (31, 119, 180),
+    (44, 160, 44),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
+    (23, 190, 207),
+    (0, 0, 0),
+];
+
+fn write_plots(
+    dir: &Path,
+    data_set: &DataSet,
+    report: &DataSetReport,
+    algos: &[Algo],
+    bound: f64,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    if !report.sweep.is_empty() {
+        for (metric, label) in [("emax", "mean E_max per stroke (px)"), ("sed", "SED (px)")] {
+            let path = dir.join(format!("rd_{metric}_{}.svg", report.name));
+            rate_distortion_plot(&path, report, metric, label)
+                .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+        }
+    }
+    // Figure 12: one signature (the first file) and each algorithm's simplification at B.
+    if let Some(file) = data_set.files.first() {
+        for algo in algos {
+            let kept: Vec<Vec<usize>> = file.strokes.iter().map(|s| algo.run(s, bound)).collect();
+            let pictures: Vec<SvgStroke<'_>> = file
+                .strokes
+                .iter()
+                .zip(&kept)
+                .map(|(s, k)| SvgStroke { original: s, kept: k })
+                .collect();
+            let path = dir.join(format!("overlay_{}_{}.svg", report.name, algo.name));
+            io::write_file(&path, penmesh::strokes_svg(&pictures))?;
+        }
+    }
+    Ok(())
+}
+
+fn rate_distortion_plot(
+    path: &Path,
+    report: &DataSetReport,
+    metric: &str,
+    label: &str,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use plotters::prelude::*;
+
+    let value = |p: &SweepPoint| if metric == "sed" { p.sed } else { p.e_max_mean };
+    let x_max = report.sweep.iter().map(|p| p.kept_percent).fold(0.0, f64::max) * 1.05;
+    let y_max = report.sweep.iter().map(value).fold(0.0, f64::max) * 1.05;
+    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{}: points kept vs {label}", report.name), ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(56)
+        .build_cartesian_2d(0.0..x_max.max(1.0), 0.0..y_max.max(0.1))?;
+    chart.configure_mesh().x_desc("points kept (% of N)").y_desc(label).draw()?;
+    let mut names: Vec<&str> = Vec::new();
+    for p in &report.sweep {
+        if !names.contains(&p.algo.as_str()) {
+            names.push(&p.algo);
+        }
+    }
+    for (k, name) in names.iter().enumerate() {
+        let (r, g, b) = COLOURS[k % COLOURS.len()];
+        let colour = RGBColor(r, g, b);
+        let points: Vec<(f64, f64)> = report
+            .sweep
+            .iter()
+            .filter(|p| p.algo == *name)
+            .map(|p| (p.kept_percent, value(p)))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
+        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
