@@ -15,8 +15,9 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 use uuid::Uuid;
 
+use crate::fanout::{EventKind, SessionEvent};
 use crate::state::AppState;
-use crate::store::{MeshRow, StrokeRow, hash_token, now_ms};
+use crate::store::{Backend, MeshRow, StrokeRow, hash_token, now_ms};
 
 /// Every failure a handler can answer with.
 #[derive(Debug, thiserror::Error)]
@@ -339,7 +340,22 @@ pub async fn put_mesh(
         uploader: uploader.clone(),
         created_at: now_ms(),
     };
-    state.store.put_mesh(row.id, &mesh).await?;
+    // Peers hear of the mesh once it is stored: with PostgreSQL by a notification of the same
+    // transaction, with SQLite through the writer, which orders it after the stroke's end.
+    let event = SessionEvent::new(
+        row.session_id,
+        EventKind::Mesh {
+            participant: row.participant,
+            stroke: row.id,
+            created_at: mesh.created_at,
+        },
+    );
+    let postgres = state.store.backend() == Backend::Postgres;
+    let notified = if postgres { std::slice::from_ref(&event) } else { &[] };
+    state.store.put_mesh(row.id, &mesh, notified).await?;
+    if !postgres {
+        state.writer.write_with(Vec::new(), vec![event]).await.map_err(anyhow::Error::from)?;
+    }
     metrics::counter!("penmesh_meshes_total").increment(1);
     Ok(Json(MeshInfo {
         stroke: row.id,

@@ -3,7 +3,9 @@
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 
+mod cluster;
 mod config;
+mod fanout;
 mod glb;
 mod http;
 mod ingest;
@@ -14,7 +16,9 @@ mod state;
 mod store;
 mod ws;
 
+pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, lock_key};
 pub use crate::config::{Config, SqliteSync};
+pub use crate::fanout::{Admit, EventKind, Fanout, Lag, PeerView, SessionEvent, Subscription};
 pub use crate::glb::{MeshCounts, inspect as inspect_glb};
 pub use crate::http::{
     AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,

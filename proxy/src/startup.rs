@@ -4,6 +4,10 @@
 //! Shutdown, all within `shutdown_grace_secs`: new upgrades get 503 and the listener stops;
 //! every WebSocket task commits what it has, marks its open strokes `interrupted`, sends
 //! `Error {shutting_down}` and Close 1001; then the writer commits what is left and stops.
+//!
+//! With SQLite the proxy is the only replica (it says so at start). With PostgreSQL it starts
+//! the session-event listener and the stroke-lock connection ([`crate::cluster`]), so any
+//! number of replicas can serve one database.
 
 use std::time::Duration;
 
@@ -16,9 +20,11 @@ use tokio_util::sync::CancellationToken;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 
+use crate::cluster::{StrokeLocks, start_listener};
 use crate::config::Config;
+use crate::fanout::Fanout;
 use crate::state::AppState;
-use crate::store::{Store, WriterTask, redact};
+use crate::store::{Backend, Store, WriterTask, redact};
 use crate::{http, metrics, ws};
 
 /// A bound, ready-to-run proxy.
@@ -28,6 +34,8 @@ pub struct Application {
     port: u16,
     state: AppState,
     writer: WriterTask,
+    /// The session-event listener (PostgreSQL) and what stops it.
+    listener_task: Option<(tokio::task::JoinHandle<()>, CancellationToken)>,
 }
 
 impl Application {
@@ -39,24 +47,47 @@ impl Application {
         if orphans > 0 {
             tracing::info!(orphans, "strokes left open by an earlier run are now interrupted");
         }
+        let fanout = Fanout::default();
+        let (listener, locks) = match store.backend() {
+            Backend::Sqlite => {
+                tracing::info!(
+                    "SQLite: this proxy is the only replica of its database; to run several \
+                     replicas behind a load balancer, use PostgreSQL (see docs/deploy.md)"
+                );
+                (None, None)
+            }
+            Backend::Postgres => {
+                let stop = CancellationToken::new();
+                let task =
+                    start_listener(&config.database_url, fanout.clone(), stop.clone()).await?;
+                let locks = StrokeLocks::connect(&config.database_url).await?;
+                tracing::info!(
+                    "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
+                     ownership (advisory locks)"
+                );
+                (Some((task, stop)), Some(locks))
+            }
+        };
         let (writer, writer_task) = WriterTask::start(
             &store,
             Duration::from_millis(config.commit_interval_ms),
             config.commit_max_requests,
             config.writer_queue,
+            fanout.clone(),
         )
         .await?;
-        let listener = TcpListener::bind((config.host.as_str(), config.port))
+        let tcp = TcpListener::bind((config.host.as_str(), config.port))
             .await
             .with_context(|| format!("binding {}:{}", config.host, config.port))?;
-        let port = listener.local_addr()?.port();
+        let port = tcp.local_addr()?.port();
         tracing::info!(
-            address = %listener.local_addr()?,
+            address = %tcp.local_addr()?,
             database = %redact(&config.database_url),
             "penmesh proxy listening"
         );
-        let state = AppState::new(config, store, writer, CancellationToken::new(), metrics);
-        Ok(Application { listener, port, state, writer: writer_task })
+        let state =
+            AppState::new(config, store, writer, CancellationToken::new(), metrics, fanout, locks);
+        Ok(Application { listener: tcp, port, state, writer: writer_task, listener_task: listener })
     }
 
     /// The port actually bound.
@@ -75,7 +106,7 @@ impl Application {
 
     /// Serves until SIGTERM, Ctrl-C or the shutdown handle, then shuts down gracefully.
     pub async fn run_until_stopped(self) -> anyhow::Result<()> {
-        let Application { listener, state, writer, .. } = self;
+        let Application { listener, state, writer, listener_task, .. } = self;
         let shutdown = state.shutdown.clone();
         let signals = tokio::spawn(cancel_on_signal(shutdown.clone()));
         let server = tokio::spawn(
@@ -102,6 +133,10 @@ impl Application {
             }
         }
         writer.stop().await;
+        if let Some((task, stop)) = listener_task {
+            stop.cancel();
+            let _ = task.await;
+        }
         state.store.pool().close().await;
         tracing::info!("stopped");
         Ok(())

@@ -1,5 +1,6 @@
-//! The state every handler shares: settings, store, writer, shutdown signal, the per-session
-//! hubs and the registry of strokes held by live connections.
+//! The state every handler shares: settings, store, writer, shutdown signal, the session
+//! fan-out, the per-session connection counts and the registry of strokes held by live
+//! connections (with PostgreSQL backed by advisory locks, so it holds across replicas).
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -7,13 +8,15 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use metrics_exporter_prometheus::PrometheusHandle;
-use penmesh::protocol::{ServerMessage, StrokeId};
-use tokio::sync::{Notify, broadcast};
+use penmesh::protocol::StrokeId;
+use tokio::sync::Notify;
 use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use uuid::Uuid;
 
+use crate::cluster::StrokeLocks;
 use crate::config::Config;
+use crate::fanout::Fanout;
 use crate::store::{Store, Writer};
 
 /// Cheap to clone: everything lives behind one `Arc`.
@@ -33,16 +36,11 @@ pub struct Inner {
     pub tracker: TaskTracker,
     pub claims: Claims,
     pub metrics: PrometheusHandle,
-    hubs: Mutex<HashMap<Uuid, SessionHub>>,
+    /// Where committed session events reach this replica's connections.
+    pub fanout: Fanout,
+    /// Live connections per session on this replica.
+    hubs: Mutex<HashMap<Uuid, usize>>,
     next_connection: AtomicU64,
-}
-
-/// A session's live connections. The event channel is where the multi-user issue fans
-/// `Peer*` events out (and where `LISTEN/NOTIFY` will feed events from other replicas).
-#[derive(Debug)]
-pub struct SessionHub {
-    pub connections: usize,
-    pub events: broadcast::Sender<ServerMessage>,
 }
 
 impl std::ops::Deref for AppState {
@@ -59,6 +57,8 @@ impl AppState {
         writer: Writer,
         shutdown: CancellationToken,
         metrics: PrometheusHandle,
+        fanout: Fanout,
+        locks: Option<StrokeLocks>,
     ) -> AppState {
         AppState {
             inner: Arc::new(Inner {
@@ -67,8 +67,9 @@ impl AppState {
                 writer,
                 shutdown,
                 tracker: TaskTracker::new(),
-                claims: Claims::default(),
+                claims: Claims::new(locks),
                 metrics,
+                fanout,
                 hubs: Mutex::new(HashMap::new()),
                 next_connection: AtomicU64::new(1),
             }),
@@ -82,13 +83,11 @@ impl AppState {
     /// Counts a new connection in its session, unless the session is full.
     pub fn join_session(&self, session: Uuid) -> Option<SessionGuard> {
         let mut hubs = self.hubs.lock().expect("hubs lock");
-        let hub = hubs
-            .entry(session)
-            .or_insert_with(|| SessionHub { connections: 0, events: broadcast::channel(1024).0 });
-        if hub.connections >= self.config.max_connections_per_session {
+        let connections = hubs.entry(session).or_default();
+        if *connections >= self.config.max_connections_per_session {
             return None;
         }
-        hub.connections += 1;
+        *connections += 1;
         Some(SessionGuard { state: self.clone(), session })
     }
 }
@@ -100,51 +99,70 @@ pub struct SessionGuard {
     session: Uuid,
 }
 
-impl SessionGuard {
-    pub fn events(&self) -> broadcast::Sender<ServerMessage> {
-        let hubs = self.state.hubs.lock().expect("hubs lock");
-        hubs[&self.session].events.clone()
-    }
-}
-
 impl Drop for SessionGuard {
     fn drop(&mut self) {
         let mut hubs = self.state.hubs.lock().expect("hubs lock");
-        if let Some(hub) = hubs.get_mut(&self.session) {
-            hub.connections -= 1;
-            if hub.connections == 0 {
+        if let Some(connections) = hubs.get_mut(&self.session) {
+            *connections -= 1;
+            if *connections == 0 {
                 hubs.remove(&self.session);
             }
         }
     }
 }
 
-/// Which connection holds which stroke: a stroke is drawn on one connection at a time.
-#[derive(Debug, Default)]
+/// Which connection holds which stroke: a stroke is drawn on one connection at a time. With
+/// PostgreSQL a stroke held here is also locked in the database ([`StrokeLocks`]), so no other
+/// replica draws it; the lock goes when this replica's lock connection does (it died).
+#[derive(Debug)]
 pub struct Claims {
     held: Mutex<HashMap<StrokeId, u64>>,
     released: Notify,
+    locks: Option<Arc<StrokeLocks>>,
 }
 
+/// How often a claim waiting for another replica's stroke lock tries again.
+const LOCK_RETRY: Duration = Duration::from_millis(50);
+
 impl Claims {
+    pub fn new(locks: Option<StrokeLocks>) -> Claims {
+        Claims { held: Mutex::default(), released: Notify::new(), locks: locks.map(Arc::new) }
+    }
+
     /// Takes `stroke` for connection `conn`, waiting up to `wait` for another holder to let go
-    /// (a client that reconnects faster than its old connection is noticed gone).
+    /// (a client that reconnects faster than its old connection is noticed gone, here or on
+    /// another replica).
     pub async fn claim(&self, stroke: StrokeId, conn: u64, wait: Duration) -> bool {
         let deadline = tokio::time::Instant::now() + wait;
         loop {
             let notified = self.released.notified();
             tokio::pin!(notified);
             notified.as_mut().enable();
-            {
+            let taken = {
                 let mut held = self.held.lock().expect("claims lock");
                 match held.get(&stroke) {
                     None => {
                         held.insert(stroke, conn);
-                        return true;
+                        true
                     }
                     Some(&holder) if holder == conn => return true,
-                    Some(_) => {}
+                    Some(_) => false,
                 }
+            };
+            if taken {
+                let Some(locks) = &self.locks else { return true };
+                match locks.try_lock(stroke).await {
+                    Ok(true) => return true,
+                    Ok(false) => {}
+                    Err(err) => tracing::warn!(error = %err, %stroke, "taking a stroke lock"),
+                }
+                // Another replica draws it (or the database is unreachable): let go, retry.
+                self.forget(stroke, conn);
+                if tokio::time::Instant::now() + LOCK_RETRY > deadline {
+                    return false;
+                }
+                tokio::time::sleep(LOCK_RETRY).await;
+                continue;
             }
             if tokio::time::timeout_at(deadline, notified).await.is_err() {
                 return false;
@@ -152,12 +170,22 @@ impl Claims {
         }
     }
 
-    pub fn release(&self, stroke: StrokeId, conn: u64) {
+    fn forget(&self, stroke: StrokeId, conn: u64) -> bool {
         let mut held = self.held.lock().expect("claims lock");
-        if held.get(&stroke) == Some(&conn) {
+        let mine = held.get(&stroke) == Some(&conn);
+        if mine {
             held.remove(&stroke);
         }
         drop(held);
         self.released.notify_waiters();
+        mine
+    }
+
+    pub fn release(&self, stroke: StrokeId, conn: u64) {
+        if self.forget(stroke, conn)
+            && let Some(locks) = self.locks.clone()
+        {
+            tokio::spawn(async move { locks.unlock(stroke).await });
+        }
     }
 }

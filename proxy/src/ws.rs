@@ -17,8 +17,19 @@
 //!   simplifier. Every sample retained so far is then sent again as one `Retained {first: 0}`
 //!   (split in batches), so a client that lost some in the drop has them all; `first` lets a
 //!   client that kept them drop the repeat.
+//!
+//! Sessions (see [`crate::fanout`]): after `Welcome`, the connection joins its session's
+//! fan-out **before** it reads the session's history from the database, sends the history,
+//! then `Synced`, then the live events that queued meanwhile and after. Every peer event goes
+//! through the connection's [`PeerView`] (per stroke: begun, how many retained samples, done,
+//! mesh time), which drops what the client already has and trims overlaps, so history and live
+//! events neither overlap nor leave a gap. Peer events leave a quarter of the outgoing queue
+//! to the connection's own answers; when the socket is too slow, events wait in the fan-out
+//! queue, and when that overflows the client gets `Error {lagged}` and the same resync (only
+//! what it lacks). Stroke events are published once committed (by the writer), in order.
 
 use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
@@ -29,9 +40,10 @@ use futures_util::future::BoxFuture;
 use futures_util::stream::FuturesOrdered;
 use futures_util::{FutureExt, Sink, SinkExt, Stream, StreamExt};
 use penmesh::protocol::{
-    Ack, ClientMessage, CodecError, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION, PointBatch,
-    Points, ResumeState, Retained, ServerMessage, StrokeBegin, StrokeDone, StrokeEnd, StrokeId,
-    StrokeStatus, Welcome, decode_client, decode_client_json, encode_server, encode_server_json,
+    Ack, ClientMessage, CodecError, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION,
+    ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage, StrokeBegin,
+    StrokeDone, StrokeEnd, StrokeId, StrokeStatus, Synced, Welcome, decode_client,
+    decode_client_json, encode_server, encode_server_json,
 };
 use penmesh::{Kept, Sample};
 use serde::Deserialize;
@@ -39,6 +51,7 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 use uuid::Uuid;
 
+use crate::fanout::{Admit, EventKind, Lag, PeerView, SessionEvent, Subscription};
 use crate::http::{AppError, authorize_session};
 use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
 use crate::state::{AppState, SessionGuard};
@@ -190,6 +203,11 @@ pub async fn serve<Si, St, E>(
         _guard: guard,
         form: Form::Binary,
         hello: false,
+        joined: false,
+        owners: HashMap::new(),
+        own: HashSet::new(),
+        view: PeerView::default(),
+        events: None,
         strokes: HashMap::new(),
         finishing: HashSet::new(),
         out,
@@ -203,8 +221,10 @@ pub async fn serve<Si, St, E>(
     let idle = Duration::from_secs(state.config.idle_timeout_secs);
     let mut last_heard = Instant::now();
     let shutdown = state.shutdown.clone();
+    let reserve = (state.config.outgoing_queue / 4).max(1);
     while conn.end.is_none() {
         let can_read = conn.pending.len() < state.config.max_inflight.max(1);
+        let can_forward = conn.events.is_some() && conn.out.capacity() > reserve;
         tokio::select! {
             biased;
             _ = shutdown.cancelled() => {
@@ -214,6 +234,10 @@ pub async fn serve<Si, St, E>(
             Some((result, after)) = conn.pending.next(), if !conn.pending.is_empty() => {
                 conn.after_commit(result, after);
             }
+            event = next_event(&mut conn.events), if can_forward => match event {
+                Ok(event) => conn.on_event(&event).await,
+                Err(lag) => conn.resync(Some(lag)).await,
+            },
             frame = stream.next(), if can_read => {
                 last_heard = Instant::now();
                 match frame {
@@ -255,6 +279,14 @@ pub async fn serve<Si, St, E>(
     metrics::gauge!("penmesh_ws_connections").decrement(1.0);
 }
 
+/// The next event of the subscription; never ready without one.
+async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<SessionEvent>, Lag> {
+    match events {
+        Some(events) => events.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
 /// Writes queued frames to the socket until the queue closes or a close frame went out.
 async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
     let mut sink = std::pin::pin!(sink);
@@ -275,6 +307,16 @@ struct Connection {
     _guard: SessionGuard,
     form: Form,
     hello: bool,
+    /// The participant row is written (and `Leave` is owed at the end).
+    joined: bool,
+    /// The participant who began each stroke drawn here (a resumed stroke keeps its drawer).
+    owners: HashMap<StrokeId, ParticipantId>,
+    /// Every stroke drawn on this connection: its client has them, peer events skip them.
+    own: HashSet<StrokeId>,
+    /// What the client has of the other participants' strokes.
+    view: PeerView,
+    /// The session's events, once the client said hello.
+    events: Option<Subscription>,
     /// Strokes being drawn on this connection (claimed in [`crate::state::Claims`]).
     strokes: HashMap<StrokeId, StrokeState>,
     /// Strokes whose `StrokeEnd` awaits its commit (still claimed).
@@ -303,10 +345,7 @@ impl Connection {
     }
 
     fn send(&mut self, msg: ServerMessage) {
-        let frame = match self.form {
-            Form::Binary => Frame::Binary(encode_server(&msg)),
-            Form::Json => Frame::Text(encode_server_json(&msg)),
-        };
+        let frame = self.encode(&msg);
         match self.out.try_send(frame) {
             Ok(()) => {
                 let kind = if self.form == Form::Binary { "binary" } else { "text" };
@@ -322,6 +361,117 @@ impl Connection {
             }
             Err(mpsc::error::TrySendError::Closed(_)) => self.end_with(End::Gone),
         }
+    }
+
+    fn encode(&self, msg: &ServerMessage) -> Frame {
+        match self.form {
+            Form::Binary => Frame::Binary(encode_server(msg)),
+            Form::Json => Frame::Text(encode_server_json(msg)),
+        }
+    }
+
+    /// Sends, waiting for room in the outgoing queue (history and resyncs, which can be long).
+    /// A client that reads nothing for the idle timeout is dropped as a slow reader.
+    async fn send_wait(&mut self, msg: ServerMessage) {
+        if self.end.is_some() {
+            return;
+        }
+        let frame = self.encode(&msg);
+        let idle = Duration::from_secs(self.state.config.idle_timeout_secs);
+        match tokio::time::timeout(idle, self.out.send(frame)).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => self.end_with(End::Gone),
+            Err(_) => self.end_with(End::SlowReader),
+        }
+    }
+
+    /// A live event of the session.
+    async fn on_event(&mut self, event: &SessionEvent) {
+        if self.is_own(event) {
+            return;
+        }
+        match self.view.admit(event) {
+            Admit::Send(msg) => {
+                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                self.send(msg);
+            }
+            Admit::Skip => {}
+            Admit::Gap => {
+                tracing::warn!(connection = self.id, ?event, "peer event past a gap; resyncing");
+                self.resync(Some(Lag::Gap)).await;
+            }
+        }
+    }
+
+    fn is_own(&self, event: &SessionEvent) -> bool {
+        match &event.kind {
+            EventKind::Joined { participant, .. } | EventKind::Left { participant } => {
+                *participant == self.participant
+            }
+            _ => event.stroke().is_some_and(|s| self.own.contains(&s)),
+        }
+    }
+
+    /// (Re)joins the session's fan-out, then sends the history the client lacks and `Synced`.
+    /// `lag` says why a previous subscription ended (`None` on the first join).
+    async fn resync(&mut self, lag: Option<Lag>) {
+        self.events = None;
+        if lag == Some(Lag::Overflow) {
+            self.send_error(
+                ErrorCode::Lagged,
+                "this connection fell behind the session's events; resending what it lacks from storage",
+                None,
+            );
+        }
+        if self.end.is_some() {
+            return;
+        }
+        metrics::counter!("penmesh_fanout_syncs_total").increment(1);
+        let capacity = self.state.config.outgoing_queue;
+        self.events = Some(self.state.fanout.subscribe(self.session, capacity));
+        let history = match self.state.store.session_history(self.session).await {
+            Ok(history) => history,
+            Err(err) => {
+                tracing::error!(error = %err, "reading a session's history");
+                self.events = None;
+                return self.send_error(
+                    ErrorCode::Internal,
+                    "could not read the session's history; reconnect to see the others",
+                    None,
+                );
+            }
+        };
+        let batch = self.state.config.max_batch_samples.max(1);
+        for event in history {
+            if self.is_own(&event) {
+                continue;
+            }
+            let pieces = match event.kind {
+                EventKind::Retained { participant, stroke, first, points } => points
+                    .chunks(batch)
+                    .enumerate()
+                    .map(|(i, chunk)| {
+                        SessionEvent::new(
+                            self.session,
+                            EventKind::Retained {
+                                participant,
+                                stroke,
+                                first: first + (i * batch) as u64,
+                                points: chunk.to_vec(),
+                            },
+                        )
+                    })
+                    .collect(),
+                kind => vec![SessionEvent::new(self.session, kind)],
+            };
+            for piece in pieces {
+                if let Admit::Send(msg) = self.view.admit(&piece) {
+                    self.send_wait(msg).await;
+                }
+            }
+        }
+        let n_strokes = self.view.n_strokes() as u64;
+        self.send_wait(ServerMessage::Synced(Synced { n_strokes })).await;
     }
 
     fn send_error(
@@ -434,7 +584,7 @@ impl Connection {
             if status != StrokeStatus::Done
                 && self.strokes.len() < self.state.config.max_open_strokes
             {
-                match self.take_over(stroke, row.params).await {
+                match self.take_over(stroke, row.params, row.participant).await {
                     Ok(state) => {
                         next_seq = state.next_seq();
                         status = StrokeStatus::Open;
@@ -455,6 +605,29 @@ impl Connection {
         for (stroke, kept) in resent {
             self.send_retained(stroke, 0, &kept);
         }
+        let name: String = hello
+            .name
+            .as_deref()
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+            .unwrap_or(hello.client.as_str())
+            .chars()
+            .take(200)
+            .collect();
+        let (participant, session) = (self.participant, self.session);
+        let joined = self
+            .state
+            .writer
+            .write_with(
+                vec![WriteOp::Join { participant, session, name: name.clone() }],
+                vec![SessionEvent::new(session, EventKind::Joined { participant, name })],
+            )
+            .await;
+        match joined {
+            Ok(()) => self.joined = true,
+            Err(err) => tracing::error!(error = %err, "storing a participant"),
+        }
+        self.resync(None).await;
     }
 
     /// Claims a stroke that is not on this connection, and rebuilds its state from the
@@ -463,6 +636,7 @@ impl Connection {
         &mut self,
         stroke: StrokeId,
         params: penmesh::AcutsParams,
+        participant: ParticipantId,
     ) -> Result<StrokeState, Refusal> {
         if !self.state.claims.claim(stroke, self.id, self.claim_wait()).await {
             return Err(Refusal::new(
@@ -486,6 +660,9 @@ impl Connection {
         .await;
         if result.is_err() {
             self.state.claims.release(stroke, self.id);
+        } else {
+            self.owners.insert(stroke, participant);
+            self.own.insert(stroke);
         }
         result
     }
@@ -504,6 +681,23 @@ impl Connection {
                 points: PointBatch(points),
             }));
         }
+    }
+
+    fn owner(&self, stroke: StrokeId) -> ParticipantId {
+        self.owners.get(&stroke).copied().unwrap_or(self.participant)
+    }
+
+    /// The peers' event for retained samples `first..` of a stroke drawn here.
+    fn retained_event(&self, stroke: StrokeId, first: u64, kept: &[Kept]) -> Option<SessionEvent> {
+        if kept.is_empty() {
+            return None;
+        }
+        let participant = self.owner(stroke);
+        let points = kept.iter().map(|k| k.sample).collect();
+        Some(SessionEvent::new(
+            self.session,
+            EventKind::Retained { participant, stroke, first, points },
+        ))
     }
 
     fn queue_write(
@@ -577,7 +771,7 @@ impl Connection {
                 self.state.claims.release(stroke, self.id);
                 self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
             }
-            Some(row) => match self.take_over(stroke, row.params).await {
+            Some(row) => match self.take_over(stroke, row.params, row.participant).await {
                 // Begun before on another connection: resume it.
                 Ok(state) => {
                     let kept = state.kept().to_vec();
@@ -589,18 +783,28 @@ impl Connection {
                 Err(refusal) => self.refuse(refusal, Some(stroke)),
             },
             None => {
+                let (session, participant) = (self.session, self.participant);
+                let event = SessionEvent::new(
+                    session,
+                    EventKind::StrokeBegin { participant, stroke, brush: begin.brush },
+                );
                 let pending = self
                     .state
                     .writer
-                    .submit(vec![WriteOp::BeginStroke {
-                        stroke,
-                        session: self.session,
-                        participant: self.participant,
-                        brush: begin.brush,
-                        params,
-                        device: begin.device,
-                    }])
+                    .submit_with(
+                        vec![WriteOp::BeginStroke {
+                            stroke,
+                            session,
+                            participant,
+                            brush: begin.brush,
+                            params,
+                            device: begin.device,
+                        }],
+                        vec![event],
+                    )
                     .await;
+                self.owners.insert(stroke, participant);
+                self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
                 self.strokes.insert(stroke, StrokeState::new(stroke, params));
                 self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq: 0 });
@@ -656,8 +860,12 @@ impl Connection {
             Ok(Accepted::New { seq, samples, kept, first_kept }) => {
                 let upto_seq = seq + samples.len() as u64;
                 self.send_retained(stroke, first_kept, &kept);
-                let pending =
-                    self.state.writer.submit(vec![WriteOp::Append { stroke, seq, samples }]).await;
+                let events = self.retained_event(stroke, first_kept, &kept).into_iter().collect();
+                let pending = self
+                    .state
+                    .writer
+                    .submit_with(vec![WriteOp::Append { stroke, seq, samples }], events)
+                    .await;
                 self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq });
             }
         }
@@ -681,14 +889,21 @@ impl Connection {
         };
         self.strokes.remove(&stroke);
         self.finishing.insert(stroke);
+        let mut events = Vec::new();
         if let Some((index, k)) = last {
             self.send_retained(stroke, index, &[k]);
+            events.extend(self.retained_event(stroke, index, &[k]));
         }
         let n_retained = kept.len() as u64;
+        let participant = self.owner(stroke);
+        events.push(SessionEvent::new(
+            self.session,
+            EventKind::StrokeDone { participant, stroke, n_retained },
+        ));
         let pending = self
             .state
             .writer
-            .submit(vec![WriteOp::Finish { stroke, n_points: end.n_points, kept }])
+            .submit_with(vec![WriteOp::Finish { stroke, n_points: end.n_points, kept }], events)
             .await;
         self.queue_write(pending, AfterCommit::Done { stroke, n_retained });
     }
@@ -753,6 +968,21 @@ impl Connection {
             self.state.claims.release(stroke, self.id);
         }
         self.strokes.clear();
+        self.events = None;
+        if self.joined {
+            let participant = self.participant;
+            let left = self
+                .state
+                .writer
+                .write_with(
+                    vec![WriteOp::Leave { participant }],
+                    vec![SessionEvent::new(self.session, EventKind::Left { participant })],
+                )
+                .await;
+            if let Err(err) = left {
+                tracing::error!(error = %err, "storing a participant's leave");
+            }
+        }
         tracing::debug!(connection = self.id, end = ?self.end, "disconnected");
     }
 }
@@ -786,6 +1016,7 @@ mod tests {
 
     use super::*;
     use crate::config::Config;
+    use crate::fanout::Fanout;
     use crate::store::{Store, WriterTask};
 
     /// The connection loop driven through channels, with no socket.
@@ -796,7 +1027,9 @@ mod tests {
         config.database_url = format!("sqlite://{}", dir.join("t.db").display());
         let store = Store::connect(&config).await.unwrap();
         let (writer, writer_task) =
-            WriterTask::start(&store, Duration::from_millis(1), 100, 100).await.unwrap();
+            WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default())
+                .await
+                .unwrap();
         let session = Uuid::new_v4();
         store.create_session(session, "hash").await.unwrap();
         let state = AppState::new(
@@ -805,6 +1038,8 @@ mod tests {
             writer,
             CancellationToken::new(),
             crate::metrics::install(),
+            Fanout::default(),
+            None,
         );
         let guard = state.join_session(session).unwrap();
         let (to_server, from_client) = mpsc::channel::<Frame>(16);
@@ -828,6 +1063,8 @@ mod tests {
         });
         to_server.send(Frame::Binary(encode_client(&hello))).await.unwrap();
         assert!(matches!(recv(from_server.recv().await), ServerMessage::Welcome(_)));
+        // An empty session: no history, then the marker.
+        assert_eq!(recv(from_server.recv().await), ServerMessage::Synced(Synced { n_strokes: 0 }));
         let ping = ClientMessage::Ping(Ping { nonce: 3 });
         to_server.send(Frame::Text(encode_client_json(&ping))).await.unwrap();
         assert!(matches!(from_server.recv().await, Some(Frame::Text(_))));

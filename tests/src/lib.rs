@@ -237,6 +237,20 @@ pub struct WsClient {
     pub json: bool,
 }
 
+/// Is `msg` a session event (of other participants) rather than an answer to this client?
+pub fn is_session_event(msg: &ServerMessage) -> bool {
+    matches!(
+        msg,
+        ServerMessage::PeerJoined(_)
+            | ServerMessage::PeerLeft(_)
+            | ServerMessage::PeerStrokeBegin(_)
+            | ServerMessage::PeerRetained(_)
+            | ServerMessage::PeerStrokeDone(_)
+            | ServerMessage::PeerMesh(_)
+            | ServerMessage::Synced(_)
+    )
+}
+
 /// What came in on a socket.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Incoming {
@@ -268,22 +282,42 @@ impl WsClient {
         self.ws.send(Message::Binary(bytes.into())).await.expect("send binary");
     }
 
-    /// The next protocol message or the close, skipping WebSocket pings.
+    /// The next protocol message or the close, skipping WebSocket pings and the session's
+    /// events ([`is_session_event`]), so single-user tests read only their own conversation.
     pub async fn next(&mut self) -> Incoming {
+        self.next_filtered(false).await
+    }
+
+    /// The next protocol message or the close, the session's events included.
+    pub async fn next_any(&mut self) -> Incoming {
+        self.next_filtered(true).await
+    }
+
+    /// The next protocol message, the session's events included; panics on a close.
+    pub async fn recv_any(&mut self) -> ServerMessage {
+        match self.next_any().await {
+            Incoming::Message(msg) => msg,
+            Incoming::Closed(close) => panic!("connection closed: {close:?}"),
+        }
+    }
+
+    async fn next_filtered(&mut self, peers: bool) -> Incoming {
         loop {
             let frame =
                 tokio::time::timeout(TIMEOUT, self.ws.next()).await.expect("a frame in time");
             match frame {
                 None | Some(Err(_)) => return Incoming::Closed(None),
                 Some(Ok(Message::Binary(bytes))) => {
-                    return Incoming::Message(
-                        decode_server(&bytes, usize::MAX).expect("server binary decodes"),
-                    );
+                    let msg = decode_server(&bytes, usize::MAX).expect("server binary decodes");
+                    if peers || !is_session_event(&msg) {
+                        return Incoming::Message(msg);
+                    }
                 }
                 Some(Ok(Message::Text(text))) => {
-                    return Incoming::Message(
-                        decode_server_json(&text, usize::MAX).expect("server JSON decodes"),
-                    );
+                    let msg = decode_server_json(&text, usize::MAX).expect("server JSON decodes");
+                    if peers || !is_session_event(&msg) {
+                        return Incoming::Message(msg);
+                    }
                 }
                 Some(Ok(Message::Close(frame))) => {
                     return Incoming::Closed(
@@ -300,10 +334,16 @@ impl WsClient {
         loop {
             match tokio::time::timeout(TIMEOUT, self.ws.next()).await.expect("a frame in time") {
                 Some(Ok(Message::Binary(bytes))) => {
-                    return (true, decode_server(&bytes, usize::MAX).unwrap());
+                    let msg = decode_server(&bytes, usize::MAX).unwrap();
+                    if !is_session_event(&msg) {
+                        return (true, msg);
+                    }
                 }
                 Some(Ok(Message::Text(text))) => {
-                    return (false, decode_server_json(&text, usize::MAX).unwrap());
+                    let msg = decode_server_json(&text, usize::MAX).unwrap();
+                    if !is_session_event(&msg) {
+                        return (false, msg);
+                    }
                 }
                 Some(Ok(Message::Ping(_) | Message::Pong(_))) => continue,
                 other => panic!("expected a message, got {other:?}"),

@@ -19,6 +19,10 @@ use uuid::Uuid;
 pub use writer::{WriteError, WriteOp, Writer, WriterTask};
 
 use crate::config::{Config, SqliteSync};
+use crate::fanout::{EventKind, SessionEvent};
+
+/// The `LISTEN/NOTIFY` channel that carries session events between replicas (PostgreSQL).
+pub const EVENTS_CHANNEL: &str = "penmesh_events";
 
 static SQLITE_MIGRATIONS: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/sqlite");
 static POSTGRES_MIGRATIONS: sqlx::migrate::Migrator = sqlx::migrate!("../migrations/postgres");
@@ -199,11 +203,16 @@ impl Store {
     }
 
     /// At start, with SQLite (one process owns the file), strokes left `open` by a crash are
-    /// `interrupted`. With PostgreSQL other replicas may be drawing them, so they stay.
+    /// `interrupted` and participants left present have left. With PostgreSQL other replicas
+    /// may be drawing them, so they stay.
     pub async fn interrupt_orphans(&self) -> anyhow::Result<u64> {
         if self.backend != Backend::Sqlite {
             return Ok(0);
         }
+        sqlx::query("UPDATE participants SET left_at = $1 WHERE left_at IS NULL")
+            .bind(now_ms())
+            .execute(&self.pool)
+            .await?;
         let done = sqlx::query(
             "UPDATE strokes SET status = 'interrupted', updated_at = $1 WHERE status = 'open'",
         )
@@ -291,10 +300,19 @@ impl Store {
         Ok(Some(Simplified { indices: decode_indices(&indices), samples: decode_samples(&data)? }))
     }
 
-    /// Stores (or replaces) a stroke's mesh.
-    pub async fn put_mesh(&self, stroke: Uuid, mesh: &MeshRow) -> anyhow::Result<()> {
+    /// Stores (or replaces) a stroke's mesh; with PostgreSQL `events` are notified in the same
+    /// transaction (with SQLite the caller publishes them after).
+    pub async fn put_mesh(
+        &self,
+        stroke: Uuid,
+        mesh: &MeshRow,
+        events: &[SessionEvent],
+    ) -> anyhow::Result<()> {
         let mut conn = self.pool.acquire().await?;
         let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
+        if self.backend == Backend::Postgres {
+            notify(&mut tx, events).await?;
+        }
         sqlx::query(
             "INSERT INTO meshes (stroke_id, glb, vertices, triangles, uploader, created_at) \
              VALUES ($1, $2, $3, $4, $5, $6) \
@@ -329,6 +347,102 @@ impl Store {
             created_at: row.try_get("created_at")?,
         }))
     }
+
+    /// What a newcomer to `session` is owed: the participants present, then every stroke
+    /// (finished ones with their simplified samples and mesh, open ones with the samples
+    /// retained from what is committed so far, rebuilt by replaying it), as events in order.
+    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<Vec<SessionEvent>> {
+        let mut events = Vec::new();
+        let present = sqlx::query(
+            "SELECT id, name FROM participants WHERE session_id = $1 AND left_at IS NULL \
+             ORDER BY joined_at, id",
+        )
+        .bind(session.to_string())
+        .fetch_all(&self.pool)
+        .await?;
+        for row in present {
+            events.push(SessionEvent::new(
+                session,
+                EventKind::Joined {
+                    participant: parse_uuid(&row.try_get::<String, _>("id")?)?,
+                    name: row.try_get("name")?,
+                },
+            ));
+        }
+        let strokes = self.list_strokes(session).await?;
+        let meshes = sqlx::query(
+            "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
+             WHERE s.session_id = $1",
+        )
+        .bind(session.to_string())
+        .fetch_all(&self.pool)
+        .await?;
+        let mut mesh_at = std::collections::HashMap::new();
+        for row in meshes {
+            let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+            mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
+        }
+        for row in strokes {
+            let (participant, stroke) = (row.participant, row.id);
+            events.push(SessionEvent::new(
+                session,
+                EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+            ));
+            let done = row.status == StrokeStatus::Done;
+            let points = if done {
+                self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
+            } else {
+                let raw = self.raw_samples(stroke).await?;
+                crate::ingest::StrokeState::replay(stroke, row.params, &raw)
+                    .kept()
+                    .iter()
+                    .map(|k| k.sample)
+                    .collect()
+            };
+            let n_retained = points.len() as u64;
+            if !points.is_empty() {
+                events.push(SessionEvent::new(
+                    session,
+                    EventKind::Retained { participant, stroke, first: 0, points },
+                ));
+            }
+            if done {
+                events.push(SessionEvent::new(
+                    session,
+                    EventKind::StrokeDone { participant, stroke, n_retained },
+                ));
+                if let Some(&created_at) = mesh_at.get(&stroke) {
+                    events.push(SessionEvent::new(
+                        session,
+                        EventKind::Mesh { participant, stroke, created_at },
+                    ));
+                }
+            }
+        }
+        Ok(events)
+    }
+}
+
+/// Queues `events` as notifications of the current PostgreSQL transaction: they are delivered
+/// to every listening replica when (and only if) it commits, in commit order.
+pub(crate) async fn notify(
+    conn: &mut sqlx::AnyConnection,
+    events: &[SessionEvent],
+) -> anyhow::Result<()> {
+    let payloads: Vec<String> = events.iter().flat_map(SessionEvent::notify_payloads).collect();
+    for chunk in payloads.chunks(500) {
+        let values: Vec<String> = (1..=chunk.len()).map(|i| format!("(${i})")).collect();
+        let sql = format!(
+            "SELECT COUNT(pg_notify('{EVENTS_CHANNEL}', v)) AS n FROM (VALUES {}) AS t (v)",
+            values.join(", ")
+        );
+        let mut query = sqlx::query(&sql);
+        for payload in chunk {
+            query = query.bind(payload.as_str());
+        }
+        query.fetch_one(&mut *conn).await?;
+    }
+    Ok(())
 }
 
 const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, s.params, s.device, \

@@ -8,6 +8,11 @@
 //! each requester hear `Ok`, so an `Ack` always means "committed". If the group transaction
 //! fails, each request is retried in a transaction of its own, so one bad request cannot fail
 //! the others.
+//!
+//! A request may carry session events ([`SessionEvent`]) that describe it. They are published
+//! only once the request is committed, in commit order: with PostgreSQL as notifications of
+//! the same transaction (so every replica's listener gets them, or none does), with SQLite
+//! straight to the local [`Fanout`] after `COMMIT`, before the next transaction begins.
 
 use std::time::{Duration, Instant};
 
@@ -17,7 +22,8 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use super::{Store, encode_indices, encode_samples, now_ms};
+use super::{Backend, Store, encode_indices, encode_samples, notify, now_ms};
+use crate::fanout::{Fanout, SessionEvent};
 
 /// One change to the database.
 #[derive(Debug, Clone)]
@@ -37,6 +43,10 @@ pub enum WriteOp {
     Finish { stroke: Uuid, n_points: u64, kept: Vec<Kept> },
     /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
     SetStatus { stroke: Uuid, status: &'static str },
+    /// A participant said hello in a session.
+    Join { participant: Uuid, session: Uuid, name: String },
+    /// A participant's connection ended.
+    Leave { participant: Uuid },
 }
 
 impl WriteOp {
@@ -59,6 +69,7 @@ pub enum WriteError {
 
 struct WriteRequest {
     ops: Vec<WriteOp>,
+    events: Vec<SessionEvent>,
     done: oneshot::Sender<Result<(), WriteError>>,
 }
 
@@ -75,8 +86,17 @@ impl Writer {
         &self,
         ops: Vec<WriteOp>,
     ) -> impl Future<Output = Result<(), WriteError>> + Send + 'static {
+        self.submit_with(ops, Vec::new()).await
+    }
+
+    /// Like [`Writer::submit`], and publishes `events` once `ops` are committed.
+    pub async fn submit_with(
+        &self,
+        ops: Vec<WriteOp>,
+        events: Vec<SessionEvent>,
+    ) -> impl Future<Output = Result<(), WriteError>> + Send + 'static {
         let (done, rx) = oneshot::channel();
-        let queued = self.tx.send(WriteRequest { ops, done }).await.is_ok();
+        let queued = self.tx.send(WriteRequest { ops, events, done }).await.is_ok();
         async move {
             if !queued {
                 return Err(WriteError::Closed);
@@ -88,6 +108,15 @@ impl Writer {
     /// Queues `ops` and waits for the commit.
     pub async fn write(&self, ops: Vec<WriteOp>) -> Result<(), WriteError> {
         self.submit(ops).await.await
+    }
+
+    /// Queues `ops` with their `events` and waits for the commit.
+    pub async fn write_with(
+        &self,
+        ops: Vec<WriteOp>,
+        events: Vec<SessionEvent>,
+    ) -> Result<(), WriteError> {
+        self.submit_with(ops, events).await.await
     }
 }
 
@@ -105,6 +134,7 @@ impl WriterTask {
         commit_interval: Duration,
         max_requests: usize,
         queue: usize,
+        fanout: Fanout,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let conn = store.pool().acquire().await?.detach();
         let (tx, rx) = mpsc::channel(queue.max(1));
@@ -117,6 +147,7 @@ impl WriterTask {
             interval: commit_interval,
             max_requests: max_requests.max(1),
             stop: stop.clone(),
+            fanout,
         };
         let handle = tokio::spawn(state.run());
         Ok((Writer { tx }, WriterTask { handle, stop }))
@@ -137,6 +168,7 @@ struct WriterLoop {
     interval: Duration,
     max_requests: usize,
     stop: CancellationToken,
+    fanout: Fanout,
 }
 
 impl WriterLoop {
@@ -180,13 +212,16 @@ impl WriterLoop {
         }
         let started = Instant::now();
         let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
-        let result = self.commit(batch.iter().flat_map(|r| &r.ops)).await;
+        let result = self
+            .commit(batch.iter().flat_map(|r| &r.ops), batch.iter().flat_map(|r| &r.events))
+            .await;
         metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
         metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
         metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
         match result {
             Ok(()) => {
                 for req in batch.drain(..) {
+                    self.publish(req.events);
                     let _ = req.done.send(Ok(()));
                 }
             }
@@ -199,10 +234,13 @@ impl WriterLoop {
             Err(err) => {
                 tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
                 for req in batch.drain(..) {
-                    let result = self.commit(req.ops.iter()).await;
-                    if let Err(err) = &result {
-                        tracing::error!(error = %err, "write failed");
-                        metrics::counter!("penmesh_commit_failures_total").increment(1);
+                    let result = self.commit(req.ops.iter(), req.events.iter()).await;
+                    match &result {
+                        Ok(()) => self.publish(req.events),
+                        Err(err) => {
+                            tracing::error!(error = %err, "write failed");
+                            metrics::counter!("penmesh_commit_failures_total").increment(1);
+                        }
                     }
                     let _ = req.done.send(result.map_err(|e| WriteError::Database(e.to_string())));
                 }
@@ -210,8 +248,21 @@ impl WriterLoop {
         }
     }
 
-    async fn commit<'a>(&mut self, ops: impl Iterator<Item = &'a WriteOp>) -> anyhow::Result<()> {
-        let result = self.try_commit(ops).await;
+    /// With SQLite, hands committed events to the local fan-out (PostgreSQL notified them).
+    fn publish(&self, events: Vec<SessionEvent>) {
+        if self.store.backend() == Backend::Sqlite {
+            for event in events {
+                self.fanout.dispatch(event);
+            }
+        }
+    }
+
+    async fn commit<'a>(
+        &mut self,
+        ops: impl Iterator<Item = &'a WriteOp>,
+        events: impl Iterator<Item = &'a SessionEvent>,
+    ) -> anyhow::Result<()> {
+        let result = self.try_commit(ops, events).await;
         if result.is_err() && self.conn.ping().await.is_err() {
             // The connection itself broke (a database restart): open a new one for what follows.
             match self.store.pool().acquire().await {
@@ -230,11 +281,19 @@ impl WriterLoop {
     async fn try_commit<'a>(
         &mut self,
         ops: impl Iterator<Item = &'a WriteOp>,
+        events: impl Iterator<Item = &'a SessionEvent>,
     ) -> anyhow::Result<()> {
+        let postgres = self.store.backend() == Backend::Postgres;
         let mut tx = self.conn.begin_with(self.begin).await?;
         let now = now_ms();
         for op in ops {
             apply(&mut tx, op, now).await?;
+        }
+        if postgres {
+            let events: Vec<SessionEvent> = events.cloned().collect();
+            if !events.is_empty() {
+                notify(&mut tx, &events).await?;
+            }
         }
         tx.commit().await?;
         Ok(())
@@ -301,6 +360,25 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .bind(stroke.to_string())
             .execute(&mut *conn)
             .await?;
+        }
+        WriteOp::Join { participant, session, name } => {
+            sqlx::query(
+                "INSERT INTO participants (id, session_id, name, joined_at) VALUES ($1, $2, $3, $4) \
+                 ON CONFLICT (id) DO NOTHING",
+            )
+            .bind(participant.to_string())
+            .bind(session.to_string())
+            .bind(name.clone())
+            .bind(now)
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::Leave { participant } => {
+            sqlx::query("UPDATE participants SET left_at = $1 WHERE id = $2 AND left_at IS NULL")
+                .bind(now)
+                .bind(participant.to_string())
+                .execute(&mut *conn)
+                .await?;
         }
         WriteOp::SetStatus { stroke, status } => {
             sqlx::query(

@@ -658,6 +658,7 @@ impl MessageKind for ServerMessage {
         "peer_retained",
         "peer_stroke_done",
         "peer_mesh",
+        "synced",
     ];
 }
 

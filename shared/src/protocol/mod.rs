@@ -112,6 +112,10 @@ pub enum ServerMessage {
     PeerRetained(PeerRetained),
     PeerStrokeDone(PeerStrokeDone),
     PeerMesh(PeerMesh),
+    /// The end of the session's history: every `Peer…` event before it (since `Welcome`, or
+    /// since an `Error {lagged}`) came from storage, every one after it is live. History and
+    /// live events never overlap or leave a gap.
+    Synced(Synced),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -296,4 +300,10 @@ pub struct PeerMesh {
     pub participant: ParticipantId,
     pub stroke: StrokeId,
     pub url: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Synced {
+    /// Strokes of other participants the client now knows of.
+    pub n_strokes: u64,
 }

@@ -1,0 +1,11 @@
+-- Participants of a session: one row per WebSocket connection that said hello. A row whose
+-- left_at is NULL is present (SQLite: one replica, so rows left present by a killed process are
+-- closed at start).
+CREATE TABLE participants (
+    id          TEXT PRIMARY KEY,
+    session_id  TEXT NOT NULL REFERENCES sessions (id),
+    name        TEXT NOT NULL,
+    joined_at   BIGINT NOT NULL,
+    left_at     BIGINT
+);
+CREATE INDEX participants_by_session ON participants (session_id, joined_at);

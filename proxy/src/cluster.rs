@@ -1,0 +1,205 @@
+//! What several replicas on one PostgreSQL share: the session events (`LISTEN/NOTIFY`) and
+//! the ownership of the strokes being drawn (session-level advisory locks).
+//!
+//! - [`start_listener`]: one `LISTEN` connection per replica hands every notification of
+//!   [`EVENTS_CHANNEL`] to the local [`Fanout`]. Notifications sent while that connection is
+//!   down are lost for good, so when it drops (`PgListener::try_recv` gives `Ok(None)` or an
+//!   error) the listener listens again first and then marks every local subscriber with a gap:
+//!   each connection resyncs its client from the database, filtered by what the client has.
+//! - [`StrokeLocks`]: a replica holds `pg_advisory_lock(key(stroke))` on one connection of its
+//!   own for every stroke drawn on it. A replica that dies loses its connection, PostgreSQL
+//!   frees its locks at once, and another replica can take the strokes over (resume).
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use anyhow::Context;
+use sqlx::postgres::{PgConnectOptions, PgListener};
+use sqlx::{Connection, PgConnection};
+use tokio::sync::Mutex;
+use tokio_util::sync::CancellationToken;
+use uuid::Uuid;
+
+use crate::fanout::{Fanout, SessionEvent};
+use crate::store::EVENTS_CHANNEL;
+
+/// The `application_name` of the listener's connection (so an operator, or a test, finds it).
+pub const LISTENER_APPLICATION: &str = "penmesh-listener";
+/// The `application_name` of the connection that holds the stroke locks.
+pub const LOCKS_APPLICATION: &str = "penmesh-locks";
+
+fn options(url: &str, application: &str) -> anyhow::Result<PgConnectOptions> {
+    let options: PgConnectOptions = url.parse().context("parsing the PostgreSQL URL")?;
+    Ok(options.application_name(application))
+}
+
+async fn listen(options: &PgConnectOptions) -> anyhow::Result<PgListener> {
+    let pool =
+        sqlx::postgres::PgPoolOptions::new().max_connections(1).connect_lazy_with(options.clone());
+    let mut listener = PgListener::connect_with(&pool).await?;
+    listener.listen(EVENTS_CHANNEL).await?;
+    Ok(listener)
+}
+
+/// Starts listening (returns once `LISTEN` is in place) and dispatches until `stop`.
+pub async fn start_listener(
+    url: &str,
+    fanout: Fanout,
+    stop: CancellationToken,
+) -> anyhow::Result<tokio::task::JoinHandle<()>> {
+    let options = options(url, LISTENER_APPLICATION)?;
+    let listener = listen(&options).await.context("listening for session events")?;
+    Ok(tokio::spawn(async move {
+        let mut listener = Some(listener);
+        loop {
+            let Some(current) = listener.as_mut() else {
+                // Listen again before resyncing, so nothing falls between the two.
+                match listen(&options).await {
+                    Ok(new) => {
+                        tracing::warn!(
+                            "session events: listening again; resyncing every local session"
+                        );
+                        listener = Some(new);
+                        fanout.gap_all();
+                        metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+                    }
+                    Err(err) => {
+                        tracing::error!(error = %err, "session events: cannot listen; retrying");
+                        tokio::select! {
+                            _ = stop.cancelled() => return,
+                            _ = tokio::time::sleep(Duration::from_millis(500)) => {}
+                        }
+                    }
+                }
+                continue;
+            };
+            let received = tokio::select! {
+                _ = stop.cancelled() => return,
+                received = current.try_recv() => received,
+            };
+            match received {
+                Ok(Some(notification)) => {
+                    match SessionEvent::from_payload(notification.payload()) {
+                        Ok(event) => fanout.dispatch(event),
+                        Err(err) => tracing::warn!(error = %err, "session events: bad payload"),
+                    }
+                }
+                Ok(None) => {
+                    // The connection dropped and sqlx reconnected (and listens again): what was
+                    // notified in between is lost.
+                    tracing::warn!("session events: the listener reconnected; resyncing");
+                    fanout.gap_all();
+                    metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+                }
+                Err(err) => {
+                    tracing::warn!(error = %err, "session events: the listener failed");
+                    listener = None;
+                }
+            }
+        }
+    }))
+}
+
+/// Session-level advisory locks on one connection of this replica, one per stroke drawn here.
+#[derive(Debug)]
+pub struct StrokeLocks {
+    options: PgConnectOptions,
+    inner: Mutex<LockConnection>,
+}
+
+#[derive(Debug, Default)]
+struct LockConnection {
+    conn: Option<PgConnection>,
+    /// How many times each key is locked on `conn` (advisory locks stack).
+    held: HashMap<i64, u32>,
+}
+
+/// The advisory-lock key of a stroke.
+pub fn lock_key(stroke: Uuid) -> i64 {
+    let (hi, lo) = stroke.as_u64_pair();
+    (hi ^ lo) as i64
+}
+
+impl StrokeLocks {
+    pub async fn connect(url: &str) -> anyhow::Result<StrokeLocks> {
+        let options = options(url, LOCKS_APPLICATION)?;
+        let conn = PgConnection::connect_with(&options).await.context("the lock connection")?;
+        Ok(StrokeLocks {
+            options,
+            inner: Mutex::new(LockConnection { conn: Some(conn), held: HashMap::new() }),
+        })
+    }
+
+    /// Takes the stroke's lock if no other replica holds it.
+    pub async fn try_lock(&self, stroke: Uuid) -> anyhow::Result<bool> {
+        let key = lock_key(stroke);
+        let mut inner = self.inner.lock().await;
+        let conn = self.connection(&mut inner).await?;
+        let result: Result<bool, sqlx::Error> =
+            sqlx::query_scalar("SELECT pg_try_advisory_lock($1)")
+                .bind(key)
+                .fetch_one(&mut *conn)
+                .await;
+        match result {
+            Ok(true) => {
+                *inner.held.entry(key).or_default() += 1;
+                Ok(true)
+            }
+            Ok(false) => Ok(false),
+            Err(err) => {
+                inner.conn = None;
+                Err(err.into())
+            }
+        }
+    }
+
+    /// Lets go of one hold of the stroke's lock.
+    pub async fn unlock(&self, stroke: Uuid) {
+        let key = lock_key(stroke);
+        let mut inner = self.inner.lock().await;
+        match inner.held.get_mut(&key) {
+            Some(n) if *n > 1 => *n -= 1,
+            Some(_) => {
+                inner.held.remove(&key);
+            }
+            None => return,
+        }
+        let Ok(conn) = self.connection(&mut inner).await else { return };
+        if let Err(err) =
+            sqlx::query("SELECT pg_advisory_unlock($1)").bind(key).execute(&mut *conn).await
+        {
+            tracing::warn!(error = %err, "releasing a stroke lock");
+            inner.conn = None;
+        }
+    }
+
+    /// The lock connection, reconnected (taking the held locks again) if it broke.
+    async fn connection<'a>(
+        &self,
+        inner: &'a mut LockConnection,
+    ) -> anyhow::Result<&'a mut PgConnection> {
+        if inner.conn.is_none() {
+            let mut conn = PgConnection::connect_with(&self.options).await?;
+            tracing::warn!(n = inner.held.len(), "the stroke-lock connection broke; relocking");
+            let mut lost = Vec::new();
+            for (&key, &n) in &inner.held {
+                for _ in 0..n {
+                    let ok: bool = sqlx::query_scalar("SELECT pg_try_advisory_lock($1)")
+                        .bind(key)
+                        .fetch_one(&mut conn)
+                        .await?;
+                    if !ok {
+                        lost.push(key);
+                        break;
+                    }
+                }
+            }
+            for key in lost {
+                tracing::error!(key, "a stroke lock was taken by another replica meanwhile");
+                inner.held.remove(&key);
+            }
+            inner.conn = Some(conn);
+        }
+        Ok(inner.conn.as_mut().expect("connected"))
+    }
+}

@@ -1,0 +1,455 @@
+//! Session fan-out: the events of a session (presence, strokes, meshes) delivered to every
+//! connection of the session on this replica, each through its own **bounded** queue.
+//!
+//! Events are published by the group-commit writer once the data they describe is committed
+//! (with SQLite straight into [`Fanout::dispatch`]; with PostgreSQL by `NOTIFY` inside the very
+//! transaction that stores the data, and the listener of every replica dispatches them), so a
+//! peer never sees what a crash could still lose, and events reach every replica in commit
+//! order.
+//!
+//! A queue that is full is not waited for: its subscriber is marked lagged and dropped from the
+//! session, the other subscribers go on. The connection then resyncs from the database
+//! ([`crate::ws`]), filtering with a [`PeerView`] of what its client already has, so the
+//! client receives neither a gap nor a repeat.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex};
+
+use penmesh::protocol::{
+    ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerRetained, PeerStrokeBegin, PeerStrokeDone,
+    PointBatch, ServerMessage, StrokeId,
+};
+use penmesh::{Brush, Sample};
+use serde::{Deserialize, Serialize};
+use tokio::sync::mpsc;
+use uuid::Uuid;
+
+/// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
+pub const MAX_NOTIFY_BYTES: usize = 7800;
+
+/// One event of a session.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SessionEvent {
+    pub session: Uuid,
+    #[serde(flatten)]
+    pub kind: EventKind,
+}
+
+/// What happened. Stroke events name the participant who began the stroke.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum EventKind {
+    Joined {
+        participant: ParticipantId,
+        name: String,
+    },
+    Left {
+        participant: ParticipantId,
+    },
+    StrokeBegin {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        brush: Brush,
+    },
+    /// Retained samples `first..first + points.len()` of the simplified stroke.
+    Retained {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        first: u64,
+        points: Vec<Sample>,
+    },
+    StrokeDone {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        n_retained: u64,
+    },
+    /// A mesh was stored; `created_at` tells a replacement from a repeat.
+    Mesh {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        created_at: i64,
+    },
+}
+
+impl SessionEvent {
+    pub fn new(session: Uuid, kind: EventKind) -> SessionEvent {
+        SessionEvent { session, kind }
+    }
+
+    /// The `NOTIFY` payloads of this event: JSON, each under [`MAX_NOTIFY_BYTES`]. A
+    /// `Retained` event too large for one is split into consecutive ones.
+    pub fn notify_payloads(&self) -> Vec<String> {
+        let json = serde_json::to_string(self).expect("events serialise");
+        if json.len() <= MAX_NOTIFY_BYTES {
+            return vec![json];
+        }
+        match &self.kind {
+            EventKind::Retained { participant, stroke, first, points } if points.len() > 1 => {
+                let half = points.len() / 2;
+                let part = |first: u64, points: &[Sample]| {
+                    SessionEvent::new(
+                        self.session,
+                        EventKind::Retained {
+                            participant: *participant,
+                            stroke: *stroke,
+                            first,
+                            points: points.to_vec(),
+                        },
+                    )
+                };
+                let mut out = part(*first, &points[..half]).notify_payloads();
+                out.extend(part(first + half as u64, &points[half..]).notify_payloads());
+                out
+            }
+            // Names are cut to 200 characters when they join: cannot happen.
+            _ => vec![json],
+        }
+    }
+
+    pub fn from_payload(payload: &str) -> anyhow::Result<SessionEvent> {
+        Ok(serde_json::from_str(payload)?)
+    }
+
+    /// The stroke the event is about, if any.
+    pub fn stroke(&self) -> Option<StrokeId> {
+        match &self.kind {
+            EventKind::Joined { .. } | EventKind::Left { .. } => None,
+            EventKind::StrokeBegin { stroke, .. }
+            | EventKind::Retained { stroke, .. }
+            | EventKind::StrokeDone { stroke, .. }
+            | EventKind::Mesh { stroke, .. } => Some(*stroke),
+        }
+    }
+}
+
+/// Why a subscription ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lag {
+    /// Its queue overflowed: the client is told `lagged`.
+    Overflow,
+    /// Events may have been lost upstream (the `LISTEN` connection dropped): a silent resync.
+    Gap,
+}
+
+const LIVE: u8 = 0;
+const OVERFLOW: u8 = 1;
+const GAP: u8 = 2;
+
+#[derive(Debug)]
+struct Subscriber {
+    id: u64,
+    tx: mpsc::Sender<Arc<SessionEvent>>,
+    lag: Arc<AtomicU8>,
+}
+
+#[derive(Debug, Default)]
+struct Registry {
+    sessions: HashMap<Uuid, Vec<Subscriber>>,
+    next_id: u64,
+}
+
+/// The subscribers of every session on this replica. Cheap to clone.
+#[derive(Debug, Clone, Default)]
+pub struct Fanout {
+    registry: Arc<Mutex<Registry>>,
+}
+
+/// A connection's place in its session's fan-out; unsubscribes when dropped.
+#[derive(Debug)]
+pub struct Subscription {
+    fanout: Fanout,
+    session: Uuid,
+    id: u64,
+    rx: mpsc::Receiver<Arc<SessionEvent>>,
+    lag: Arc<AtomicU8>,
+}
+
+impl Fanout {
+    /// Subscribes to `session`'s events with a queue of `capacity` events.
+    pub fn subscribe(&self, session: Uuid, capacity: usize) -> Subscription {
+        let (tx, rx) = mpsc::channel(capacity.max(1));
+        let lag = Arc::new(AtomicU8::new(LIVE));
+        let mut registry = self.registry.lock().expect("fanout lock");
+        registry.next_id += 1;
+        let id = registry.next_id;
+        registry.sessions.entry(session).or_default().push(Subscriber { id, tx, lag: lag.clone() });
+        Subscription { fanout: self.clone(), session, id, rx, lag }
+    }
+
+    /// Hands `event` to every subscriber of its session, never waiting: a subscriber whose
+    /// queue is full is marked lagged and removed.
+    pub fn dispatch(&self, event: SessionEvent) {
+        let event = Arc::new(event);
+        let mut registry = self.registry.lock().expect("fanout lock");
+        let Some(subscribers) = registry.sessions.get_mut(&event.session) else { return };
+        subscribers.retain(|s| match s.tx.try_send(event.clone()) {
+            Ok(()) => true,
+            Err(mpsc::error::TrySendError::Full(_)) => {
+                metrics::counter!("penmesh_fanout_lagged_total").increment(1);
+                s.lag.store(OVERFLOW, Ordering::Release);
+                false
+            }
+            Err(mpsc::error::TrySendError::Closed(_)) => false,
+        });
+        if subscribers.is_empty() {
+            registry.sessions.remove(&event.session);
+        }
+    }
+
+    /// Marks every subscriber as having a gap (events were lost upstream): each resyncs.
+    pub fn gap_all(&self) {
+        let mut registry = self.registry.lock().expect("fanout lock");
+        for (_, subscribers) in registry.sessions.drain() {
+            for s in subscribers {
+                s.lag.store(GAP, Ordering::Release);
+            }
+        }
+    }
+
+    /// The number of sessions with subscribers on this replica.
+    pub fn n_sessions(&self) -> usize {
+        self.registry.lock().expect("fanout lock").sessions.len()
+    }
+
+    /// The most events queued for one subscriber of `session`, and the queue capacity: what
+    /// bounds a slow reader's memory.
+    pub fn backlog(&self, session: Uuid) -> (usize, usize) {
+        let registry = self.registry.lock().expect("fanout lock");
+        registry
+            .sessions
+            .get(&session)
+            .map(|subs| {
+                subs.iter()
+                    .map(|s| (s.tx.max_capacity() - s.tx.capacity(), s.tx.max_capacity()))
+                    .max()
+                    .unwrap_or((0, 0))
+            })
+            .unwrap_or((0, 0))
+    }
+}
+
+impl Subscription {
+    /// The next event, or the reason the subscription ended.
+    pub async fn recv(&mut self) -> Result<Arc<SessionEvent>, Lag> {
+        if let Some(lag) = self.lagged() {
+            return Err(lag);
+        }
+        match self.rx.recv().await {
+            Some(event) => Ok(event),
+            None => Err(self.lagged().unwrap_or(Lag::Gap)),
+        }
+    }
+
+    /// Whether the subscription has ended, and why.
+    pub fn lagged(&self) -> Option<Lag> {
+        match self.lag.load(Ordering::Acquire) {
+            OVERFLOW => Some(Lag::Overflow),
+            GAP => Some(Lag::Gap),
+            _ => None,
+        }
+    }
+
+    /// Events waiting in the queue.
+    pub fn queued(&self) -> usize {
+        self.rx.len()
+    }
+}
+
+impl Drop for Subscription {
+    fn drop(&mut self) {
+        let mut registry = self.fanout.registry.lock().expect("fanout lock");
+        if let Some(subscribers) = registry.sessions.get_mut(&self.session) {
+            subscribers.retain(|s| s.id != self.id);
+            if subscribers.is_empty() {
+                registry.sessions.remove(&self.session);
+            }
+        }
+    }
+}
+
+/// What one client has received of each peer stroke and of presence: filters history and live
+/// events so that the client gets each piece once, in order, whatever the mix of the two.
+#[derive(Debug, Default)]
+pub struct PeerView {
+    strokes: HashMap<StrokeId, StrokeView>,
+    present: HashSet<ParticipantId>,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct StrokeView {
+    /// Retained samples received: the next `first` expected.
+    n_retained: u64,
+    done: bool,
+    mesh_at: Option<i64>,
+}
+
+/// What [`PeerView::admit`] decided.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Admit {
+    /// Send this message.
+    Send(ServerMessage),
+    /// The client has it already.
+    Skip,
+    /// The event is past a gap (something before it was lost): resync.
+    Gap,
+}
+
+impl PeerView {
+    /// Decides what the client gets for `event`, and records it as received.
+    pub fn admit(&mut self, event: &SessionEvent) -> Admit {
+        match &event.kind {
+            EventKind::Joined { participant, name } => {
+                if !self.present.insert(*participant) {
+                    return Admit::Skip;
+                }
+                Admit::Send(ServerMessage::PeerJoined(PeerJoined {
+                    participant: *participant,
+                    name: name.clone(),
+                }))
+            }
+            EventKind::Left { participant } => {
+                if !self.present.remove(participant) {
+                    return Admit::Skip;
+                }
+                Admit::Send(ServerMessage::PeerLeft(PeerLeft { participant: *participant }))
+            }
+            EventKind::StrokeBegin { participant, stroke, brush } => {
+                if self.strokes.contains_key(stroke) {
+                    return Admit::Skip;
+                }
+                self.strokes.insert(*stroke, StrokeView::default());
+                Admit::Send(ServerMessage::PeerStrokeBegin(PeerStrokeBegin {
+                    participant: *participant,
+                    stroke: *stroke,
+                    brush: *brush,
+                }))
+            }
+            EventKind::Retained { participant, stroke, first, points } => {
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                let end = first + points.len() as u64;
+                if end <= view.n_retained {
+                    return Admit::Skip;
+                }
+                if *first > view.n_retained {
+                    return Admit::Gap;
+                }
+                let from = view.n_retained;
+                view.n_retained = end;
+                Admit::Send(ServerMessage::PeerRetained(PeerRetained {
+                    participant: *participant,
+                    stroke: *stroke,
+                    first: from,
+                    points: PointBatch(points[(from - first) as usize..].to_vec()),
+                }))
+            }
+            EventKind::StrokeDone { participant, stroke, n_retained } => {
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                if view.done {
+                    return Admit::Skip;
+                }
+                if view.n_retained != *n_retained {
+                    return Admit::Gap;
+                }
+                view.done = true;
+                Admit::Send(ServerMessage::PeerStrokeDone(PeerStrokeDone {
+                    participant: *participant,
+                    stroke: *stroke,
+                    n_retained: *n_retained,
+                    url: format!("/v1/strokes/{stroke}/simplified"),
+                }))
+            }
+            EventKind::Mesh { participant, stroke, created_at } => {
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                if !view.done {
+                    return Admit::Gap;
+                }
+                if view.mesh_at.is_some_and(|at| at >= *created_at) {
+                    return Admit::Skip;
+                }
+                view.mesh_at = Some(*created_at);
+                Admit::Send(ServerMessage::PeerMesh(PeerMesh {
+                    participant: *participant,
+                    stroke: *stroke,
+                    url: format!("/v1/strokes/{stroke}/mesh"),
+                }))
+            }
+        }
+    }
+
+    /// Peer strokes the client has heard of.
+    pub fn n_strokes(&self) -> usize {
+        self.strokes.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn retained(stroke: Uuid, first: u64, n: usize) -> SessionEvent {
+        let points = (0..n).map(|i| Sample::new(i as f64, 0.0, i as f64, 0.5)).collect();
+        SessionEvent::new(
+            Uuid::nil(),
+            EventKind::Retained { participant: Uuid::nil(), stroke, first, points },
+        )
+    }
+
+    fn begin(stroke: Uuid) -> SessionEvent {
+        SessionEvent::new(
+            Uuid::nil(),
+            EventKind::StrokeBegin { participant: Uuid::nil(), stroke, brush: Brush::default() },
+        )
+    }
+
+    #[test]
+    fn the_view_drops_repeats_trims_overlaps_and_spots_gaps() {
+        let stroke = Uuid::new_v4();
+        let mut view = PeerView::default();
+        assert_eq!(view.admit(&retained(stroke, 0, 3)), Admit::Gap);
+        assert!(matches!(view.admit(&begin(stroke)), Admit::Send(_)));
+        assert_eq!(view.admit(&begin(stroke)), Admit::Skip);
+        assert!(matches!(view.admit(&retained(stroke, 0, 5)), Admit::Send(_)));
+        assert_eq!(view.admit(&retained(stroke, 2, 3)), Admit::Skip);
+        match view.admit(&retained(stroke, 3, 4)) {
+            Admit::Send(ServerMessage::PeerRetained(r)) => {
+                assert_eq!((r.first, r.points.0.len()), (5, 2));
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(view.admit(&retained(stroke, 9, 1)), Admit::Gap);
+    }
+
+    #[test]
+    fn large_retained_events_split_under_the_notify_limit() {
+        let event = retained(Uuid::new_v4(), 10, 1000);
+        let payloads = event.notify_payloads();
+        assert!(payloads.len() > 1);
+        let mut next = 10;
+        for p in &payloads {
+            assert!(p.len() <= MAX_NOTIFY_BYTES);
+            let EventKind::Retained { first, points, .. } =
+                SessionEvent::from_payload(p).unwrap().kind
+            else {
+                panic!()
+            };
+            assert_eq!(first, next);
+            next += points.len() as u64;
+        }
+        assert_eq!(next, 1010);
+    }
+
+    #[tokio::test]
+    async fn a_full_queue_lags_its_subscriber_only() {
+        let fanout = Fanout::default();
+        let session = Uuid::nil();
+        let mut slow = fanout.subscribe(session, 2);
+        let mut fast = fanout.subscribe(session, 100);
+        for i in 0..5 {
+            fanout.dispatch(retained(Uuid::nil(), i, 1));
+            fast.recv().await.unwrap();
+        }
+        assert_eq!(slow.recv().await.unwrap_err(), Lag::Overflow);
+        assert_eq!(fanout.backlog(session), (0, 100));
+    }
+}
