@@ -35,13 +35,17 @@
 //!
 //! So the simplifier keeps, for the current anchor:
 //! - the **cone**: the intersection over `q` in `R` of the direction cones
-//!   `{u : angle(u, a->q) <= beta_q}` (`beta_q = d_alpha` when `r <= d_d`), stored as its two
-//!   boundary unit vectors `lo` (clockwise) and `hi`. A direction `v` is inside iff
-//!   `lo × v >= 0`, `v × hi >= 0` and `v · (lo + hi) > 0` (the last excludes `-lo` when the cone
-//!   is a single ray). Every cone is narrower than a half-plane (half-angles are capped just
-//!   under 90°), so the intersection of two cones is one cone or empty, and its boundaries are
-//!   among the four input boundaries: folding `q` in costs a few cross products and at most one
-//!   square root (`cos(beta_q) = sqrt(r² - d_d²) / r`), with no trigonometry;
+//!   `{u : angle(u, a->q) <= beta_q}` (`beta_q = d_alpha` when `r <= d_d`). Half-angles are
+//!   capped at 90° - 1e-12 rad, so every cone, and the intersection, lies inside the open
+//!   half-plane around the direction `a->q1` of the first skipped sample `q1 != a`. There a
+//!   direction `v` is known by the tangent of its angle from `a->q1`,
+//!   `t(v) = (aq1 × v) / (aq1 · v)`, which grows with the angle, so the cone is an interval
+//!   `[lo, hi]` of tangents: `v` is inside iff `aq1 · v > 0` and
+//!   `lo (aq1 · v) <= aq1 × v <= hi (aq1 · v)` (no division). Folding `q` in rotates `a->q` by
+//!   `-beta_q` and `+beta_q` (`sin : cos = d_d : sqrt(r² - d_d²)` or `sin(d_alpha) : cos(d_alpha)`,
+//!   no trigonometry), and takes `lo := max(lo, t(lo_q))`, `hi := min(hi, t(hi_q))`; a boundary
+//!   outside the half-plane leaves that side open, both outside make the cone empty (an arc
+//!   narrower than a half-turn whose ends are outside the half-plane lies outside it);
 //! - the **reach** `rho = max |aq|` over `R`. `e` must satisfy `rho <= d_d` or `|ae| >= rho`,
 //!   which puts the foot of every `q` with `r > d_d` on the segment.
 //!
@@ -50,15 +54,21 @@
 //! passes iff `|aq| <= d_d`, which is `max(rho, |am|) <= d_d`: exact too. Samples equal to `a`
 //! add no constraint.
 //!
+//! Cost per sample: everything is computed on squared lengths, with cross and dot products; when
+//! a sample is folded in, one square root (`sqrt(r² - d_d²)`, when `beta_q = asin(d_d / r)`) and
+//! two independent divisions (the tangents of its cone's boundaries); no trigonometry.
+//!
 //! **When it is conservative.** The cone test is exact. The reach bound is only sufficient: when
 //! `e` is nearer to `a` than an older skipped `q` with `|aq| > d_d`, the definition still
 //! removes `m` if that `q` projects onto the segment or lies within `d_d` of `e`, while this test
 //! retains `m`. Because `m` itself is tested exactly, this takes a stroke that steps back past an
 //! older sample (a pen that turns back or jitters backwards), which forward-moving strokes rarely
-//! do; the property tests (`shared/tests/acuts_props.rs`) report how often it happens. Geometry
-//! whose lengths exceed `1e150` (products would overflow) and half-angles within `1e-12` rad of
-//! 90° are also treated conservatively: the candidate is retained. Retaining a sample never
-//! breaks the guarantee.
+//! do: on the random strokes of the property tests (`shared/tests/acuts_props.rs`, which report
+//! it), none of 1e5 decisions differ on pen-like strokes at the default parameters, and under
+//! 0.1 % on jittery or random-point strokes with a wide tolerance. Offsets from the anchor that
+//! are not zero but shorter than `1e-60` or longer than `1e75` (where products of four lengths
+//! would underflow or overflow), and half-angles within `1e-12` rad of 90°, are also treated
+//! conservatively: the candidate is retained. Retaining a sample never breaks the guarantee.
 //!
 //! Parameters outside their range (see [`AcutsParams::validate`]) are clamped by the simplifier:
 //! a negative or NaN tolerance acts as 0, the angle is clamped to `[0°, 90°]` (NaN acts as 0°).
@@ -194,67 +204,78 @@ pub fn resample(samples: &[Sample], min_distance: f64) -> Vec<usize> {
     kept
 }
 
-/// Lengths above this are not trusted: products of two of them must stay finite.
-const MAX_LENGTH: f64 = 1e150;
-/// Smallest cosine of a cone's half-angle, so that every cone is narrower than a half-plane.
-const MIN_COS_HALF_ANGLE: f64 = 1e-12;
+/// Squared offsets from the anchor outside `[MIN_LENGTH_SQ, MAX_LENGTH_SQ]` (but not zero) are
+/// not trusted, so that products of up to four lengths neither overflow nor underflow: the
+/// candidate is retained. That is lengths outside `[1e-60, 1e75]`.
+const MIN_LENGTH_SQ: f64 = 1e-120;
+const MAX_LENGTH_SQ: f64 = 1e150;
+/// Smallest ratio `cos / sin` of a cone's half-angle, so that every cone is narrower than a
+/// half-plane (half-angles at most 90° - 1e-12 rad).
+const MIN_COT_HALF_ANGLE: f64 = 1e-12;
 
-/// A cone of directions from the anchor, narrower than a half-plane: from `lo` counter-clockwise
-/// to `hi`. The empty cone has NaN boundaries, so that nothing is inside it.
+/// A cone of directions from the anchor, inside the open half-plane `reference · v > 0`: the
+/// directions `v` whose tangent of angle from `reference`, `(reference × v) / (reference · v)`,
+/// lies in `[lo, hi]`. It is empty when `lo > hi`.
 #[derive(Debug, Clone, Copy)]
 struct Cone {
-    lo: DVec2,
-    hi: DVec2,
+    reference: DVec2,
+    lo: f64,
+    hi: f64,
 }
 
 impl Cone {
-    const EMPTY: Cone = Cone { lo: DVec2::NAN, hi: DVec2::NAN };
-
-    /// The cone of directions within the half-angle `(sin, cos)` of the unit vector `center`.
+    /// The cone of directions within the half-angle `atan2(sin, cos)` (`cos > 0`) of `center`.
     fn around(center: DVec2, sin: f64, cos: f64) -> Cone {
-        let (c, s) = (cos * center, sin * center.perp());
-        Cone { lo: c - s, hi: c + s }
+        let mut cone = Cone { reference: center, lo: f64::NEG_INFINITY, hi: f64::INFINITY };
+        cone.narrow(center, sin, cos);
+        cone
     }
 
     /// Whether the direction `v` (any length; the zero vector is outside) is inside.
     fn contains(&self, v: DVec2) -> bool {
-        self.lo.perp_dot(v) >= 0.0 && v.perp_dot(self.hi) >= 0.0 && v.dot(self.lo + self.hi) > 0.0
+        let (along, across) = (self.reference.dot(v), self.reference.perp_dot(v));
+        along > 0.0 && across >= self.lo * along && across <= self.hi * along
     }
 
-    /// The intersection. Two arcs narrower than a half-circle meet in one arc or not at all, and
-    /// that arc starts at the `lo` of one that lies inside the other (likewise for `hi`).
-    fn intersect(&self, other: &Cone) -> Cone {
-        let lo = if self.contains(other.lo) {
-            other.lo
-        } else if other.contains(self.lo) {
-            self.lo
-        } else {
-            return Cone::EMPTY;
-        };
-        let hi = if self.contains(other.hi) {
-            other.hi
-        } else if other.contains(self.hi) {
-            self.hi
-        } else {
-            return Cone::EMPTY;
-        };
-        // Rounding can pick boundaries that cross over (a near-empty intersection): refuse them.
-        let cross = lo.perp_dot(hi);
-        if cross > 0.0 || (cross == 0.0 && lo.dot(hi) > 0.0) {
-            Cone { lo, hi }
-        } else {
-            Cone::EMPTY
+    /// Intersects with the cone of half-angle `atan2(sin, cos)` around `center`, narrower than a
+    /// half-plane. Its part inside the half-plane of `reference` is one arc (or nothing), whose
+    /// bounds are its own boundaries where they lie inside the half-plane, else the half-plane's.
+    fn narrow(&mut self, center: DVec2, sin: f64, cos: f64) {
+        let (u, w) = (self.reference.dot(center), self.reference.perp_dot(center));
+        // `center` rotated by -beta and +beta, in the frame of `reference`.
+        let (lo_along, lo_across) = (cos * u + sin * w, cos * w - sin * u);
+        let (hi_along, hi_across) = (cos * u - sin * w, cos * w + sin * u);
+        if lo_along > 0.0 {
+            self.lo = self.lo.max(lo_across / lo_along);
+        } else if hi_along <= 0.0 {
+            // Both boundaries outside the half-plane: so is the whole arc.
+            self.lo = f64::INFINITY;
+        }
+        if hi_along > 0.0 {
+            self.hi = self.hi.min(hi_across / hi_along);
         }
     }
 }
 
-/// The candidate `m`, with its offset from the anchor and the length of that offset.
+/// The candidate `m`, with its offset from the anchor and the squared length of that offset.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
     index: usize,
     sample: Sample,
     offset: DVec2,
-    distance: f64,
+    distance_sq: f64,
+}
+
+impl Candidate {
+    fn new(index: usize, sample: Sample, anchor: &Sample) -> Candidate {
+        let offset = sample.pos() - anchor.pos();
+        Candidate { index, sample, offset, distance_sq: offset.length_squared() }
+    }
+}
+
+/// Whether an offset from the anchor is zero or of a length the tests can trust.
+fn trusted(offset: DVec2, length_sq: f64) -> bool {
+    offset == DVec2::ZERO || (MIN_LENGTH_SQ..=MAX_LENGTH_SQ).contains(&length_sq)
 }
 
 /// Stage 2: streaming windowed simplifier, O(1) time and memory per sample (see the module
@@ -262,18 +283,20 @@ struct Candidate {
 #[derive(Debug, Clone)]
 pub struct Simplifier {
     params: AcutsParams,
-    /// `d_d`, clamped to `[0, inf]`.
+    /// `d_d`, clamped to `[0, inf]`, and its square.
     tolerance: f64,
-    /// `sin(d_alpha)` with `d_alpha` clamped to `[0°, 90°]`.
+    tolerance_sq: f64,
+    /// `sin(d_alpha)` with `d_alpha` clamped to `[0°, 90°]`, and its square.
     sin_angle: f64,
-    /// `cos(d_alpha)`, at least [`MIN_COS_HALF_ANGLE`].
+    sin_angle_sq: f64,
+    /// `cos(d_alpha)`, at least [`MIN_COT_HALF_ANGLE`]` * sin(d_alpha)`.
     cos_angle: f64,
     anchor: Option<Sample>,
     candidate: Option<Candidate>,
     /// The directions from the anchor that every skipped sample admits; `None`: no constraint.
     cone: Option<Cone>,
-    /// The largest distance from the anchor to a skipped sample.
-    reach: f64,
+    /// The largest squared distance from the anchor to a skipped sample.
+    reach_sq: f64,
     n_seen: usize,
 }
 
@@ -285,12 +308,14 @@ impl Simplifier {
         Simplifier {
             params,
             tolerance,
+            tolerance_sq: tolerance * tolerance,
             sin_angle,
-            cos_angle: cos_angle.max(MIN_COS_HALF_ANGLE),
+            sin_angle_sq: sin_angle * sin_angle,
+            cos_angle: cos_angle.max(MIN_COT_HALF_ANGLE * sin_angle),
             anchor: None,
             candidate: None,
             cone: None,
-            reach: 0.0,
+            reach_sq: 0.0,
             n_seen: 0,
         }
     }
@@ -311,18 +336,19 @@ impl Simplifier {
             self.candidate = Some(Candidate::new(index, e, &a));
             return None;
         };
-        if !(pressure_variance(a.p, m.sample.p, e.p) > self.params.pressure_variance) {
-            let ae = e.pos() - a.pos();
-            let ae_len = ae.length();
-            if self.admits(&m, ae, ae_len) {
-                self.fold(m.offset, m.distance);
-                self.candidate = Some(Candidate { index, sample: e, offset: ae, distance: ae_len });
+        let pressure_retains =
+            pressure_variance(a.p, m.sample.p, e.p) > self.params.pressure_variance;
+        if !pressure_retains {
+            let next = Candidate::new(index, e, &a);
+            if self.admits(&m, next.offset, next.distance_sq) {
+                self.fold(m.offset, m.distance_sq);
+                self.candidate = Some(next);
                 return None;
             }
         }
         self.anchor = Some(m.sample);
         self.cone = None;
-        self.reach = 0.0;
+        self.reach_sq = 0.0;
         self.candidate = Some(Candidate::new(index, e, &m.sample));
         Some(Kept { index: m.index, sample: m.sample })
     }
@@ -336,76 +362,68 @@ impl Simplifier {
     }
 
     /// Whether every `q` in `R ∪ {m}` passes the geometry test against the segment `a–e`, where
-    /// `ae = e - a` and `ae_len = |ae|`. Conservative as the module documentation says.
-    fn admits(&self, m: &Candidate, ae: DVec2, ae_len: f64) -> bool {
-        let tolerance = self.tolerance;
-        if !(ae_len <= MAX_LENGTH && m.distance <= MAX_LENGTH) {
+    /// `ae = e - a` and `ae_len_sq = |ae|²`. Conservative as the module documentation says.
+    fn admits(&self, m: &Candidate, ae: DVec2, ae_len_sq: f64) -> bool {
+        if !(trusted(ae, ae_len_sq) && trusted(m.offset, m.distance_sq)) {
             return false;
         }
-        if ae_len == 0.0 {
+        if ae == DVec2::ZERO {
             // The segment is the point `a`: angles pass, distances are `|aq|`.
-            return self.reach <= tolerance && m.distance <= tolerance;
+            return self.reach_sq <= self.tolerance_sq && m.distance_sq <= self.tolerance_sq;
         }
-        let reach_ok = self.reach <= tolerance || ae_len >= self.reach;
+        let reach_ok = self.reach_sq <= self.tolerance_sq || ae_len_sq >= self.reach_sq;
         let cone_ok = self.cone.is_none_or(|cone| cone.contains(ae));
-        reach_ok && cone_ok && self.admits_exactly(m.offset, m.distance, ae)
+        reach_ok && cone_ok && self.admits_exactly(m.offset, m.distance_sq, ae, ae_len_sq)
     }
 
-    /// The geometry test for one `q != a` at `aq = q - a`, `r = |aq|`, against `ae = e - a != 0`.
-    fn admits_exactly(&self, aq: DVec2, r: f64, ae: DVec2) -> bool {
-        if r == 0.0 {
+    /// The geometry test for one `q` at `aq = q - a`, `r² = |aq|²`, against `ae = e - a != 0`,
+    /// `|ae|²`. Squared throughout: `along = r |ae| cos(angle)`, `across = r |ae| sin(angle)`.
+    fn admits_exactly(&self, aq: DVec2, r_sq: f64, ae: DVec2, ae_len_sq: f64) -> bool {
+        if aq == DVec2::ZERO {
             return true;
         }
-        let ae_len_sq = ae.length_squared();
-        let ae_len = ae_len_sq.sqrt();
         let along = aq.dot(ae);
-        let across = aq.perp_dot(ae).abs();
+        let across = aq.perp_dot(ae);
+        let across_sq = across * across;
         // angle <= d_alpha <= 90° iff cos >= 0 and sin <= sin(d_alpha).
-        if !(along >= 0.0 && across <= self.sin_angle * r * ae_len) {
+        if !(along >= 0.0 && across_sq <= self.sin_angle_sq * r_sq * ae_len_sq) {
             return false;
         }
         if along <= ae_len_sq {
             // The foot is on the segment: the distance is `r sin(angle) = across / |ae|`.
-            across <= self.tolerance * ae_len
+            across_sq <= self.tolerance_sq * ae_len_sq
         } else {
             // The foot is beyond `e`: the distance is `|qe|`.
-            (aq - ae).length_squared() <= self.tolerance * self.tolerance
+            (aq - ae).length_squared() <= self.tolerance_sq
         }
     }
 
-    /// Adds a removed sample at `aq = q - a`, `r = |aq|`, to the cone and the reach.
-    fn fold(&mut self, aq: DVec2, r: f64) {
-        if r == 0.0 {
+    /// Adds a removed sample at `aq = q - a`, `r² = |aq|²`, to the cone and the reach.
+    fn fold(&mut self, aq: DVec2, r_sq: f64) {
+        if aq == DVec2::ZERO {
             return;
         }
-        self.reach = self.reach.max(r);
-        let tolerance = self.tolerance;
-        let (sin, cos) = if r * self.sin_angle <= tolerance {
+        self.reach_sq = self.reach_sq.max(r_sq);
+        let (sin, cos) = if r_sq * self.sin_angle_sq <= self.tolerance_sq {
             (self.sin_angle, self.cos_angle)
         } else {
-            // asin(d_d / r) < d_alpha.
-            let cos = ((r - tolerance) * (r + tolerance)).sqrt() / r;
-            (tolerance / r, cos.max(MIN_COS_HALF_ANGLE))
+            // asin(d_d / r) < d_alpha: sin : cos = d_d : sqrt(r² - d_d²).
+            let cos = (r_sq - self.tolerance_sq).sqrt().max(MIN_COT_HALF_ANGLE * self.tolerance);
+            (self.tolerance, cos)
         };
-        let cone = Cone::around(aq / r, sin, cos);
-        self.cone = Some(match self.cone {
-            None => cone,
-            Some(current) => current.intersect(&cone),
-        });
+        match &mut self.cone {
+            None => self.cone = Some(Cone::around(aq, sin, cos)),
+            Some(cone) => cone.narrow(aq, sin, cos),
+        }
     }
 }
 
-impl Candidate {
-    fn new(index: usize, sample: Sample, anchor: &Sample) -> Candidate {
-        let offset = sample.pos() - anchor.pos();
-        Candidate { index, sample, offset, distance: offset.length() }
-    }
-}
-
-/// Population variance of three pressures (paper formula 3, `W_s = 3`).
+/// Population variance of three pressures (paper formula 3, `W_s = 3`), computed as the mean
+/// squared pairwise difference `((p0-p1)² + (p1-p2)² + (p2-p0)²) / 9`, which is the same value
+/// without a division (this runs once per sample).
 pub fn pressure_variance(p0: f64, p1: f64, p2: f64) -> f64 {
-    let mean = (p0 + p1 + p2) / 3.0;
-    ((p0 - mean).powi(2) + (p1 - mean).powi(2) + (p2 - mean).powi(2)) / 3.0
+    let (d01, d12, d20) = (p0 - p1, p1 - p2, p2 - p0);
+    (d01 * d01 + d12 * d12 + d20 * d20) * (1.0 / 9.0)
 }
 
 /// Distance from `q` to the segment `a–b`.
@@ -672,30 +690,44 @@ mod tests {
         assert_eq!(out.kept, [0, 3, 4]);
     }
 
-    // The cone intersection: nested, overlapping, disjoint, and single rays.
+    // The cone as an interval of tangents: nested, overlapping, disjoint, single rays, and
+    // boundaries outside the reference half-plane.
     #[test]
-    fn cone_intersection() {
-        let deg = |d: f64| d.to_radians().sin_cos();
-        let cone = |dir_deg: f64, half_deg: f64| {
-            let (s, c) = deg(half_deg);
-            let (sd, cd) = deg(dir_deg);
-            Cone::around(DVec2::new(cd, sd), s, c)
-        };
-        let dir = |d: f64| {
-            let (s, c) = deg(d);
+    fn cone_narrowing() {
+        let dir = |deg: f64| {
+            let (s, c) = deg.to_radians().sin_cos();
             DVec2::new(c, s)
         };
-        let both = cone(0.0, 20.0).intersect(&cone(15.0, 10.0));
-        assert!(both.contains(dir(7.0)) && both.contains(dir(20.0)));
-        assert!(!both.contains(dir(4.0)) && !both.contains(dir(21.0)));
-        let nested = cone(0.0, 80.0).intersect(&cone(10.0, 5.0));
+        let cone = |center_deg: f64, half_deg: f64| {
+            let (s, c) = half_deg.to_radians().sin_cos();
+            Cone::around(dir(center_deg), s, c)
+        };
+        let narrowed = |mut a: Cone, center_deg: f64, half_deg: f64| {
+            let (s, c) = half_deg.to_radians().sin_cos();
+            a.narrow(dir(center_deg) * 7.0, s, c);
+            a
+        };
+        let both = narrowed(cone(0.0, 20.0), 15.0, 10.0);
+        assert!(both.contains(dir(5.5)) && both.contains(dir(19.5)) && both.contains(dir(12.0)));
+        assert!(!both.contains(dir(4.5)) && !both.contains(dir(20.5)));
+        let nested = narrowed(cone(0.0, 80.0), 10.0, 5.0);
         assert!(nested.contains(dir(10.0)) && !nested.contains(dir(0.0)));
-        assert!(!cone(0.0, 10.0).intersect(&cone(90.0, 10.0)).contains(dir(45.0)));
+        assert!(!narrowed(cone(0.0, 10.0), 90.0, 10.0).contains(dir(5.0)));
+        assert!(!narrowed(cone(0.0, 10.0), 90.0, 10.0).contains(dir(85.0)));
         let ray = cone(0.0, 0.0);
-        assert!(ray.contains(DVec2::X) && !ray.contains(-DVec2::X) && !ray.contains(DVec2::ZERO));
-        assert!(ray.intersect(&cone(0.0, 0.0)).contains(DVec2::X));
-        assert!(!ray.intersect(&cone(180.0, 0.0)).contains(DVec2::X));
-        let wide = cone(0.0, 89.0).intersect(&cone(180.0, 89.0));
-        assert!(!wide.contains(DVec2::Y) && !wide.contains(DVec2::X));
+        assert!(
+            ray.contains(DVec2::X * 3.0) && !ray.contains(-DVec2::X) && !ray.contains(DVec2::ZERO)
+        );
+        assert!(narrowed(ray, 0.0, 0.0).contains(DVec2::X));
+        assert!(!narrowed(ray, 180.0, 0.0).contains(DVec2::X));
+        assert!(!narrowed(ray, 180.0, 0.0).contains(-DVec2::X));
+        // A wide cone whose lower boundary is beyond -90° of the reference: that side stays open.
+        let wide = narrowed(cone(0.0, 80.0), -60.0, 45.0);
+        assert!(
+            wide.contains(dir(-79.0)) && wide.contains(dir(-15.5)) && !wide.contains(dir(-14.0))
+        );
+        // Both boundaries outside the half-plane: empty.
+        let opposite = narrowed(cone(0.0, 89.0), 180.0, 80.0);
+        assert!((-89..=89).all(|d| !opposite.contains(dir(f64::from(d)))));
     }
 }

@@ -41,7 +41,8 @@ fn naive_simplify(samples: &[Sample], params: &AcutsParams) -> Vec<usize> {
     let (mut kept, mut anchor, mut skipped) = (vec![0], *first, Vec::<Sample>::new());
     for m_index in 1..samples.len().saturating_sub(1) {
         let (m, e) = (samples[m_index], samples[m_index + 1]);
-        let removable = !(pressure_variance(anchor.p, m.p, e.p) > params.pressure_variance)
+        let gate_retains = pressure_variance(anchor.p, m.p, e.p) > params.pressure_variance;
+        let removable = !gate_retains
             && skipped.iter().chain([&m]).all(|q| naive_admits(&anchor, q, &e, params, false));
         if removable {
             skipped.push(m);
@@ -368,6 +369,9 @@ impl Rng {
     }
 }
 
+/// Makes a stroke of `n` samples.
+type Generator = fn(&mut Rng, usize) -> Vec<Sample>;
+
 /// A pen-like stroke: 1-3 units per sample, curvature drifting and sometimes jumping, pressure
 /// drifting; `jitter` adds that much noise to each position.
 fn pen_stroke(rng: &mut Rng, n: usize, jitter: f64) -> Vec<Sample> {
@@ -401,7 +405,7 @@ fn scribble(rng: &mut Rng, n: usize) -> Vec<Sample> {
 #[test]
 fn report_conservativeness_vs_naive() {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-    let kinds: [(&str, fn(&mut Rng, usize) -> Vec<Sample>); 4] = [
+    let kinds: [(&str, Generator); 4] = [
         ("pen strokes", |rng, n| pen_stroke(rng, n, 0.0)),
         ("pen strokes, jitter 0.3", |rng, n| pen_stroke(rng, n, 0.3)),
         ("pen strokes, jitter 1.0", |rng, n| pen_stroke(rng, n, 1.0)),
