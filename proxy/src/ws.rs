@@ -238,6 +238,8 @@ pub async fn serve<Si, St, E>(
                 Ok(event) => conn.on_event(&event).await,
                 Err(lag) => conn.resync(Some(lag)).await,
             },
+            // The socket was too slow to take peer events: wake up when it caught up.
+            _ = room(&conn.out, reserve + 1), if conn.events.is_some() && !can_forward => {}
             frame = stream.next(), if can_read => {
                 last_heard = Instant::now();
                 match frame {
@@ -277,6 +279,14 @@ pub async fn serve<Si, St, E>(
         }
     }
     metrics::gauge!("penmesh_ws_connections").decrement(1.0);
+}
+
+/// Ready once the queue has room for `n` frames (the permits are given back at once).
+fn room(out: &mpsc::Sender<Frame>, n: usize) -> impl Future<Output = ()> + use<> {
+    let out = out.clone();
+    async move {
+        let _ = out.reserve_many(n).await;
+    }
 }
 
 /// The next event of the subscription; never ready without one.

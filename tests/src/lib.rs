@@ -13,7 +13,7 @@ use penmesh::protocol::{
     ServerMessage, StrokeBegin, StrokeEnd, StrokeId, Welcome, decode_server, decode_server_json,
     encode_client, encode_client_json,
 };
-use penmesh_proxy::{Application, Config};
+use penmesh_proxy::{AppState, Application, Config};
 use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
@@ -93,8 +93,54 @@ pub struct TestProxy {
     pub port: u16,
     pub db: TestDatabase,
     pub http: reqwest::Client,
+    /// The running application's shared state (fan-out, claims, settings).
+    pub state: AppState,
     shutdown: tokio_util::sync::CancellationToken,
     task: tokio::task::JoinHandle<anyhow::Result<()>>,
+    /// The runtime of a replica started by [`spawn_replica`]: dropping it kills the replica.
+    runtime: Option<ReplicaRuntime>,
+}
+
+/// A runtime of its own for one replica. Dropping it drops every task of the replica at once,
+/// without any wind-down: its sockets and database connections close as in a crash.
+#[derive(Debug)]
+struct ReplicaRuntime(Option<tokio::runtime::Runtime>);
+
+impl Drop for ReplicaRuntime {
+    fn drop(&mut self) {
+        if let Some(runtime) = self.0.take() {
+            runtime.shutdown_background();
+        }
+    }
+}
+
+/// Starts a proxy replica on `db` in a runtime of its own, so that [`TestProxy::kill`] can
+/// crash it (no graceful shutdown, nothing more committed) while the test goes on.
+pub async fn spawn_replica(db: TestDatabase, tweak: impl FnOnce(&mut Config)) -> TestProxy {
+    let mut config = test_config(&db);
+    tweak(&mut config);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a replica runtime");
+    let (ready, started) = tokio::sync::oneshot::channel();
+    let task = runtime.spawn(async move {
+        let app = Application::build(config).await.expect("the replica starts");
+        let _ = ready.send((app.port(), app.shutdown_handle(), app.state().clone()));
+        app.run_until_stopped().await
+    });
+    let (port, shutdown, state) = started.await.expect("the replica reports its port");
+    TestProxy {
+        address: format!("http://127.0.0.1:{port}"),
+        port,
+        db,
+        http: reqwest::Client::new(),
+        state,
+        shutdown,
+        task,
+        runtime: Some(ReplicaRuntime(Some(runtime))),
+    }
 }
 
 /// A session's id and token.
@@ -121,14 +167,17 @@ pub async fn spawn_proxy_on(db: TestDatabase, tweak: impl FnOnce(&mut Config)) -
     let app = Application::build(config).await.expect("the proxy starts");
     let port = app.port();
     let shutdown = app.shutdown_handle();
+    let state = app.state().clone();
     let task = tokio::spawn(app.run_until_stopped());
     TestProxy {
         address: format!("http://127.0.0.1:{port}"),
         port,
         db,
         http: reqwest::Client::new(),
+        state,
         shutdown,
         task,
+        runtime: None,
     }
 }
 
@@ -221,6 +270,14 @@ impl TestProxy {
             .expect("the proxy stops within the timeout")
             .expect("the proxy task does not panic")
             .expect("the proxy stops cleanly");
+        self.db
+    }
+
+    /// Crashes a replica started by [`spawn_replica`]: every task stops where it is, nothing
+    /// is flushed. Returns the database.
+    pub fn kill(mut self) -> TestDatabase {
+        assert!(self.runtime.is_some(), "only a replica started by spawn_replica can be killed");
+        self.runtime.take();
         self.db
     }
 
