@@ -589,8 +589,7 @@ impl Live {
         })?;
         request.headers_mut().insert("authorization", bearer);
         let connected =
-            tokio::time::timeout(HANDSHAKE_TIMEOUT, tokio_tungstenite::connect_async(request))
-                .await;
+            tokio::time::timeout(HANDSHAKE_TIMEOUT, connect_without_nagle(request)).await;
         let (ws, _) = match connected {
             Err(_) => {
                 return Err(ConnectError::Transient(anyhow::anyhow!(
@@ -722,6 +721,20 @@ enum ConnectError {
     Transient(anyhow::Error),
     /// Trying again will not help (wrong token, refused protocol).
     Fatal(anyhow::Error),
+}
+
+/// Small frames go out at once: with Nagle's algorithm a `StrokeEnd` right after a batch
+/// would wait for the proxy's delayed ACK (~40 ms).
+async fn connect_without_nagle(
+    request: tokio_tungstenite::tungstenite::handshake::client::Request,
+) -> Result<
+    (
+        WebSocketStream<MaybeTlsStream<TcpStream>>,
+        tokio_tungstenite::tungstenite::handshake::client::Response,
+    ),
+    tokio_tungstenite::tungstenite::Error,
+> {
+    tokio_tungstenite::connect_async_with_config(request, None, true).await
 }
 
 async fn send(link: &mut Link, msg: &ClientMessage) -> anyhow::Result<()> {

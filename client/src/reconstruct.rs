@@ -76,6 +76,10 @@ pub async fn reconstruct(
     stroke: FinishedStroke,
 ) -> anyhow::Result<StrokeReport> {
     let id = stroke.id;
+    let since_pen_up = |step: &str| {
+        tracing::debug!(stroke = %id, ms = stroke.pen_up.elapsed().as_secs_f64() * 1e3, "{step}");
+    };
+    since_pen_up("stroke done");
     let url = endpoint.url(&format!("/v1/strokes/{id}/simplified"));
     let simplified: Simplified = with_retries(options.retry_for, || async {
         let response = http.get(&url).bearer_auth(&endpoint.token).send().await?;
@@ -103,6 +107,7 @@ pub async fn reconstruct(
         })?;
         kept.push(drawn_idx);
     }
+    since_pen_up("simplified fetched");
     let exact = kept.iter().zip(&simplified.samples).all(|(&i, s)| stroke.drawn[i] == *s);
     if !exact {
         tracing::warn!(stroke = %id, "the simplified stroke differs from what was drawn");
@@ -115,6 +120,7 @@ pub async fn reconstruct(
     let meta = GlbMeta { stroke: id, author: options.name.clone(), brush: options.brush };
     let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
 
+    since_pen_up("mesh built");
     let glb_path = match &options.out_dir {
         Some(dir) => {
             let path = dir.join(glb_file_name(&options.name, stroke.index, &stroke.device, id));
@@ -144,6 +150,7 @@ pub async fn reconstruct(
     .await
     .with_context(|| format!("reading the answer to the mesh upload of stroke {id}"))?;
     let latency_ms = stroke.pen_up.elapsed().as_secs_f64() * 1e3;
+    since_pen_up("mesh stored");
     anyhow::ensure!(
         stored.bytes == glb.len() as u64,
         "stroke {id}: the proxy stored {} bytes of a {}-byte GLB",
