@@ -9,6 +9,7 @@
 //! the session-event listener and the stroke-lock connection ([`crate::cluster`]), so any
 //! number of replicas can serve one database.
 
+use axum::serve::ListenerExt;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -110,7 +111,16 @@ impl Application {
         let shutdown = state.shutdown.clone();
         let signals = tokio::spawn(cancel_on_signal(shutdown.clone()));
         let server = tokio::spawn(
-            axum::serve(listener, router(state.clone()))
+            // Nagle's algorithm would hold small frames (Ack, StrokeDone) until the peer's
+            // delayed ACK, adding tens of milliseconds to each answer.
+            axum::serve(
+                listener.tap_io(|tcp| {
+                    if let Err(err) = tcp.set_nodelay(true) {
+                        tracing::debug!("cannot set TCP_NODELAY: {err}");
+                    }
+                }),
+                router(state.clone()),
+            )
                 .with_graceful_shutdown(shutdown.clone().cancelled_owned())
                 .into_future(),
         );
