@@ -204,6 +204,8 @@ struct StrokeLog {
     on_link: bool,
     end_sent: bool,
     done: bool,
+    /// A lone unsent sample was held back at the last tick (see `flush`).
+    held_lone: bool,
 }
 
 impl StrokeLog {
@@ -414,6 +416,7 @@ impl Live {
                             begun: false,
                             on_link: false,
                             end_sent: false,
+                            held_lone: false,
                             done: false,
                         });
                         self.drawing = Some(Some(index));
@@ -468,6 +471,13 @@ impl Live {
                 s.begun = true;
                 s.sent = s.acked;
             }
+            // A lone sample costs 7.5-8 bytes on the wire, a pair under 6 each (see
+            // docs/performance.md): hold a lone one back for one tick while the pen is down.
+            if s.n_kept() - s.sent == 1 && s.pen_up.is_none() && !s.held_lone {
+                s.held_lone = true;
+                continue;
+            }
+            s.held_lone = false;
             while s.sent < s.n_kept() {
                 let from = (s.sent - s.acked) as usize;
                 let to = (from + batch).min(s.unacked.len());
@@ -803,6 +813,7 @@ mod tests {
             begun: true,
             on_link: true,
             end_sent: false,
+            held_lone: false,
             done: false,
         };
         for i in 0..10 {
