@@ -9,19 +9,22 @@
 //! - [`StrokeLocks`]: a replica holds `pg_advisory_lock(key(stroke))` on one connection of its
 //!   own for every stroke drawn on it. A replica that dies loses its connection, PostgreSQL
 //!   frees its locks at once, and another replica can take the strokes over (resume).
+//! - Presence: the same connection holds a lock on the replica's own random key
+//!   ([`StrokeLocks::replica_key`]), stored with each participant. [`start_reaper`] closes the
+//!   participants whose replica's lock is gone (it died) and tells their sessions (`PeerLeft`).
 
 use std::collections::HashMap;
 use std::time::Duration;
 
 use anyhow::Context;
 use sqlx::postgres::{PgConnectOptions, PgListener};
-use sqlx::{Connection, PgConnection};
+use sqlx::{Connection, PgConnection, Row};
 use tokio::sync::Mutex;
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use crate::fanout::{Fanout, SessionEvent};
-use crate::store::EVENTS_CHANNEL;
+use crate::fanout::{EventKind, Fanout, SessionEvent};
+use crate::store::{EVENTS_CHANNEL, Store, notify};
 
 /// The `application_name` of the listener's connection (so an operator, or a test, finds it).
 pub const LISTENER_APPLICATION: &str = "penmesh-listener";
@@ -105,6 +108,7 @@ pub async fn start_listener(
 pub struct StrokeLocks {
     options: PgConnectOptions,
     inner: Mutex<LockConnection>,
+    replica_key: i64,
 }
 
 #[derive(Debug, Default)]
@@ -123,11 +127,25 @@ pub fn lock_key(stroke: Uuid) -> i64 {
 impl StrokeLocks {
     pub async fn connect(url: &str) -> anyhow::Result<StrokeLocks> {
         let options = options(url, LOCKS_APPLICATION)?;
-        let conn = PgConnection::connect_with(&options).await.context("the lock connection")?;
+        let mut conn = PgConnection::connect_with(&options).await.context("the lock connection")?;
+        // Positive and below 2^62, so that pg_locks splits it in two plain halves.
+        let replica_key = (rand::random::<u64>() >> 2).max(1) as i64;
+        sqlx::query("SELECT pg_advisory_lock($1)")
+            .bind(replica_key)
+            .execute(&mut conn)
+            .await
+            .context("taking the replica's lock")?;
+        let held = HashMap::from([(replica_key, 1)]);
         Ok(StrokeLocks {
             options,
-            inner: Mutex::new(LockConnection { conn: Some(conn), held: HashMap::new() }),
+            inner: Mutex::new(LockConnection { conn: Some(conn), held }),
+            replica_key,
         })
+    }
+
+    /// The key of the advisory lock this replica holds while it lives.
+    pub fn replica_key(&self) -> i64 {
+        self.replica_key
     }
 
     /// Takes the stroke's lock if no other replica holds it.
@@ -202,4 +220,57 @@ impl StrokeLocks {
         }
         Ok(inner.conn.as_mut().expect("connected"))
     }
+}
+
+/// How often a replica looks for participants of replicas that died.
+pub const REAP_INTERVAL: Duration = Duration::from_secs(2);
+
+/// Closes, every [`REAP_INTERVAL`], the participants whose replica no longer holds its lock,
+/// and notifies their `PeerLeft` in the same transaction (one replica wins each row).
+pub fn start_reaper(store: Store, stop: CancellationToken) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        loop {
+            tokio::select! {
+                _ = stop.cancelled() => return,
+                _ = tokio::time::sleep(REAP_INTERVAL) => {}
+            }
+            match reap(&store).await {
+                Ok(0) => {}
+                Ok(n) => tracing::info!(n, "participants of a replica that died have left"),
+                Err(err) => {
+                    tracing::warn!(error = %err, "looking for participants of dead replicas")
+                }
+            }
+        }
+    })
+}
+
+async fn reap(store: &Store) -> anyhow::Result<usize> {
+    let mut tx = store.pool().begin().await?;
+    let rows = sqlx::query(
+        "UPDATE participants SET left_at = $1 WHERE left_at IS NULL AND replica_key IS NOT NULL \
+         AND NOT EXISTS (SELECT 1 FROM pg_locks l WHERE l.locktype = 'advisory' AND l.granted \
+           AND l.objsubid = 1 \
+           AND l.database = (SELECT oid FROM pg_database WHERE datname = current_database()) \
+           AND l.classid::bigint = (participants.replica_key >> 32) \
+           AND l.objid::bigint = (participants.replica_key & 4294967295)) \
+         RETURNING id, session_id",
+    )
+    .bind(crate::store::now_ms())
+    .fetch_all(&mut *tx)
+    .await?;
+    let mut events = Vec::with_capacity(rows.len());
+    for row in &rows {
+        let participant: String = row.try_get("id")?;
+        let session: String = row.try_get("session_id")?;
+        events.push(SessionEvent::new(
+            Uuid::parse_str(&session)?,
+            EventKind::Left { participant: Uuid::parse_str(&participant)? },
+        ));
+    }
+    if !events.is_empty() {
+        notify(&mut tx, &events).await?;
+    }
+    tx.commit().await?;
+    Ok(events.len())
 }

@@ -14,11 +14,11 @@
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use penmesh::protocol::{
     ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerRetained, PeerStrokeBegin, PeerStrokeDone,
-    PointBatch, ServerMessage, StrokeId,
+    PointBatch, ServerMessage, StrokeId, encode_server, encode_server_json,
 };
 use penmesh::{Brush, Sample};
 use serde::{Deserialize, Serialize};
@@ -111,6 +111,47 @@ impl SessionEvent {
         Ok(serde_json::from_str(payload)?)
     }
 
+    /// The message that tells a client of this event.
+    pub fn message(&self) -> ServerMessage {
+        match &self.kind {
+            EventKind::Joined { participant, name } => ServerMessage::PeerJoined(PeerJoined {
+                participant: *participant,
+                name: name.clone(),
+            }),
+            EventKind::Left { participant } => {
+                ServerMessage::PeerLeft(PeerLeft { participant: *participant })
+            }
+            EventKind::StrokeBegin { participant, stroke, brush } => {
+                ServerMessage::PeerStrokeBegin(PeerStrokeBegin {
+                    participant: *participant,
+                    stroke: *stroke,
+                    brush: *brush,
+                })
+            }
+            EventKind::Retained { participant, stroke, first, points } => {
+                ServerMessage::PeerRetained(PeerRetained {
+                    participant: *participant,
+                    stroke: *stroke,
+                    first: *first,
+                    points: PointBatch(points.clone()),
+                })
+            }
+            EventKind::StrokeDone { participant, stroke, n_retained } => {
+                ServerMessage::PeerStrokeDone(PeerStrokeDone {
+                    participant: *participant,
+                    stroke: *stroke,
+                    n_retained: *n_retained,
+                    url: format!("/v1/strokes/{stroke}/simplified"),
+                })
+            }
+            EventKind::Mesh { participant, stroke, .. } => ServerMessage::PeerMesh(PeerMesh {
+                participant: *participant,
+                stroke: *stroke,
+                url: format!("/v1/strokes/{stroke}/mesh"),
+            }),
+        }
+    }
+
     /// The stroke the event is about, if any.
     pub fn stroke(&self) -> Option<StrokeId> {
         match &self.kind {
@@ -120,6 +161,31 @@ impl SessionEvent {
             | EventKind::StrokeDone { stroke, .. }
             | EventKind::Mesh { stroke, .. } => Some(*stroke),
         }
+    }
+}
+
+/// An event as dispatched: shared by every subscriber, with its encodings made once (by the
+/// first connection that sends it whole) for all the others.
+#[derive(Debug)]
+pub struct Published {
+    pub event: SessionEvent,
+    binary: OnceLock<Vec<u8>>,
+    json: OnceLock<String>,
+}
+
+impl Published {
+    pub fn new(event: SessionEvent) -> Published {
+        Published { event, binary: OnceLock::new(), json: OnceLock::new() }
+    }
+
+    /// The binary frame of [`SessionEvent::message`].
+    pub fn binary(&self) -> &[u8] {
+        self.binary.get_or_init(|| encode_server(&self.event.message()))
+    }
+
+    /// The JSON frame of [`SessionEvent::message`].
+    pub fn json(&self) -> &str {
+        self.json.get_or_init(|| encode_server_json(&self.event.message()))
     }
 }
 
@@ -139,7 +205,7 @@ const GAP: u8 = 2;
 #[derive(Debug)]
 struct Subscriber {
     id: u64,
-    tx: mpsc::Sender<Arc<SessionEvent>>,
+    tx: mpsc::Sender<Arc<Published>>,
     lag: Arc<AtomicU8>,
 }
 
@@ -161,7 +227,7 @@ pub struct Subscription {
     fanout: Fanout,
     session: Uuid,
     id: u64,
-    rx: mpsc::Receiver<Arc<SessionEvent>>,
+    rx: mpsc::Receiver<Arc<Published>>,
     lag: Arc<AtomicU8>,
 }
 
@@ -180,9 +246,10 @@ impl Fanout {
     /// Hands `event` to every subscriber of its session, never waiting: a subscriber whose
     /// queue is full is marked lagged and removed.
     pub fn dispatch(&self, event: SessionEvent) {
-        let event = Arc::new(event);
+        let session = event.session;
         let mut registry = self.registry.lock().expect("fanout lock");
-        let Some(subscribers) = registry.sessions.get_mut(&event.session) else { return };
+        let Some(subscribers) = registry.sessions.get_mut(&session) else { return };
+        let event = Arc::new(Published::new(event));
         subscribers.retain(|s| match s.tx.try_send(event.clone()) {
             Ok(()) => true,
             Err(mpsc::error::TrySendError::Full(_)) => {
@@ -193,7 +260,7 @@ impl Fanout {
             Err(mpsc::error::TrySendError::Closed(_)) => false,
         });
         if subscribers.is_empty() {
-            registry.sessions.remove(&event.session);
+            registry.sessions.remove(&session);
         }
     }
 
@@ -231,7 +298,7 @@ impl Fanout {
 
 impl Subscription {
     /// The next event, or the reason the subscription ended.
-    pub async fn recv(&mut self) -> Result<Arc<SessionEvent>, Lag> {
+    pub async fn recv(&mut self) -> Result<Arc<Published>, Lag> {
         if let Some(lag) = self.lagged() {
             return Err(lag);
         }
@@ -287,8 +354,10 @@ struct StrokeView {
 /// What [`PeerView::admit`] decided.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Admit {
-    /// Send this message.
-    Send(ServerMessage),
+    /// Send the event's message ([`SessionEvent::message`]) as it is.
+    Whole,
+    /// Send this part of it (the retained samples the client lacks).
+    Part(ServerMessage),
     /// The client has it already.
     Skip,
     /// The event is past a gap (something before it was lost): resync.
@@ -299,31 +368,24 @@ impl PeerView {
     /// Decides what the client gets for `event`, and records it as received.
     pub fn admit(&mut self, event: &SessionEvent) -> Admit {
         match &event.kind {
-            EventKind::Joined { participant, name } => {
+            EventKind::Joined { participant, .. } => {
                 if !self.present.insert(*participant) {
                     return Admit::Skip;
                 }
-                Admit::Send(ServerMessage::PeerJoined(PeerJoined {
-                    participant: *participant,
-                    name: name.clone(),
-                }))
+                Admit::Whole
             }
             EventKind::Left { participant } => {
                 if !self.present.remove(participant) {
                     return Admit::Skip;
                 }
-                Admit::Send(ServerMessage::PeerLeft(PeerLeft { participant: *participant }))
+                Admit::Whole
             }
-            EventKind::StrokeBegin { participant, stroke, brush } => {
+            EventKind::StrokeBegin { stroke, .. } => {
                 if self.strokes.contains_key(stroke) {
                     return Admit::Skip;
                 }
                 self.strokes.insert(*stroke, StrokeView::default());
-                Admit::Send(ServerMessage::PeerStrokeBegin(PeerStrokeBegin {
-                    participant: *participant,
-                    stroke: *stroke,
-                    brush: *brush,
-                }))
+                Admit::Whole
             }
             EventKind::Retained { participant, stroke, first, points } => {
                 let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
@@ -336,14 +398,17 @@ impl PeerView {
                 }
                 let from = view.n_retained;
                 view.n_retained = end;
-                Admit::Send(ServerMessage::PeerRetained(PeerRetained {
+                if from == *first {
+                    return Admit::Whole;
+                }
+                Admit::Part(ServerMessage::PeerRetained(PeerRetained {
                     participant: *participant,
                     stroke: *stroke,
                     first: from,
                     points: PointBatch(points[(from - first) as usize..].to_vec()),
                 }))
             }
-            EventKind::StrokeDone { participant, stroke, n_retained } => {
+            EventKind::StrokeDone { stroke, n_retained, .. } => {
                 let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
                 if view.done {
                     return Admit::Skip;
@@ -352,14 +417,9 @@ impl PeerView {
                     return Admit::Gap;
                 }
                 view.done = true;
-                Admit::Send(ServerMessage::PeerStrokeDone(PeerStrokeDone {
-                    participant: *participant,
-                    stroke: *stroke,
-                    n_retained: *n_retained,
-                    url: format!("/v1/strokes/{stroke}/simplified"),
-                }))
+                Admit::Whole
             }
-            EventKind::Mesh { participant, stroke, created_at } => {
+            EventKind::Mesh { stroke, created_at, .. } => {
                 let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
                 if !view.done {
                     return Admit::Gap;
@@ -368,11 +428,7 @@ impl PeerView {
                     return Admit::Skip;
                 }
                 view.mesh_at = Some(*created_at);
-                Admit::Send(ServerMessage::PeerMesh(PeerMesh {
-                    participant: *participant,
-                    stroke: *stroke,
-                    url: format!("/v1/strokes/{stroke}/mesh"),
-                }))
+                Admit::Whole
             }
         }
     }
@@ -407,12 +463,12 @@ mod tests {
         let stroke = Uuid::new_v4();
         let mut view = PeerView::default();
         assert_eq!(view.admit(&retained(stroke, 0, 3)), Admit::Gap);
-        assert!(matches!(view.admit(&begin(stroke)), Admit::Send(_)));
+        assert_eq!(view.admit(&begin(stroke)), Admit::Whole);
         assert_eq!(view.admit(&begin(stroke)), Admit::Skip);
-        assert!(matches!(view.admit(&retained(stroke, 0, 5)), Admit::Send(_)));
+        assert_eq!(view.admit(&retained(stroke, 0, 5)), Admit::Whole);
         assert_eq!(view.admit(&retained(stroke, 2, 3)), Admit::Skip);
         match view.admit(&retained(stroke, 3, 4)) {
-            Admit::Send(ServerMessage::PeerRetained(r)) => {
+            Admit::Part(ServerMessage::PeerRetained(r)) => {
                 assert_eq!((r.first, r.points.0.len()), (5, 2));
             }
             other => panic!("{other:?}"),

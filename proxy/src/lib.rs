@@ -18,7 +18,9 @@ mod ws;
 
 pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, lock_key};
 pub use crate::config::{Config, SqliteSync};
-pub use crate::fanout::{Admit, EventKind, Fanout, Lag, PeerView, SessionEvent, Subscription};
+pub use crate::fanout::{
+    Admit, EventKind, Fanout, Lag, PeerView, Published, SessionEvent, Subscription,
+};
 pub use crate::glb::{MeshCounts, inspect as inspect_glb};
 pub use crate::http::{
     AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,

@@ -21,7 +21,7 @@ use tokio_util::sync::CancellationToken;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 
-use crate::cluster::{StrokeLocks, start_listener};
+use crate::cluster::{StrokeLocks, start_listener, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::state::AppState;
@@ -35,8 +35,8 @@ pub struct Application {
     port: u16,
     state: AppState,
     writer: WriterTask,
-    /// The session-event listener (PostgreSQL) and what stops it.
-    listener_task: Option<(tokio::task::JoinHandle<()>, CancellationToken)>,
+    /// The session-event listener and the presence reaper (PostgreSQL), and what stops them.
+    listener_task: Option<(Vec<tokio::task::JoinHandle<()>>, CancellationToken)>,
 }
 
 impl Application {
@@ -62,11 +62,12 @@ impl Application {
                 let task =
                     start_listener(&config.database_url, fanout.clone(), stop.clone()).await?;
                 let locks = StrokeLocks::connect(&config.database_url).await?;
+                let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
                      ownership (advisory locks)"
                 );
-                (Some((task, stop)), Some(locks))
+                (Some((vec![task, reaper], stop)), Some(locks))
             }
         };
         let (writer, writer_task) = WriterTask::start(
@@ -121,8 +122,8 @@ impl Application {
                 }),
                 router(state.clone()),
             )
-                .with_graceful_shutdown(shutdown.clone().cancelled_owned())
-                .into_future(),
+            .with_graceful_shutdown(shutdown.clone().cancelled_owned())
+            .into_future(),
         );
         shutdown.cancelled().await;
         signals.abort();
@@ -143,9 +144,11 @@ impl Application {
             }
         }
         writer.stop().await;
-        if let Some((task, stop)) = listener_task {
+        if let Some((tasks, stop)) = listener_task {
             stop.cancel();
-            let _ = task.await;
+            for task in tasks {
+                let _ = task.await;
+            }
         }
         state.store.pool().close().await;
         tracing::info!("stopped");

@@ -170,6 +170,11 @@ impl Claims {
         }
     }
 
+    /// The key of the lock this replica holds while it lives (PostgreSQL).
+    pub fn replica_key(&self) -> Option<i64> {
+        self.locks.as_ref().map(|l| l.replica_key())
+    }
+
     fn forget(&self, stroke: StrokeId, conn: u64) -> bool {
         let mut held = self.held.lock().expect("claims lock");
         let mine = held.get(&stroke) == Some(&conn);

@@ -51,7 +51,7 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 use uuid::Uuid;
 
-use crate::fanout::{Admit, EventKind, Lag, PeerView, SessionEvent, Subscription};
+use crate::fanout::{Admit, EventKind, Lag, PeerView, Published, SessionEvent, Subscription};
 use crate::http::{AppError, authorize_session};
 use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
 use crate::state::{AppState, SessionGuard};
@@ -221,7 +221,8 @@ pub async fn serve<Si, St, E>(
     let idle = Duration::from_secs(state.config.idle_timeout_secs);
     let mut last_heard = Instant::now();
     let shutdown = state.shutdown.clone();
-    let reserve = (state.config.outgoing_queue / 4).max(1);
+    // A quarter of the outgoing queue stays free for the connection's own answers.
+    let reserve = state.config.outgoing_queue.max(1) / 4;
     while conn.end.is_none() {
         let can_read = conn.pending.len() < state.config.max_inflight.max(1);
         let can_forward = conn.events.is_some() && conn.out.capacity() > reserve;
@@ -290,7 +291,7 @@ fn room(out: &mpsc::Sender<Frame>, n: usize) -> impl Future<Output = ()> + use<>
 }
 
 /// The next event of the subscription; never ready without one.
-async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<SessionEvent>, Lag> {
+async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<Published>, Lag> {
     match events {
         Some(events) => events.recv().await,
         None => std::future::pending().await,
@@ -298,11 +299,28 @@ async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<SessionEven
 }
 
 /// Writes queued frames to the socket until the queue closes or a close frame went out.
+/// Frames already queued go out with one flush (one write to the socket under load, as when a
+/// session's events fan out), up to this many.
+const FRAMES_PER_FLUSH: usize = 64;
+
 async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
     let mut sink = std::pin::pin!(sink);
-    while let Some(frame) = rx.recv().await {
-        let closing = matches!(frame, Frame::Close(_));
-        if sink.send(frame).await.is_err() || closing {
+    'frames: while let Some(frame) = rx.recv().await {
+        let mut closing = matches!(frame, Frame::Close(_));
+        if sink.feed(frame).await.is_err() {
+            break;
+        }
+        for _ in 1..FRAMES_PER_FLUSH {
+            if closing {
+                break;
+            }
+            let Ok(frame) = rx.try_recv() else { break };
+            closing = matches!(frame, Frame::Close(_));
+            if sink.feed(frame).await.is_err() {
+                break 'frames;
+            }
+        }
+        if sink.flush().await.is_err() || closing {
             break;
         }
     }
@@ -356,6 +374,10 @@ impl Connection {
 
     fn send(&mut self, msg: ServerMessage) {
         let frame = self.encode(&msg);
+        self.send_frame(frame);
+    }
+
+    fn send_frame(&mut self, frame: Frame) {
         match self.out.try_send(frame) {
             Ok(()) => {
                 let kind = if self.form == Form::Binary { "binary" } else { "text" };
@@ -396,12 +418,21 @@ impl Connection {
     }
 
     /// A live event of the session.
-    async fn on_event(&mut self, event: &SessionEvent) {
+    async fn on_event(&mut self, published: &Published) {
+        let event = &published.event;
         if self.is_own(event) {
             return;
         }
         match self.view.admit(event) {
-            Admit::Send(msg) => {
+            Admit::Whole => {
+                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                let frame = match self.form {
+                    Form::Binary => Frame::Binary(published.binary().to_vec()),
+                    Form::Json => Frame::Text(published.json().to_string()),
+                };
+                self.send_frame(frame);
+            }
+            Admit::Part(msg) => {
                 metrics::counter!("penmesh_fanout_events_total").increment(1);
                 self.send(msg);
             }
@@ -475,8 +506,10 @@ impl Connection {
                 kind => vec![SessionEvent::new(self.session, kind)],
             };
             for piece in pieces {
-                if let Admit::Send(msg) = self.view.admit(&piece) {
-                    self.send_wait(msg).await;
+                match self.view.admit(&piece) {
+                    Admit::Whole => self.send_wait(piece.message()).await,
+                    Admit::Part(msg) => self.send_wait(msg).await,
+                    Admit::Skip | Admit::Gap => {}
                 }
             }
         }
@@ -629,7 +662,12 @@ impl Connection {
             .state
             .writer
             .write_with(
-                vec![WriteOp::Join { participant, session, name: name.clone() }],
+                vec![WriteOp::Join {
+                    participant,
+                    session,
+                    name: name.clone(),
+                    replica: self.state.claims.replica_key(),
+                }],
                 vec![SessionEvent::new(session, EventKind::Joined { participant, name })],
             )
             .await;

@@ -44,7 +44,8 @@ pub enum WriteOp {
     /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
     SetStatus { stroke: Uuid, status: &'static str },
     /// A participant said hello in a session.
-    Join { participant: Uuid, session: Uuid, name: String },
+    /// `replica` is the key of the lock the replica holds while it lives (PostgreSQL).
+    Join { participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
     /// A participant's connection ended.
     Leave { participant: Uuid },
 }
@@ -361,15 +362,16 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .execute(&mut *conn)
             .await?;
         }
-        WriteOp::Join { participant, session, name } => {
+        WriteOp::Join { participant, session, name, replica } => {
             sqlx::query(
-                "INSERT INTO participants (id, session_id, name, joined_at) VALUES ($1, $2, $3, $4) \
-                 ON CONFLICT (id) DO NOTHING",
+                "INSERT INTO participants (id, session_id, name, joined_at, replica_key) \
+                 VALUES ($1, $2, $3, $4, $5) ON CONFLICT (id) DO NOTHING",
             )
             .bind(participant.to_string())
             .bind(session.to_string())
             .bind(name.clone())
             .bind(now)
+            .bind(*replica)
             .execute(&mut *conn)
             .await?;
         }

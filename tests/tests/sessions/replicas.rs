@@ -64,6 +64,8 @@ async fn a_replica_killed_mid_stroke_is_resumed_on_the_other_and_everyone_ends_e
     watcher.wait_for(|v| v.n_done() == 1 && v.strokes.contains_key(&cut)).await;
 
     // Act: replica A crashes; the drawer reconnects to B and resumes the stroke.
+    let old_drawer = drawer.welcome.participant;
+    assert!(watcher.view.present.contains_key(&old_drawer));
     let db = a.kill();
     drop(drawer);
     let mut drawer = Participant::join_resuming(&b, &session, "drawer again", vec![cut]).await;
@@ -81,9 +83,13 @@ async fn a_replica_killed_mid_stroke_is_resumed_on_the_other_and_everyone_ends_e
     watcher.wait_for(|v| v.n_done() == 2 && v.n_meshes() == 1).await;
     check_complete(&watcher, &expected);
     check_complete(&drawer, &expected);
+    // The crashed replica's participant is noticed gone (its replica's lock went with it).
+    watcher.wait_for(|v| !v.present.contains_key(&old_drawer)).await;
     let late = Participant::join(&b, &session, "late").await;
     check_complete(&late, &expected);
     assert_eq!(late.view.strokes, watcher.view.strokes);
+    assert!(!late.view.present.contains_key(&old_drawer));
+    assert!(late.view.present.contains_key(&drawer.welcome.participant));
     drop(db);
 }
 
