@@ -6,8 +6,8 @@
 //! SVC2004 `.txt` at 2540 lines per inch (the WACOM Intuos of SVC2004: 0.01 mm per unit, so
 //! 96 / 2540 px per unit) and SigComp2011 `.hwr` at 5080 lines per inch (the WACOM Intuos3 of
 //! SigComp2011: 0.005 mm per unit). CSV and JSON are taken as px. `--px-per-unit` overrides the
-//! tablet factor. So the default tolerance of 0.74 px means the same on-screen error on every
-//! data set (0.20 mm, about 20 SVC2004 units or 39 SigComp2011 units).
+//! tablet factor. So a bound in px means the same on-screen error on every data set: the
+//! default guaranteed bound of 1.74 px is 0.46 mm, 46 SVC2004 units or 92 SigComp2011 units.
 //!
 //! **The bound.** Every method is compared at one *guaranteed* bound `B` on the distance of a
 //! removed sample to its spanning retained segment: ACUTS guarantees `d_d + l_eps` (stage 1
@@ -56,8 +56,10 @@ const SWEEP_BOUNDS: [f64; 10] = [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 
 pub const SVC2004_PX_PER_UNIT: f64 = 96.0 / 2540.0;
 /// Px per SigComp2011 tablet unit (5080 lines per inch).
 pub const HWR_PX_PER_UNIT: f64 = 96.0 / 5080.0;
-/// The ACUTS setting the paper and the spec give (table 3), for before/after comparisons.
-const PAPER_TOLERANCE: f64 = 0.74;
+/// The ACUTS setting of the paper's table 3 and the spec (`acuts-paper`), for before/after
+/// comparisons: d_d, l_eps, d_alpha, d_sigma2.
+const PAPER: AcutsParams =
+    AcutsParams { tolerance: 0.74, angle_deg: 15.0, pressure_variance: 0.0015 };
 const PAPER_RESAMPLE: f64 = 1.0;
 
 #[derive(Debug, Args)]
@@ -175,18 +177,13 @@ fn split_bound(tolerance: f64, resample: f64, bound: f64) -> (f64, f64) {
 
 /// Builds the algorithms named in `names`.
 pub fn algos(names: &[String], args_acuts: (f64, AcutsParams)) -> anyhow::Result<Vec<Algo>> {
-    let paper = AcutsParams { tolerance: PAPER_TOLERANCE, ..AcutsParams::default() };
     names
         .iter()
         .map(|name| {
             let name = name.trim().to_ascii_lowercase();
             let (online, method) = match name.as_str() {
                 "acuts" => (true, Method::Acuts { resample: args_acuts.0, params: args_acuts.1 }),
-                "acuts-paper" => {
-                    let params =
-                        AcutsParams { tolerance: paper.tolerance, ..AcutsParams::default() };
-                    (true, Method::Acuts { resample: PAPER_RESAMPLE, params })
-                }
+                "acuts-paper" => (true, Method::Acuts { resample: PAPER_RESAMPLE, params: PAPER }),
                 "dp" => (false, Method::Baseline(Box::new(DouglasPeucker))),
                 "vw" => {
                     (false, Method::Baseline(Box::new(Visvalingam { stop: VwStop::ErrorBound })))
