@@ -28,6 +28,20 @@ pub enum Command {
     Draw(DrawArgs),
     /// Start a proxy in process and let simulated people draw at once through the real path.
     Demo(DemoArgs),
+    /// Load a proxy on this machine with many simulated pens; throughput, latency, lost samples.
+    Load(commands::load::LoadArgs),
+    /// The ceiling server for `load`: decode and ack only, on the proxy's stack.
+    #[command(hide = true)]
+    Ceiling(commands::ceiling::CeilingArgs),
+    /// The proxy itself, for `load --spawn-proxy` (the flags of `penmesh-proxy`).
+    #[command(hide = true)]
+    ServeProxy(commands::load::ServeProxyArgs),
+    /// Time LRPDP and ACUTS against perfect-freehand and simplify-js (see bench/run.sh).
+    #[command(hide = true)]
+    Peers(commands::peers::PeersArgs),
+    /// Tables and plots from `load --json` summaries.
+    #[command(hide = true)]
+    LoadReport(commands::load::LoadReportArgs),
 }
 
 /// ACUTS settings shared by the commands that simplify.
@@ -255,6 +269,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(args) => commands::eval::run(&args),
         Command::Draw(args) => commands::draw::run(&args),
         Command::Demo(args) => commands::demo::run(&args),
+        Command::Load(args) => commands::load::run(&args),
+        Command::Ceiling(args) => commands::ceiling::run(&args),
+        Command::ServeProxy(args) => commands::load::serve_proxy(&args),
+        Command::Peers(args) => commands::peers::run(&args),
+        Command::LoadReport(args) => commands::load::report(&args),
     }
 }
 
