@@ -26,19 +26,26 @@ pub use crate::model::{
     validate_samples,
 };
 
-// Modules being written in parallel re-export everything they make public; the list is made
-// explicit once they settle.
-#[allow(unused_imports)]
-pub use crate::formats::*;
-#[allow(unused_imports)]
-pub use crate::generator::*;
-#[allow(unused_imports)]
-pub use crate::glb::*;
-#[allow(unused_imports)]
-pub use crate::lrpdp::*;
-#[allow(unused_imports)]
-pub use crate::mesh::*;
-#[allow(unused_imports)]
-pub use crate::metrics::*;
-#[allow(unused_imports)]
-pub use crate::svg::*;
+pub use crate::formats::{
+    FormatError, HWR_PERIOD_MS, SVC2004_GAP_MS, StrokeFormat, TABLET_PRESSURE_LEVELS, read_csv,
+    read_hwr, read_json, read_strokes, read_svc2004, write_csv, write_json,
+};
+pub use crate::generator::{
+    DEFAULT_SAMPLE_RATE_HZ, DEFAULT_SHAPE_SIZE_PX, DEFAULT_SPEED_PX_PER_S, GeneratorParams,
+    MAX_GENERATED_SAMPLES, Shape, UnknownShapeError, generate_stroke,
+};
+pub use crate::glb::{
+    GlbMeta, GlbOptions, GlbStroke, KHR_MESH_QUANTIZATION, stroke_glb, strokes_glb,
+};
+pub use crate::lrpdp::{
+    CloudOptions, DEFAULT_CAP_DENSITY, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS,
+    MIN_CAP_POINTS, Outline, OutlineOptions, PointCloud, outline, point_cloud, point_cloud_ply,
+};
+pub use crate::mesh::{
+    DEFAULT_THICKNESS, MIN_THICKNESS, MeshDefect, MeshStats, SolidOptions, StrokeMesh, is_closed,
+    mesh_defect, signed_volume, solid_mesh, stroke_mesh,
+};
+pub use crate::metrics::{
+    MetricsError, SimplificationMetrics, cdf_error_area, simplification_metrics,
+};
+pub use crate::svg::{SvgStroke, simplification_svg, strokes_svg};
