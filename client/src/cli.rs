@@ -172,8 +172,12 @@ pub struct LiveArgs {
     pub verbose: u8,
 }
 
-#[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("source").required(true).args(["input", "synth", "device"])))]
+#[derive(Debug, Clone, Args)]
+#[command(group(clap::ArgGroup::new("source").args(["input", "synth", "device"])))]
+#[command(group(
+    clap::ArgGroup::new("draw_or_watch").required(true).multiple(true)
+        .args(["input", "synth", "device", "watch"])
+))]
 pub struct DrawArgs {
     /// The proxy, e.g. http://127.0.0.1:8080.
     #[arg(long, env = "PENMESH_SERVER")]
@@ -229,6 +233,10 @@ pub struct DrawArgs {
     /// evdev: pixels spanned by the tablet's width (y uses the same scale).
     #[arg(long, default_value_t = 1920.0)]
     pub canvas_width: f64,
+    /// Print what the others in the session draw, and write their meshes' GLBs into --out.
+    /// Without --input, --synth or --device: watch only, until Ctrl-C.
+    #[arg(long)]
+    pub watch: bool,
     #[command(flatten)]
     pub live: LiveArgs,
 }

@@ -16,6 +16,9 @@ use crate::report::{self, Totals};
 pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     init_tracing(args.live.verbose);
     let endpoint = Endpoint::new(&args.server, args.session, args.token.clone())?;
+    if args.watch && args.input.is_none() && args.synth.is_none() && args.device.is_none() {
+        return watch_only(args, &endpoint);
+    }
     let mut options = draw_options(&args.live, &args.name)?;
     // Bad input fails here, before anything touches the network.
     let source = source(args)?;
@@ -29,7 +32,12 @@ pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     let runtime = runtime()?;
     let reports = runtime.block_on(async {
         options.interrupts = Some(interrupts());
-        live::draw(&endpoint, source, &options).await
+        let watcher = args.watch.then(|| tokio::spawn(watch(args.clone(), endpoint.clone(), true)));
+        let reports = live::draw(&endpoint, source, &options).await;
+        if let Some(watcher) = watcher {
+            watcher.abort();
+        }
+        reports
     });
     // A tablet's reading thread may sit in a blocking read: do not wait for it.
     runtime.shutdown_timeout(Duration::from_millis(100));
@@ -174,4 +182,139 @@ pub(crate) fn init_tracing(verbose: u8) {
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .try_init();
+}
+
+/// `--watch` alone: prints the session until Ctrl-C.
+fn watch_only(args: &DrawArgs, endpoint: &Endpoint) -> anyhow::Result<()> {
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let runtime = runtime()?;
+    let result = runtime.block_on(async {
+        tokio::select! {
+            result = watch(args.clone(), endpoint.clone(), false) => result,
+            _ = tokio::signal::ctrl_c() => Ok(()),
+        }
+    });
+    runtime.shutdown_timeout(Duration::from_millis(100));
+    result
+}
+
+/// Joins the session as a watcher: prints the others' presence and strokes (one JSON message
+/// a line with `--json`) and writes each mesh they store into `--out` as `STROKE.glb`. The
+/// history comes first, up to the proxy's `synced`, then the live events. While this client
+/// draws too (`drawing`), the strokes of participants named `--name` are its own: not repeated.
+async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Result<()> {
+    use futures_util::{SinkExt, StreamExt};
+    use penmesh::protocol::{
+        ClientMessage, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, decode_server,
+        encode_client, encode_server_json,
+    };
+    use tokio_tungstenite::tungstenite::Message;
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+
+    let url = endpoint.ws_url();
+    let mut request = url.as_str().into_client_request().context("bad server URL")?;
+    let bearer = format!("Bearer {}", endpoint.token).parse().context("the token")?;
+    request.headers_mut().insert("authorization", bearer);
+    let (mut ws, _) = tokio_tungstenite::connect_async(request)
+        .await
+        .with_context(|| format!("cannot connect to {url}"))?;
+    let hello = ClientMessage::Hello(Hello {
+        protocol: PROTOCOL_VERSION,
+        client: format!("penmesh-watch {}", env!("CARGO_PKG_VERSION")),
+        name: Some(format!("{} (watching)", args.name)),
+        resume: vec![],
+    });
+    ws.send(Message::Binary(encode_client(&hello).into())).await.context("sending hello")?;
+    let http = reqwest::Client::new();
+    let mut names = std::collections::HashMap::new();
+    let mut mine = std::collections::HashSet::new();
+    let short = |id: uuid::Uuid| id.to_string()[..8].to_string();
+    while let Some(frame) = ws.next().await {
+        let bytes = match frame.context("reading from the proxy")? {
+            Message::Binary(bytes) => bytes,
+            Message::Close(_) => break,
+            _ => continue,
+        };
+        let msg = decode_server(&bytes, usize::MAX).context("a message from the proxy")?;
+        if let ServerMessage::PeerJoined(j) = &msg
+            && drawing
+            && j.name == args.name
+        {
+            mine.insert(j.participant);
+        }
+        let participant = match &msg {
+            ServerMessage::PeerStrokeBegin(m) => Some(m.participant),
+            ServerMessage::PeerStrokeDone(m) => Some(m.participant),
+            ServerMessage::PeerMesh(m) => Some(m.participant),
+            _ => None,
+        };
+        if participant.is_some_and(|p| mine.contains(&p)) {
+            continue;
+        }
+        if args.live.json && !matches!(msg, ServerMessage::PeerRetained(_)) {
+            println!("{}", encode_server_json(&msg));
+        }
+        let who = |names: &std::collections::HashMap<uuid::Uuid, String>, id| {
+            names.get(&id).cloned().unwrap_or_else(|| short(id))
+        };
+        let line = match &msg {
+            ServerMessage::PeerJoined(j) => {
+                names.insert(j.participant, j.name.clone());
+                Some(format!("+ {} joined", j.name))
+            }
+            ServerMessage::PeerLeft(l) => Some(format!("- {} left", who(&names, l.participant))),
+            ServerMessage::PeerStrokeBegin(b) => {
+                Some(format!("{} draws stroke {}", who(&names, b.participant), short(b.stroke)))
+            }
+            ServerMessage::PeerStrokeDone(d) => Some(format!(
+                "{} finished stroke {}: {} retained samples",
+                who(&names, d.participant),
+                short(d.stroke),
+                d.n_retained
+            )),
+            ServerMessage::PeerMesh(m) => {
+                let glb = http
+                    .get(endpoint.url(&m.url))
+                    .bearer_auth(&endpoint.token)
+                    .send()
+                    .await
+                    .and_then(|r| r.error_for_status())
+                    .with_context(|| format!("fetching {}", m.url))?
+                    .bytes()
+                    .await?;
+                let saved = match &args.out {
+                    Some(dir) => {
+                        let path = dir.join(format!("{}.glb", m.stroke));
+                        std::fs::write(&path, &glb)
+                            .with_context(|| format!("cannot write {}", path.display()))?;
+                        format!(" -> {}", path.display())
+                    }
+                    None => String::new(),
+                };
+                Some(format!(
+                    "{}'s mesh of stroke {}: {} bytes{saved}",
+                    who(&names, m.participant),
+                    short(m.stroke),
+                    glb.len()
+                ))
+            }
+            ServerMessage::Synced(s) => Some(format!(
+                "-- up to date: {} strokes by the others; live from here --",
+                s.n_strokes
+            )),
+            ServerMessage::Error(e) if e.code == ErrorCode::Lagged => {
+                Some("-- fell behind the session; catching up from storage --".to_string())
+            }
+            ServerMessage::Error(e) => {
+                anyhow::bail!("the proxy refused: {}: {}", e.code.as_str(), e.message)
+            }
+            _ => None,
+        };
+        if let (Some(line), false) = (line, args.live.json) {
+            println!("{line}");
+        }
+    }
+    Ok(())
 }
