@@ -59,7 +59,8 @@ async fn new_session() -> (StatusCode, axum::Json<serde_json::Value>) {
 }
 
 async fn upgrade(Path(session): Path<Uuid>, ws: WebSocketUpgrade) -> Response {
-    ws.on_upgrade(move |socket| serve(socket, session))
+    // The proxy's read buffer (see proxy/src/ws.rs), so both measure the same stack.
+    ws.read_buffer_size(4 * 1024).on_upgrade(move |socket| serve(socket, session))
 }
 
 /// Decodes each binary frame and answers it; anything undecodable ends the connection.

@@ -39,6 +39,7 @@ use serde::{Deserialize, Serialize};
 use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use uuid::Uuid;
 
 /// Most pens one run may simulate.
@@ -842,9 +843,13 @@ async fn connect(base_ws: &str, session: Uuid, token: &str) -> anyhow::Result<So
     let mut request = url.as_str().into_client_request()?;
     request.headers_mut().insert("authorization", format!("Bearer {token}").parse()?);
     let handshake = async {
-        let (mut ws, _) = tokio_tungstenite::connect_async(request)
-            .await
-            .map_err(|e| anyhow::anyhow!("cannot connect: {e}"))?;
+        // A small read buffer: tungstenite zero-fills it all, and thousands of pens share
+        // this process (acks are a few dozen bytes).
+        let config = WebSocketConfig::default().read_buffer_size(4 * 1024);
+        let (mut ws, _) =
+            tokio_tungstenite::connect_async_with_config(request, Some(config), false)
+                .await
+                .map_err(|e| anyhow::anyhow!("cannot connect: {e}"))?;
         let hello = Hello {
             protocol: PROTOCOL_VERSION,
             client: format!("penmesh-load/{}", env!("CARGO_PKG_VERSION")),
