@@ -1,5 +1,6 @@
 //! The penmesh simplification proxy: WebSocket ingest with streaming ACUTS, an HTTP API,
-//! SQLite or PostgreSQL storage with group commit.
+//! SQLite or PostgreSQL storage with group commit, multi-user sessions (fan-out with history
+//! and live events, `fanout`) and, on PostgreSQL, any number of replicas (`cluster`).
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 

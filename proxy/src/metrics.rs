@@ -6,7 +6,10 @@
 //! `penmesh_errors_total{code}`, `penmesh_http_errors_total{code}`,
 //! `penmesh_ws_slow_reader_disconnects_total`, `penmesh_commit_seconds` (histogram),
 //! `penmesh_commit_batch_requests` and `penmesh_commit_batch_samples` (histograms),
-//! `penmesh_commit_failures_total`, `penmesh_sessions_total`, `penmesh_meshes_total`.
+//! `penmesh_commit_failures_total`, `penmesh_sessions_total`, `penmesh_meshes_total`;
+//! sessions: `penmesh_fanout_events_total` (peer events sent), `penmesh_fanout_syncs_total`
+//! (history sent: joins and resyncs), `penmesh_fanout_lagged_total` (queues that overflowed),
+//! `penmesh_listener_resyncs_total` (the `LISTEN` connection dropped).
 
 use std::sync::OnceLock;
 
