@@ -26,7 +26,8 @@
 //! events neither overlap nor leave a gap. Peer events leave a quarter of the outgoing queue
 //! to the connection's own answers; when the socket is too slow, events wait in the fan-out
 //! queue, and when that overflows the client gets `Error {lagged}` and the same resync (only
-//! what it lacks). Stroke events are published once committed (by the writer), in order.
+//! what it lacks; past 3 overflows a minute it is dropped instead). Stroke events are
+//! published once committed (by the writer), in order.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -100,6 +101,7 @@ pub async fn ws_handler(
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);
     let tracked = state.tracker.token();
+    let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES);
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
         let _tracked = tracked;
         let (sink, stream) = split(socket);
@@ -109,6 +111,12 @@ pub async fn ws_handler(
         }
     }))
 }
+
+/// Socket read buffer per connection. tungstenite zero-fills the whole buffer on its first
+/// read, so its default (128 KiB) would make every idle connection cost that much resident
+/// memory; `Points` frames are a few hundred bytes, and larger messages still arrive whole
+/// (the buffer grows for them).
+const READ_BUFFER_BYTES: usize = 4 * 1024;
 
 type FrameSink = std::pin::Pin<Box<dyn Sink<Frame, Error = axum::Error> + Send>>;
 type FrameStream = std::pin::Pin<Box<dyn Stream<Item = Result<Frame, axum::Error>> + Send>>;
@@ -208,6 +216,7 @@ pub async fn serve<Si, St, E>(
         own: HashSet::new(),
         view: PeerView::default(),
         events: None,
+        lags: Vec::new(),
         strokes: HashMap::new(),
         finishing: HashSet::new(),
         out,
@@ -299,6 +308,11 @@ async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<Published>,
 }
 
 /// Writes queued frames to the socket until the queue closes or a close frame went out.
+/// A connection that overflows its queue more than `MAX_LAGS` times within `LAG_WINDOW` is
+/// dropped (its client reconnects and resumes) instead of resynced once more.
+const MAX_LAGS: usize = 3;
+const LAG_WINDOW: Duration = Duration::from_secs(60);
+
 /// Frames already queued go out with one flush (one write to the socket under load, as when a
 /// session's events fan out), up to this many.
 const FRAMES_PER_FLUSH: usize = 64;
@@ -345,6 +359,9 @@ struct Connection {
     view: PeerView,
     /// The session's events, once the client said hello.
     events: Option<Subscription>,
+    /// When the last overflows happened: a reader that lags again and again is dropped, so
+    /// that it does not reload the session's history from the database in a loop.
+    lags: Vec<Instant>,
     /// Strokes being drawn on this connection (claimed in [`crate::state::Claims`]).
     strokes: HashMap<StrokeId, StrokeState>,
     /// Strokes whose `StrokeEnd` awaits its commit (still claimed).
@@ -458,6 +475,18 @@ impl Connection {
     async fn resync(&mut self, lag: Option<Lag>) {
         self.events = None;
         if lag == Some(Lag::Overflow) {
+            let now = Instant::now();
+            self.lags.retain(|at| now.duration_since(*at) < LAG_WINDOW);
+            self.lags.push(now);
+            if self.lags.len() > MAX_LAGS {
+                tracing::info!(connection = self.id, "lagged again and again: disconnecting");
+                self.send_error(
+                    ErrorCode::Lagged,
+                    "this connection keeps falling behind the session's events; reconnect",
+                    None,
+                );
+                return self.end_with(End::SlowReader);
+            }
             self.send_error(
                 ErrorCode::Lagged,
                 "this connection fell behind the session's events; resending what it lacks from storage",
