@@ -311,23 +311,41 @@ impl WriterLoop {
     }
 }
 
-/// Rows per multi-row statement: 4 bind parameters a row stays far below SQLite's 32,766 and
-/// PostgreSQL's 65,535.
-const ROWS_PER_STATEMENT: usize = 500;
+/// Rows per multi-row statement. Small, because sqlx's SQLite driver looks each `$N` up by
+/// name among all the statement's parameters (quadratic in their number), and so that the
+/// 32 shapes of each statement stay in the connection's prepared-statement cache.
+const ROWS_PER_STATEMENT: usize = 32;
 
-/// A run of appends as one multi-row `INSERT` into `stroke_chunks` and one `UPDATE … FROM
-/// (VALUES …)` of `n_points` per stroke, per [`ROWS_PER_STATEMENT`], instead of two statements
-/// per batch. The rows and counts are those [`apply`] would write one by one. A profile of 500
-/// pens at 200 Hz showed the writer spending its time handing statements to sqlx's SQLite
-/// worker thread and back (futex wake-ups, context switches), not in SQLite.
+/// A run of appends as multi-row statements: one `INSERT` into `stroke_chunks` and one
+/// `UPDATE … FROM (VALUES …)` of `n_points` per [`ROWS_PER_STATEMENT`] rows, instead of two
+/// statements per batch; and the batches of one stroke that follow each other in the run
+/// (a connection's batches are contiguous, see `ingest`) become one row. A profile of 500 pens
+/// at 200 Hz showed the writer spending its time handing statements to sqlx's SQLite worker
+/// thread and back (futex wake-ups, context switches), not in SQLite; and once that was gone,
+/// in SQLite's per-row work.
 async fn append_all(conn: &mut AnyConnection, ops: &[&WriteOp], now: i64) -> anyhow::Result<()> {
     use std::fmt::Write;
     if ops.len() == 1 {
         return apply(conn, ops[0], now).await;
     }
-    let mut ends: Vec<(Uuid, u64)> = Vec::new();
-    let mut end_idx: std::collections::HashMap<Uuid, usize> = std::collections::HashMap::new();
-    for chunk in ops.chunks(ROWS_PER_STATEMENT) {
+    // (stroke, seq of the first sample, samples), and where each stroke's last row is.
+    let mut rows: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
+    let mut last_row: std::collections::HashMap<Uuid, usize> = std::collections::HashMap::new();
+    for op in ops {
+        let WriteOp::Append { stroke, seq, samples } = op else {
+            unreachable!("append_all is given appends only")
+        };
+        match last_row.get(stroke) {
+            Some(&i) if rows[i].1 + rows[i].2.len() as u64 == *seq => {
+                rows[i].2.extend_from_slice(samples)
+            }
+            _ => {
+                last_row.insert(*stroke, rows.len());
+                rows.push((*stroke, *seq, samples.clone()));
+            }
+        }
+    }
+    for chunk in rows.chunks(ROWS_PER_STATEMENT) {
         let mut sql = String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, data) VALUES ");
         for k in 0..chunk.len() {
             let p = 4 * k;
@@ -335,27 +353,19 @@ async fn append_all(conn: &mut AnyConnection, ops: &[&WriteOp], now: i64) -> any
             let _ = write!(sql, "{sep}(${}, ${}, ${}, ${})", p + 1, p + 2, p + 3, p + 4);
         }
         sql.push_str(" ON CONFLICT (stroke_id, seq) DO NOTHING");
-        let mut query = sqlx::query(&sql).persistent(false);
-        for op in chunk {
-            let WriteOp::Append { stroke, seq, samples } = op else {
-                unreachable!("append_all is given appends only")
-            };
+        let mut query = sqlx::query(&sql);
+        for (stroke, seq, samples) in chunk {
             query = query
                 .bind(stroke.to_string())
                 .bind(*seq as i64)
                 .bind(samples.len() as i64)
                 .bind(encode_samples(samples));
-            let end = *seq + samples.len() as u64;
-            match end_idx.get(stroke) {
-                Some(&i) => ends[i].1 = ends[i].1.max(end),
-                None => {
-                    end_idx.insert(*stroke, ends.len());
-                    ends.push((*stroke, end));
-                }
-            }
         }
         query.execute(&mut *conn).await?;
     }
+    // Each stroke's furthest end: its last row's.
+    let ends: Vec<(Uuid, u64)> =
+        last_row.iter().map(|(stroke, &i)| (*stroke, rows[i].1 + rows[i].2.len() as u64)).collect();
     for chunk in ends.chunks(ROWS_PER_STATEMENT) {
         let mut sql =
             String::from("UPDATE strokes SET n_points = v.column2, updated_at = $1 FROM (VALUES ");
@@ -364,7 +374,7 @@ async fn append_all(conn: &mut AnyConnection, ops: &[&WriteOp], now: i64) -> any
             let _ = write!(sql, "{sep}(${}, ${})", 2 * k + 2, 2 * k + 3);
         }
         sql.push_str(") AS v WHERE strokes.id = v.column1 AND strokes.n_points < v.column2");
-        let mut query = sqlx::query(&sql).persistent(false).bind(now);
+        let mut query = sqlx::query(&sql).bind(now);
         for (stroke, end) in chunk {
             query = query.bind(stroke.to_string()).bind(*end as i64);
         }
