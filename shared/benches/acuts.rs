@@ -1,12 +1,17 @@
 //! ACUTS stage 1 + 2 together ([`penmesh::acuts`] with the default parameters), on strokes of
 //! 1,000 to 1,000,000 samples: a pen-like curvy stroke and a straight line. Throughput is in
-//! input samples per second; the target is at least 50 million per second on one core.
+//! input samples per second; the target is at least 50 million per second on one core. The
+//! paper's table 3 setting (`paper-*`) runs in the same process for comparison.
 //! The kept counts are printed before the timings.
 //!
 //! Run: `cargo bench -p penmesh --bench acuts -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+use cpu_time::ThreadCpuTime;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use penmesh::{AcutsParams, DEFAULT_RESAMPLE_DISTANCE, Sample, acuts};
 
@@ -59,14 +64,21 @@ fn straight_line(n: usize) -> Vec<Sample> {
 /// Makes a stroke of `n` samples.
 type Generator = fn(usize) -> Vec<Sample>;
 
-fn bench_acuts(c: &mut Criterion) {
-    let params = AcutsParams::default();
+/// The paper's table 3 setting, measured beside the defaults in the same run.
+const PAPER: (f64, AcutsParams) =
+    (1.0, AcutsParams { tolerance: 0.74, angle_deg: 15.0, pressure_variance: 0.0015 });
+
+fn bench_acuts(c: &mut Criterion<ThreadCpuTime>) {
+    let settings = [("", (DEFAULT_RESAMPLE_DISTANCE, AcutsParams::default())), ("paper-", PAPER)];
     let strokes: [(&str, Generator); 2] = [("curvy", curvy_stroke), ("straight", straight_line)];
-    for (name, generate) in strokes {
+    for ((setting, (resample_distance, params)), (name, generate)) in
+        settings.into_iter().flat_map(|s| strokes.map(|g| (s, g)))
+    {
+        let name = format!("{setting}{name}");
         let mut group = c.benchmark_group(format!("acuts/{name}"));
         for n in SIZES {
             let samples = generate(n);
-            let out = acuts(&samples, DEFAULT_RESAMPLE_DISTANCE, &params);
+            let out = acuts(&samples, resample_distance, &params);
             eprintln!(
                 "acuts/{name}/{n}: stage 1 keeps {}, stage 2 keeps {} ({:.1} % of the input)",
                 out.resampled.len(),
@@ -75,12 +87,16 @@ fn bench_acuts(c: &mut Criterion) {
             );
             group.throughput(Throughput::Elements(n as u64));
             group.bench_with_input(BenchmarkId::from_parameter(n), &samples, |b, samples| {
-                b.iter(|| acuts(black_box(samples), DEFAULT_RESAMPLE_DISTANCE, &params))
+                b.iter(|| acuts(black_box(samples), resample_distance, &params))
             });
         }
         group.finish();
     }
 }
 
-criterion_group!(benches, bench_acuts);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(ThreadCpuTime);
+    targets = bench_acuts
+}
 criterion_main!(benches);

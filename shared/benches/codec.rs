@@ -2,6 +2,10 @@
 //!
 //! `cargo bench -p penmesh --bench codec`
 
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+use cpu_time::ThreadCpuTime;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use penmesh::Sample;
 use penmesh::protocol::{
@@ -30,7 +34,7 @@ fn points_frame() -> ClientMessage {
     })
 }
 
-fn codec(c: &mut Criterion) {
+fn codec(c: &mut Criterion<ThreadCpuTime>) {
     let msg = points_frame();
     let frame = encode_client(&msg);
     let mut group = c.benchmark_group("codec_points_32");
@@ -42,5 +46,9 @@ fn codec(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, codec);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(ThreadCpuTime);
+    targets = codec
+}
 criterion_main!(benches);

@@ -7,6 +7,10 @@
 
 use std::hint::black_box;
 
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+use cpu_time::ThreadCpuTime;
 use criterion::{Criterion, criterion_group, criterion_main};
 use penmesh::{
     AcutsParams, Brush, GlbMeta, GlbOptions, OutlineOptions, Sample, SolidOptions, outline,
@@ -52,7 +56,7 @@ fn report_sizes(label: &str, stroke: &[Sample]) {
     );
 }
 
-fn bench_mesh(c: &mut Criterion) {
+fn bench_mesh(c: &mut Criterion<ThreadCpuTime>) {
     let stroke = smooth_stroke(N_SAMPLES);
     let kept = simplify(&stroke, &AcutsParams::default());
     let simplified: Vec<Sample> = kept.iter().map(|&i| stroke[i]).collect();
@@ -96,5 +100,9 @@ fn bench_mesh(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_mesh);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(ThreadCpuTime);
+    targets = bench_mesh
+}
 criterion_main!(benches);
