@@ -14,6 +14,7 @@ use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::http::StatusCode;
 use axum::response::Response;
 use axum::routing::{get, post};
+use axum::serve::ListenerExt;
 use clap::Args;
 use penmesh::protocol::{
     Ack, ClientMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION, ServerMessage, StrokeDone,
@@ -41,6 +42,8 @@ pub fn run(args: &CeilingArgs) -> anyhow::Result<()> {
             .await
             .with_context(|| format!("binding {}:{}", args.host, args.port))?;
         println!("ceiling listening on http://{}", listener.local_addr()?);
+        // TCP_NODELAY, as the proxy: no answer waits for the ACK of the one before.
+        let listener = listener.tap_io(|tcp| drop(tcp.set_nodelay(true)));
         axum::serve(listener, router()).await.context("serving")
     })
 }

@@ -844,12 +844,11 @@ async fn connect(base_ws: &str, session: Uuid, token: &str) -> anyhow::Result<So
     request.headers_mut().insert("authorization", format!("Bearer {token}").parse()?);
     let handshake = async {
         // A small read buffer: tungstenite zero-fills it all, and thousands of pens share
-        // this process (acks are a few dozen bytes).
+        // this process (acks are a few dozen bytes). TCP_NODELAY, as browsers set it.
         let config = WebSocketConfig::default().read_buffer_size(4 * 1024);
-        let (mut ws, _) =
-            tokio_tungstenite::connect_async_with_config(request, Some(config), false)
-                .await
-                .map_err(|e| anyhow::anyhow!("cannot connect: {e}"))?;
+        let (mut ws, _) = tokio_tungstenite::connect_async_with_config(request, Some(config), true)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot connect: {e}"))?;
         let hello = Hello {
             protocol: PROTOCOL_VERSION,
             client: format!("penmesh-load/{}", env!("CARGO_PKG_VERSION")),
