@@ -1251,6 +1251,7 @@ pub fn report(args: &LoadReportArgs) -> anyhow::Result<()> {
         "Throughput against pens (200 Hz each)",
         "samples per second",
         &throughput,
+        false,
     )
     .map_err(|e| anyhow::anyhow!("cannot draw the throughput plot: {e}"))?;
     let p99 = [
@@ -1258,8 +1259,14 @@ pub fn report(args: &LoadReportArgs) -> anyhow::Result<()> {
         ("proxy, pen-up → StrokeDone", series("proxy", |r| r.latency_ms.pen_up_to_stroke_done.p99)),
         ("ceiling, sample → Ack", series("ceiling", |r| r.latency_ms.sample_to_ack.p99)),
     ];
-    plot(&args.out_dir.join("load_p99.svg"), "p99 latency against pens", "p99, ms", &p99)
-        .map_err(|e| anyhow::anyhow!("cannot draw the latency plot: {e}"))?;
+    plot(
+        &args.out_dir.join("load_p99.svg"),
+        "p99 latency against pens",
+        "p99, ms (log)",
+        &p99,
+        true,
+    )
+    .map_err(|e| anyhow::anyhow!("cannot draw the latency plot: {e}"))?;
     Ok(())
 }
 
@@ -1268,22 +1275,48 @@ fn plot(
     caption: &str,
     y_label: &str,
     series: &[(&str, Vec<(f64, f64)>)],
+    log_y: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     use plotters::prelude::*;
-    const COLOURS: [RGBColor; 3] =
-        [RGBColor(0, 114, 178), RGBColor(213, 94, 0), RGBColor(120, 120, 120)];
     let points = series.iter().flat_map(|(_, s)| s.iter());
     let x_max = points.clone().map(|p| p.0).fold(1.0, f64::max) * 1.05;
     let y_max = points.map(|p| p.1).fold(1.0, f64::max) * 1.1;
     let root = SVGBackend::new(path, (800, 520)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
+    let mut builder = ChartBuilder::on(&root);
+    builder
         .caption(caption, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..x_max, 0.0..y_max)?;
-    chart.configure_mesh().x_desc("concurrent pens").y_desc(y_label).draw()?;
+        .y_label_area_size(70);
+    if log_y {
+        let mut chart = builder.build_cartesian_2d(0.0..x_max, (0.5..y_max).log_scale())?;
+        chart.configure_mesh().x_desc("concurrent pens").y_desc(y_label).draw()?;
+        draw_lines(&mut chart, series)?;
+    } else {
+        let mut chart = builder.build_cartesian_2d(0.0..x_max, 0.0..y_max)?;
+        chart.configure_mesh().x_desc("concurrent pens").y_desc(y_label).draw()?;
+        draw_lines(&mut chart, series)?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+fn draw_lines<'a, X, Y>(
+    chart: &mut plotters::chart::ChartContext<
+        'a,
+        plotters::backend::SVGBackend<'a>,
+        plotters::coord::cartesian::Cartesian2d<X, Y>,
+    >,
+    series: &[(&str, Vec<(f64, f64)>)],
+) -> Result<(), Box<dyn std::error::Error>>
+where
+    X: plotters::coord::ranged1d::Ranged<ValueType = f64>,
+    Y: plotters::coord::ranged1d::Ranged<ValueType = f64>,
+{
+    use plotters::prelude::*;
+    const COLOURS: [RGBColor; 3] =
+        [RGBColor(0, 114, 178), RGBColor(213, 94, 0), RGBColor(120, 120, 120)];
     for (k, (name, points)) in series.iter().enumerate() {
         if points.is_empty() {
             continue;
@@ -1301,6 +1334,5 @@ fn plot(
         .border_style(BLACK)
         .position(SeriesLabelPosition::UpperLeft)
         .draw()?;
-    root.present()?;
     Ok(())
 }
