@@ -585,3 +585,26 @@ pub async fn count_rows(db: &TestDatabase, sql: &str) -> i64 {
     pool.close().await;
     n
 }
+
+/// A minimal GLB (binary glTF 2.0, JSON chunk only) declaring one indexed triangle list with
+/// `vertices` positions and `indices` indices: enough for the proxy's upload checks.
+pub fn minimal_glb(vertices: u64, indices: u64) -> Vec<u8> {
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "accessors": [{"count": vertices, "type": "VEC3", "componentType": 5126},
+                      {"count": indices, "type": "SCALAR", "componentType": 5125}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
+    })
+    .to_string()
+    .into_bytes();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(((20 + json.len()) as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(0x4E4F_534Au32.to_le_bytes());
+    out.extend(json);
+    out
+}

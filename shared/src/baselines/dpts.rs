@@ -11,7 +11,7 @@
 //! every sample strictly between `a` and `e` lies within the tolerance of the segment `a–e`.
 //! When `e` fails, the sample before it is kept. O(window) per sample.
 
-use super::{Simplify, angle_between, whole_if_short};
+use super::{Simplify, angle_between, greedy_window};
 use crate::acuts::segment_distance;
 use crate::model::Sample;
 
@@ -54,18 +54,6 @@ impl Simplify for Dpts {
     }
 
     fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize> {
-        if let Some(all) = whole_if_short(samples) {
-            return all;
-        }
-        let mut kept = vec![0];
-        let mut anchor = 0;
-        for e in 2..samples.len() {
-            if !self.admits(samples, anchor, e, tolerance) {
-                anchor = e - 1;
-                kept.push(anchor);
-            }
-        }
-        kept.push(samples.len() - 1);
-        kept
+        greedy_window(samples, |anchor, e| self.admits(samples, anchor, e, tolerance))
     }
 }

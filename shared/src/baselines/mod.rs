@@ -49,6 +49,25 @@ fn whole_if_short(samples: &[Sample]) -> Option<Vec<usize>> {
     (samples.len() <= 2).then(|| (0..samples.len()).collect())
 }
 
+/// The opening-window loop shared by the online window methods: extend the segment from the
+/// anchor while `admits(anchor, e)` holds; when it fails, the sample before `e` is kept and
+/// becomes the anchor. First and last samples are always kept.
+fn greedy_window(samples: &[Sample], mut admits: impl FnMut(usize, usize) -> bool) -> Vec<usize> {
+    if let Some(all) = whole_if_short(samples) {
+        return all;
+    }
+    let mut kept = vec![0];
+    let mut anchor = 0;
+    for e in 2..samples.len() {
+        if !admits(anchor, e) {
+            anchor = e - 1;
+            kept.push(anchor);
+        }
+    }
+    kept.push(samples.len() - 1);
+    kept
+}
+
 /// Whether every sample strictly between `a` and `b` lies within `tolerance` of the segment
 /// `a–b`. O(b - a).
 pub fn span_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bool {

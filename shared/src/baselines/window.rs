@@ -16,7 +16,7 @@
 //! angle it is the plain greedy window. Online (a sample is decided when the next one arrives),
 //! O(window) per sample.
 
-use super::{Simplify, angle_between, whole_if_short};
+use super::{Simplify, angle_between, greedy_window};
 use crate::acuts::segment_distance;
 use crate::model::Sample;
 
@@ -61,18 +61,6 @@ impl Simplify for OpeningWindow {
     }
 
     fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize> {
-        if let Some(all) = whole_if_short(samples) {
-            return all;
-        }
-        let mut kept = vec![0];
-        let mut anchor = 0;
-        for e in 2..samples.len() {
-            if !self.admits(samples, anchor, e, tolerance) {
-                anchor = e - 1;
-                kept.push(anchor);
-            }
-        }
-        kept.push(samples.len() - 1);
-        kept
+        greedy_window(samples, |anchor, e| self.admits(samples, anchor, e, tolerance))
     }
 }

@@ -2,28 +2,6 @@ use penmesh::protocol::{ServerMessage, decode_server};
 use penmesh_e2e::{batch_simplified, draw_stroke, spawn_proxy, stroke_samples};
 use uuid::Uuid;
 
-/// A minimal GLB with one indexed triangle list.
-fn glb(vertices: u64, indices: u64) -> Vec<u8> {
-    let mut json = serde_json::json!({
-        "asset": {"version": "2.0"},
-        "accessors": [{"count": vertices, "type": "VEC3", "componentType": 5126},
-                      {"count": indices, "type": "SCALAR", "componentType": 5125}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
-    })
-    .to_string()
-    .into_bytes();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend(((20 + json.len()) as u32).to_le_bytes());
-    out.extend((json.len() as u32).to_le_bytes());
-    out.extend(0x4E4F_534Au32.to_le_bytes());
-    out.extend(json);
-    out
-}
-
 async fn done_stroke(
     proxy: &penmesh_e2e::TestProxy,
 ) -> (penmesh_e2e::TestSession, Uuid, Vec<penmesh::Sample>) {
@@ -91,7 +69,7 @@ async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
     let proxy = spawn_proxy().await;
     let (session, stroke, _) = done_stroke(&proxy).await;
     let url = proxy.url(&format!("/v1/strokes/{stroke}/mesh"));
-    let body = glb(8, 36);
+    let body = penmesh_e2e::minimal_glb(8, 36);
     let response = proxy
         .http
         .put(&url)
@@ -162,7 +140,7 @@ async fn a_mesh_needs_a_done_stroke() {
         .http
         .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
         .bearer_auth(&session.token)
-        .body(glb(3, 3))
+        .body(penmesh_e2e::minimal_glb(3, 3))
         .send()
         .await
         .unwrap();

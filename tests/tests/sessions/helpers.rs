@@ -225,28 +225,6 @@ pub fn samples_for(k: usize, n: usize) -> Vec<Sample> {
         .collect()
 }
 
-/// A minimal GLB with one indexed triangle list.
-pub fn glb() -> Vec<u8> {
-    let mut json = serde_json::json!({
-        "asset": {"version": "2.0"},
-        "accessors": [{"count": 3, "type": "VEC3", "componentType": 5126},
-                      {"count": 3, "type": "SCALAR", "componentType": 5125}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
-    })
-    .to_string()
-    .into_bytes();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend(((20 + json.len()) as u32).to_le_bytes());
-    out.extend((json.len() as u32).to_le_bytes());
-    out.extend(0x4E4F_534Au32.to_le_bytes());
-    out.extend(json);
-    out
-}
-
 /// Stores a mesh for a done stroke over HTTP.
 pub async fn put_mesh(proxy: &TestProxy, session: &TestSession, stroke: StrokeId) {
     let response = proxy
@@ -254,7 +232,7 @@ pub async fn put_mesh(proxy: &TestProxy, session: &TestSession, stroke: StrokeId
         .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
         .bearer_auth(&session.token)
         .header("content-type", "model/gltf-binary")
-        .body(glb())
+        .body(penmesh_e2e::minimal_glb(3, 3))
         .send()
         .await
         .unwrap();
