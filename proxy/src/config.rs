@@ -50,6 +50,12 @@ pub struct Config {
     #[arg(long, env = "PENMESH_DB_MAX_CONNECTIONS", default_value_t = 8)]
     pub db_max_connections: u32,
 
+    /// How much lower than the group-commit writer's the priority of the threads that serve the
+    /// connections is (Linux nice steps, 0 to 19; 0: the same). Past the knee every connection
+    /// waits for the writer, so the writer should get the CPU first (see docs/performance.md).
+    #[arg(long, env = "PENMESH_WORKER_NICE", default_value_t = 10, value_parser = clap::value_parser!(i32).range(0..=19))]
+    pub worker_nice: i32,
+
     /// Group commit: at most one commit per this many milliseconds (0: commit as soon as the
     /// previous commit is done).
     #[arg(long, env = "PENMESH_COMMIT_INTERVAL_MS", default_value_t = 2)]
@@ -99,6 +105,12 @@ pub struct Config {
     /// Outgoing messages queued per connection; a reader slower than this is disconnected.
     #[arg(long, env = "PENMESH_OUTGOING_QUEUE", default_value_t = 1024)]
     pub outgoing_queue: usize,
+
+    /// A connection whose outgoing queue stays full for this long (ms) while answers wait is a
+    /// slow reader, and is disconnected (a full queue alone is not: a group commit can
+    /// acknowledge many batches at once).
+    #[arg(long, env = "PENMESH_SLOW_READER_MS", default_value_t = 1000)]
+    pub slow_reader_ms: u64,
 
     /// Batches per connection accepted but not yet committed; reading pauses past it.
     #[arg(long, env = "PENMESH_MAX_INFLIGHT", default_value_t = 64)]

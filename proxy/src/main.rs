@@ -1,8 +1,6 @@
-use penmesh_proxy::{Application, Config};
+use penmesh_proxy::Config;
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
     penmesh_proxy::init_tracing();
-    let config = Config::load()?;
-    Application::build(config).await?.run_until_stopped().await
+    penmesh_proxy::run(Config::load()?)
 }

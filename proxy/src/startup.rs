@@ -25,7 +25,7 @@ use crate::cluster::{StrokeLocks, start_listener, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::state::AppState;
-use crate::store::{Backend, Store, WriterTask, redact};
+use crate::store::{Backend, Store, WriterTask, redact, start_checkpointer};
 use crate::{http, metrics, ws};
 
 /// A bound, ready-to-run proxy.
@@ -35,7 +35,8 @@ pub struct Application {
     port: u16,
     state: AppState,
     writer: WriterTask,
-    /// The session-event listener and the presence reaper (PostgreSQL), and what stops them.
+    /// The background tasks, and what stops them: the session-event listener and the presence
+    /// reaper (PostgreSQL), or the log checkpointer (SQLite).
     listener_task: Option<(Vec<tokio::task::JoinHandle<()>>, CancellationToken)>,
 }
 
@@ -55,7 +56,9 @@ impl Application {
                     "SQLite: this proxy is the only replica of its database; to run several \
                      replicas behind a load balancer, use PostgreSQL (see docs/deploy.md)"
                 );
-                (None, None)
+                let stop = CancellationToken::new();
+                let checkpointer = start_checkpointer(store.clone(), stop.clone());
+                (Some((vec![checkpointer], stop)), None)
             }
             Backend::Postgres => {
                 let stop = CancellationToken::new();

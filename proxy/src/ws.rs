@@ -29,7 +29,7 @@
 //! what it lacks; past 3 overflows a minute it is dropped instead). Stroke events are
 //! published once committed (by the writer), in order.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -220,6 +220,8 @@ pub async fn serve<Si, St, E>(
         strokes: HashMap::new(),
         finishing: HashSet::new(),
         out,
+        overflow: VecDeque::new(),
+        overflow_since: None,
         pending: FuturesOrdered::new(),
         end: None,
         state: state.clone(),
@@ -232,9 +234,12 @@ pub async fn serve<Si, St, E>(
     let shutdown = state.shutdown.clone();
     // A quarter of the outgoing queue stays free for the connection's own answers.
     let reserve = state.config.outgoing_queue.max(1) / 4;
+    let slow_reader = Duration::from_millis(state.config.slow_reader_ms);
     while conn.end.is_none() {
-        let can_read = conn.pending.len() < state.config.max_inflight.max(1);
-        let can_forward = conn.events.is_some() && conn.out.capacity() > reserve;
+        let behind = !conn.overflow.is_empty();
+        let can_read = !behind && conn.pending.len() < state.config.max_inflight.max(1);
+        let can_forward = !behind && conn.events.is_some() && conn.out.capacity() > reserve;
+        let overflow_deadline = conn.overflow_since.map(|since| since + slow_reader);
         tokio::select! {
             biased;
             _ = shutdown.cancelled() => {
@@ -249,7 +254,15 @@ pub async fn serve<Si, St, E>(
                 Err(lag) => conn.resync(Some(lag)).await,
             },
             // The socket was too slow to take peer events: wake up when it caught up.
-            _ = room(&conn.out, reserve + 1), if conn.events.is_some() && !can_forward => {}
+            _ = room(&conn.out, reserve + 1), if !behind && conn.events.is_some() && !can_forward => {}
+            permit = conn.out.clone().reserve_owned(), if behind => match permit {
+                Ok(permit) => conn.flush_one(permit),
+                Err(_) => conn.end_with(End::Gone),
+            },
+            _ = sleep_until_some(overflow_deadline), if behind => {
+                tracing::info!(connection = conn.id, "outgoing queue full: disconnecting a slow reader");
+                conn.end_with(End::SlowReader);
+            }
             frame = stream.next(), if can_read => {
                 last_heard = Instant::now();
                 match frame {
@@ -289,6 +302,14 @@ pub async fn serve<Si, St, E>(
         }
     }
     metrics::gauge!("penmesh_ws_connections").decrement(1.0);
+}
+
+/// Ready at `deadline`; never without one.
+async fn sleep_until_some(deadline: Option<Instant>) {
+    match deadline {
+        Some(deadline) => tokio::time::sleep_until(deadline).await,
+        None => std::future::pending().await,
+    }
 }
 
 /// Ready once the queue has room for `n` frames (the permits are given back at once).
@@ -367,6 +388,13 @@ struct Connection {
     /// Strokes whose `StrokeEnd` awaits its commit (still claimed).
     finishing: HashSet<StrokeId>,
     out: mpsc::Sender<Frame>,
+    /// Answers that found the outgoing queue full, in order, and since when. Bounded: no frame
+    /// is read and no peer event is taken while it is not empty, so only the answers already
+    /// owed (at most `max_inflight` acks) can join it. A socket that takes none of them for
+    /// `slow_reader_ms` belongs to a slow reader; one that does was only behind by a burst (a
+    /// group commit acknowledges many batches at once).
+    overflow: VecDeque<Frame>,
+    overflow_since: Option<Instant>,
     pending: FuturesOrdered<Pending>,
     end: Option<End>,
 }
@@ -395,21 +423,34 @@ impl Connection {
     }
 
     fn send_frame(&mut self, frame: Frame) {
+        if !self.overflow.is_empty() {
+            return self.overflow.push_back(frame);
+        }
         match self.out.try_send(frame) {
-            Ok(()) => {
-                let kind = if self.form == Form::Binary { "binary" } else { "text" };
-                metrics::counter!("penmesh_ws_frames_total", "direction" => "out", "kind" => kind)
-                    .increment(1);
-            }
-            Err(mpsc::error::TrySendError::Full(_)) => {
-                tracing::info!(
-                    connection = self.id,
-                    "outgoing queue full: disconnecting a slow reader"
-                );
-                self.end = Some(End::SlowReader);
+            Ok(()) => self.count_sent(),
+            Err(mpsc::error::TrySendError::Full(frame)) => {
+                self.overflow.push_back(frame);
+                self.overflow_since = Some(Instant::now());
             }
             Err(mpsc::error::TrySendError::Closed(_)) => self.end_with(End::Gone),
         }
+    }
+
+    /// Moves the oldest overflowed answer into the outgoing queue.
+    fn flush_one(&mut self, permit: mpsc::OwnedPermit<Frame>) {
+        if let Some(frame) = self.overflow.pop_front() {
+            permit.send(frame);
+            self.count_sent();
+        }
+        if self.overflow.is_empty() {
+            self.overflow_since = None;
+        }
+    }
+
+    fn count_sent(&self) {
+        let kind = if self.form == Form::Binary { "binary" } else { "text" };
+        metrics::counter!("penmesh_ws_frames_total", "direction" => "out", "kind" => kind)
+            .increment(1);
     }
 
     fn encode(&self, msg: &ServerMessage) -> Frame {
@@ -977,11 +1018,8 @@ impl Connection {
             self.session,
             EventKind::StrokeDone { participant, stroke, n_retained },
         ));
-        let pending = self
-            .state
-            .writer
-            .submit_with(vec![WriteOp::Finish { stroke, n_points: end.n_points, kept }], events)
-            .await;
+        let pending =
+            self.state.writer.submit_with(vec![WriteOp::Finish { stroke, kept }], events).await;
         self.queue_write(pending, AfterCommit::Done { stroke, n_retained });
     }
 

@@ -1179,13 +1179,7 @@ pub fn serve_proxy(args: &ServeProxyArgs) -> anyhow::Result<()> {
         std::iter::once("penmesh-proxy".to_string()).chain(args.args.iter().cloned()),
     )?;
     penmesh_proxy::init_tracing();
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("starting the runtime")?;
-    runtime.block_on(async {
-        penmesh_proxy::Application::build(config).await?.run_until_stopped().await
-    })
+    penmesh_proxy::run(config)
 }
 
 /// `penmesh load-report` (hidden): the tables and plots of `docs/performance.md` from the JSON

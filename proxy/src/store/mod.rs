@@ -13,7 +13,8 @@ use anyhow::Context;
 use penmesh::Sample;
 use penmesh::protocol::StrokeStatus;
 use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
-use sqlx::{AnyPool, Executor, Row};
+use sqlx::{AnyConnection, AnyPool, Connection, Executor, Row};
+use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
 pub use writer::{WriteError, WriteOp, Writer, WriterTask};
@@ -39,6 +40,9 @@ pub enum Backend {
 pub struct Store {
     pool: AnyPool,
     backend: Backend,
+    /// How the pool's connections are opened, for the writer's own (see `open_write_connection`).
+    options: AnyConnectOptions,
+    synchronous: &'static str,
 }
 
 /// A stroke's row.
@@ -157,19 +161,12 @@ impl Store {
             .after_connect(move |conn, _meta| {
                 Box::pin(async move {
                     if backend == Backend::Sqlite {
-                        conn.execute(
-                            format!(
-                                "PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; \
-                                 PRAGMA synchronous={synchronous}; PRAGMA foreign_keys=ON;"
-                            )
-                            .as_str(),
-                        )
-                        .await?;
+                        conn.execute(sqlite_settings(synchronous).as_str()).await?;
                     }
                     Ok(())
                 })
             })
-            .connect_with(options)
+            .connect_with(options.clone())
             .await
             .with_context(|| format!("connecting to {}", redact(&config.database_url)))?;
         let migrator = match backend {
@@ -177,7 +174,34 @@ impl Store {
             Backend::Postgres => &POSTGRES_MIGRATIONS,
         };
         migrator.run(&pool).await.context("applying migrations")?;
-        Ok(Store { pool, backend })
+        Ok(Store { pool, backend, options, synchronous })
+    }
+
+    /// Opens the group-commit writer's connection, outside the pool. With SQLite, sqlx runs each
+    /// connection on a thread it starts when it opens it, and that thread takes the priority of
+    /// the thread that opens it: the writer's, higher than the connection workers' (see
+    /// [`crate::run`]).
+    ///
+    /// Its SQLite settings beyond the pool's were found with `perf` on the writer under 500 pens:
+    /// - a multi-row `INSERT` inside the group's transaction keeps a statement journal (to undo
+    ///   itself alone if it fails half-way), by default in a temporary file: in memory it costs
+    ///   no write at all;
+    /// - a commit touches hundreds of pages, more than the default 2 MB page cache holds without
+    ///   spilling mid-transaction;
+    /// - the log is copied into the database by the checkpointer ([`start_checkpointer`]), off
+    ///   the writer's path; the writer checkpoints only when the log has grown to 64 MB (only a
+    ///   writer can restart the log from its beginning, once every page in it is copied).
+    pub async fn open_write_connection(&self) -> anyhow::Result<AnyConnection> {
+        let mut conn = AnyConnection::connect_with(&self.options).await?;
+        if self.backend == Backend::Sqlite {
+            let settings = format!(
+                "{} PRAGMA temp_store = MEMORY; PRAGMA cache_size = -32768; \
+                 PRAGMA wal_autocheckpoint = 16384;",
+                sqlite_settings(self.synchronous)
+            );
+            conn.execute(settings.as_str()).await?;
+        }
+        Ok(conn)
     }
 
     pub fn backend(&self) -> Backend {
@@ -423,6 +447,31 @@ impl Store {
     }
 }
 
+/// How often the SQLite checkpointer copies the write-ahead log back into the database.
+const CHECKPOINT_INTERVAL: Duration = Duration::from_millis(100);
+
+/// SQLite: copies the write-ahead log into the database from a connection of the pool, so that
+/// the group-commit writer does not do it on its own critical path. SQLite checkpoints at the
+/// end of a commit once the log holds 1,000 pages; under 500 pens that was a 4 MB copy and an
+/// fsync every tenth commit, delaying every request queued behind it. The writer still
+/// checkpoints at that size (only it can restart the log from the beginning), but by then the
+/// pages are already copied and what is left is short.
+pub fn start_checkpointer(store: Store, stop: CancellationToken) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        loop {
+            tokio::select! {
+                _ = stop.cancelled() => return,
+                _ = tokio::time::sleep(CHECKPOINT_INTERVAL) => {}
+            }
+            if let Err(err) =
+                sqlx::query("PRAGMA wal_checkpoint(PASSIVE)").execute(store.pool()).await
+            {
+                tracing::warn!(error = %err, "checkpointing the SQLite log");
+            }
+        }
+    })
+}
+
 /// Queues `events` as notifications of the current PostgreSQL transaction: they are delivered
 /// to every listening replica when (and only if) it commits, in commit order.
 pub(crate) async fn notify(
@@ -445,8 +494,13 @@ pub(crate) async fn notify(
     Ok(())
 }
 
+/// `n_points` is where the last stored chunk ends (a stroke's chunks are contiguous from 0): the
+/// appends of the group commit write nothing but their chunk, so that a commit touches as few
+/// pages as it can.
 const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, s.params, s.device, \
-     s.status, s.n_points, s.n_retained, s.created_at, s.updated_at, \
+     s.status, s.n_retained, s.created_at, s.updated_at, \
+     COALESCE((SELECT c.seq + c.n FROM stroke_chunks c WHERE c.stroke_id = s.id \
+     ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
      (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = s.id) AS n_meshes FROM strokes s";
 
 fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
@@ -468,6 +522,14 @@ fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
         updated_at: row.try_get("updated_at")?,
         has_mesh: row.try_get::<i64, _>("n_meshes")? > 0,
     })
+}
+
+/// The settings of every SQLite connection.
+fn sqlite_settings(synchronous: &str) -> String {
+    format!(
+        "PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; PRAGMA synchronous={synchronous}; \
+         PRAGMA foreign_keys=ON;"
+    )
 }
 
 /// Creates the folder of a SQLite file, so a fresh path works.

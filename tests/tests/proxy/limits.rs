@@ -228,3 +228,31 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
     }
     assert!(proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
 }
+
+#[tokio::test]
+async fn a_burst_of_answers_larger_than_the_outgoing_queue_does_not_cut_off_a_reader() {
+    // A queue of 4 frames, and 64 batches in flight: one group commit acknowledges more
+    // batches at once than the queue holds, but this client reads everything, so the proxy
+    // must wait for its socket instead of taking it for a slow reader. (A straight line, so
+    // that ACUTS retains nothing until the end: no session events to fall behind on.)
+    let proxy = spawn_proxy_with(|c| {
+        c.outgoing_queue = 4;
+        c.commit_interval_ms = 50;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    ws.begin(stroke).await;
+    let samples: Vec<Sample> =
+        (0..600).map(|i| Sample::new(i as f64, 0.0, i as f64 * 5.0, 0.5)).collect();
+    for (k, batch) in samples.chunks(4).enumerate() {
+        ws.points(stroke, (4 * k) as u64, batch).await;
+    }
+    ws.wait_ack(stroke, samples.len() as u64).await;
+    ws.end(stroke, samples.len() as u64).await;
+    ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
+    assert!(!proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
+}
