@@ -142,7 +142,7 @@ pub async fn stored_strokes(db: &Path) -> Vec<StoredStroke> {
     let url = format!("sqlite://{}?mode=ro", db.display());
     let pool = sqlx::SqlitePool::connect(&url).await.expect("open the database");
     let rows = sqlx::query(
-        "SELECT id, session_id, status, n_points, n_retained FROM strokes ORDER BY created_at, id",
+        "SELECT id, session_id, status, n_retained FROM strokes ORDER BY created_at, id",
     )
     .fetch_all(&pool)
     .await
@@ -175,7 +175,8 @@ pub async fn stored_strokes(db: &Path) -> Vec<StoredStroke> {
         strokes.push(StoredStroke {
             session: row.get("session_id"),
             status: row.get("status"),
-            n_points: row.get::<i64, _>("n_points") as u64,
+            // As the proxy counts them: where the last chunk ends.
+            n_points: spans.last().map_or(0, |&(seq, n)| seq + n),
             n_retained: row.get::<i64, _>("n_retained") as u64,
             raw,
             chunks: spans,
