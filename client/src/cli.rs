@@ -53,12 +53,28 @@ pub struct AcutsArgs {
     /// Angle threshold d_alpha, in degrees.
     #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
     pub angle: f64,
-    /// Pressure-variance threshold d_sigma2 (pressure in [0, 1]).
-    #[arg(long = "pressure-var", default_value_t = penmesh::DEFAULT_PRESSURE_VARIANCE)]
-    pub pressure_var: f64,
+    /// Also ask the angle of skipped samples within d_d of the anchor (the paper's test).
+    #[arg(long)]
+    pub angle_near_anchor: bool,
+    /// Pressure tolerance delta_p (pressure in [0, 1]): every removed sample's pressure within
+    /// this of the pressure interpolated in time along its retained segment.
+    #[arg(long, default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
+    pub pressure_tolerance: f64,
+    /// Use the paper's pressure-variance gate (formula 3) with this threshold d_sigma2 instead
+    /// of the pressure tolerance (the paper: 0.0015).
+    #[arg(long = "pressure-var", conflicts_with = "pressure_tolerance")]
+    pub pressure_var: Option<f64>,
     /// Stage-1 chord-length resampling distance l_eps; 0 turns resampling off.
     #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
     pub resample: f64,
+}
+
+/// The pressure gate the flags pick: `--pressure-var` if given, else `--pressure-tolerance`.
+pub fn pressure_gate(tolerance: f64, variance: Option<f64>) -> penmesh::PressureGate {
+    match variance {
+        Some(v) => penmesh::PressureGate::Variance(v),
+        None => penmesh::PressureGate::Interpolation(tolerance),
+    }
 }
 
 impl AcutsArgs {
@@ -66,7 +82,8 @@ impl AcutsArgs {
         let params = penmesh::AcutsParams {
             tolerance: self.tolerance,
             angle_deg: self.angle,
-            pressure_variance: self.pressure_var,
+            angle_near_anchor: self.angle_near_anchor,
+            pressure: pressure_gate(self.pressure_tolerance, self.pressure_var),
         };
         params.validate().map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
         anyhow::ensure!(

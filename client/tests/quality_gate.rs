@@ -1,7 +1,9 @@
 //! The ACUTS quality gate: on a fixed subset of the real recordings in `../shared/data`, ACUTS
 //! with its default setting keeps every removed sample within its guaranteed bound
-//! (`d_d + l_eps`), and keeps at most 5 % more points, relative to optimal min-# at that bound,
-//! than the ratio recorded in `docs/quality_gate.json` (the value `docs/results.md` reports).
+//! (`d_d + l_eps`) and, with its default pressure interpolation gate and no stage 1, within
+//! `delta_p` of the pressure interpolated in time along its segment, and keeps at most 5 % more
+//! points, relative to optimal min-# at that bound, than the ratio recorded in
+//! `docs/quality_gate.json` (the value `docs/results.md` reports).
 //!
 //! After a deliberate change of ACUTS, rerun with `-- --nocapture`, and record the printed ratio
 //! in `docs/quality_gate.json` and `docs/results.md`.
@@ -9,7 +11,9 @@
 use std::path::PathBuf;
 
 use penmesh::baselines::min_points;
-use penmesh::{AcutsParams, DEFAULT_RESAMPLE_DISTANCE, Sample, acuts, segment_distance};
+use penmesh::{
+    AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PressureGate, Sample, acuts, segment_distance,
+};
 use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
@@ -39,6 +43,11 @@ fn acuts_quality_gate() {
     let params = AcutsParams::default();
     let resample = DEFAULT_RESAMPLE_DISTANCE;
     let bound = params.tolerance + resample;
+    // The pressure bound holds end to end only when stage 1 drops nothing.
+    let pressure_bound = match params.pressure {
+        PressureGate::Interpolation(delta) if resample == 0.0 => Some(delta),
+        _ => None,
+    };
     let (mut n_acuts, mut n_optimal) = (0, 0);
     for file in &gate.files {
         let path = data.join(file);
@@ -61,6 +70,16 @@ fn acuts_quality_gate() {
                         distance <= bound * (1.0 + 1e-9),
                         "{file}: sample {i} is {distance} px from its segment, beyond {bound} px"
                     );
+                    if let Some(delta) = pressure_bound {
+                        let tau = if b.t > a.t { (q.t - a.t) / (b.t - a.t) } else { 0.0 };
+                        let off = (q.p - (a.p + tau * (b.p - a.p))).abs();
+                        let both_ends = (q.p - a.p).abs().max((q.p - b.p).abs());
+                        let error = if b.t > a.t { off } else { both_ends };
+                        assert!(
+                            error <= delta + 1e-9,
+                            "{file}: sample {i}'s pressure is {error} off its segment's, beyond {delta}"
+                        );
+                    }
                 }
             }
             n_acuts += kept.len();

@@ -132,9 +132,10 @@ pub struct Config {
     #[arg(long, env = "PENMESH_ANGLE_DEG", default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
     pub angle_deg: f64,
 
-    /// Default ACUTS pressure-variance threshold `d_sigma2`.
-    #[arg(long, env = "PENMESH_PRESSURE_VARIANCE", default_value_t = penmesh::DEFAULT_PRESSURE_VARIANCE)]
-    pub pressure_variance: f64,
+    /// Default ACUTS pressure tolerance `delta_p` (the interpolation gate); the paper's variance
+    /// gate is a per-stroke choice in `StrokeBegin`'s params.
+    #[arg(long, env = "PENMESH_PRESSURE_TOLERANCE", default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
+    pub pressure_tolerance: f64,
 }
 
 impl Config {
@@ -202,7 +203,8 @@ impl Config {
         penmesh::AcutsParams {
             tolerance: self.tolerance,
             angle_deg: self.angle_deg,
-            pressure_variance: self.pressure_variance,
+            pressure: penmesh::PressureGate::Interpolation(self.pressure_tolerance),
+            ..penmesh::AcutsParams::default()
         }
     }
 

@@ -1,7 +1,8 @@
 //! ACUTS stage 1 + 2 together ([`penmesh::acuts`] with the default parameters), on strokes of
 //! 1,000 to 1,000,000 samples: a pen-like curvy stroke and a straight line. Throughput is in
 //! input samples per second; the target is at least 50 million per second on one core. The
-//! paper's table 3 setting (`paper-*`) runs in the same process for comparison.
+//! paper's table 3 setting (`paper-*`) and the defaults before the pressure interpolation test
+//! (`former-*`) run in the same process for comparison.
 //! The kept counts are printed before the timings.
 //!
 //! Run: `cargo bench -p penmesh --bench acuts -- --warm-up-time 1 --measurement-time 3`
@@ -13,7 +14,9 @@ mod cpu_time;
 
 use cpu_time::ThreadCpuTime;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use penmesh::{AcutsParams, DEFAULT_RESAMPLE_DISTANCE, Sample, acuts};
+use penmesh::{
+    AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PAPER_RESAMPLE_DISTANCE, PressureGate, Sample, acuts,
+};
 
 const SIZES: [usize; 4] = [1_000, 10_000, 100_000, 1_000_000];
 
@@ -65,11 +68,25 @@ fn straight_line(n: usize) -> Vec<Sample> {
 type Generator = fn(usize) -> Vec<Sample>;
 
 /// The paper's table 3 setting, measured beside the defaults in the same run.
-const PAPER: (f64, AcutsParams) =
-    (1.0, AcutsParams { tolerance: 0.74, angle_deg: 15.0, pressure_variance: 0.0015 });
+const PAPER: (f64, AcutsParams) = (PAPER_RESAMPLE_DISTANCE, AcutsParams::paper());
+/// The defaults before the pressure interpolation test (2026-11-22): `l_eps` 0.2, `d_d` 1.54,
+/// 45° near the anchor too, variance gate 0.01; also measured in the same run.
+const FORMER: (f64, AcutsParams) = (
+    0.2,
+    AcutsParams {
+        tolerance: 1.54,
+        angle_deg: 45.0,
+        angle_near_anchor: true,
+        pressure: PressureGate::Variance(0.01),
+    },
+);
 
 fn bench_acuts(c: &mut Criterion<ThreadCpuTime>) {
-    let settings = [("", (DEFAULT_RESAMPLE_DISTANCE, AcutsParams::default())), ("paper-", PAPER)];
+    let settings = [
+        ("", (DEFAULT_RESAMPLE_DISTANCE, AcutsParams::default())),
+        ("former-", FORMER),
+        ("paper-", PAPER),
+    ];
     let strokes: [(&str, Generator); 2] = [("curvy", curvy_stroke), ("straight", straight_line)];
     for ((setting, (resample_distance, params)), (name, generate)) in
         settings.into_iter().flat_map(|s| strokes.map(|g| (s, g)))

@@ -6,8 +6,8 @@
 //! the O(1) test retains a sample the naive test would remove.
 
 use penmesh::{
-    AcutsParams, Resampler, Sample, Simplifier, acuts, pressure_variance, segment_distance,
-    simplify,
+    AcutsParams, PressureGate, Resampler, Sample, Simplifier, acuts, pressure_variance,
+    segment_distance, simplify,
 };
 use proptest::prelude::*;
 
@@ -25,14 +25,50 @@ fn angle(a: &Sample, q: &Sample, e: &Sample) -> f64 {
     aq.perp_dot(ae).abs().atan2(aq.dot(ae))
 }
 
-/// The stage-2 geometry test for one skipped sample `q`, as the spec defines it, with `slack`
-/// added to both thresholds (pass `false` for the exact test).
+/// The pressure interpolation test for one skipped sample `q` against `a–e`
+/// ([`PressureGate::Interpolation`]): `|p_q - lerp(p_a, p_e, tau_q)| <= delta`, `tau_q` linear in
+/// time; when `t_e == t_a`, within `delta` of both `p_a` and `p_e`. `true` for the variance gate
+/// (a per-window test, see [`gate_retains`]).
+fn naive_pressure_admits(
+    a: &Sample,
+    q: &Sample,
+    e: &Sample,
+    params: &AcutsParams,
+    slack_on: bool,
+) -> bool {
+    let PressureGate::Interpolation(delta) = params.pressure else { return true };
+    let delta = delta + if slack_on { 1e-9 } else { 0.0 };
+    if e.t > a.t {
+        let tau = (q.t - a.t) / (e.t - a.t);
+        (q.p - (a.p + tau * (e.p - a.p))).abs() <= delta
+    } else {
+        (q.p - a.p).abs() <= delta && (q.p - e.p).abs() <= delta
+    }
+}
+
+/// Whether the variance gate (paper formula 3) retains `m`; `false` for the interpolation test.
+fn gate_retains(a: &Sample, m: &Sample, e: &Sample, params: &AcutsParams) -> bool {
+    match params.pressure {
+        PressureGate::Variance(threshold) => pressure_variance(a.p, m.p, e.p) > threshold,
+        PressureGate::Interpolation(_) => false,
+    }
+}
+
+/// The stage-2 test for one skipped sample `q`, as the spec defines it (angle, chord height)
+/// with the default's two changes (the angle not asked within `d_d` of the anchor unless
+/// `angle_near_anchor`, the pressure interpolation test), with `slack` added to the thresholds
+/// (pass `false` for the exact test).
 fn naive_admits(a: &Sample, q: &Sample, e: &Sample, params: &AcutsParams, slack_on: bool) -> bool {
     let (distance_slack, angle_slack) = if slack_on { (slack(a, q, e), 1e-9) } else { (0.0, 0.0) };
+    let tolerance = params.tolerance.max(0.0);
+    let angle_asked = params.angle_near_anchor || a.distance(q) > tolerance + distance_slack;
     let angle_ok = q.pos() == a.pos()
         || e.pos() == a.pos()
+        || !angle_asked
         || angle(a, q, e) <= params.angle_deg.to_radians() + angle_slack;
-    angle_ok && segment_distance(q, a, e) <= params.tolerance + distance_slack
+    angle_ok
+        && segment_distance(q, a, e) <= params.tolerance + distance_slack
+        && naive_pressure_admits(a, q, e, params, slack_on)
 }
 
 /// The naive stage 2 (the former placeholder): the skipped set as a list, O(|R|) per sample.
@@ -41,8 +77,7 @@ fn naive_simplify(samples: &[Sample], params: &AcutsParams) -> Vec<usize> {
     let (mut kept, mut anchor, mut skipped) = (vec![0], *first, Vec::<Sample>::new());
     for m_index in 1..samples.len().saturating_sub(1) {
         let (m, e) = (samples[m_index], samples[m_index + 1]);
-        let gate_retains = pressure_variance(anchor.p, m.p, e.p) > params.pressure_variance;
-        let removable = !gate_retains
+        let removable = !gate_retains(&anchor, &m, &e, params)
             && skipped.iter().chain([&m]).all(|q| naive_admits(&anchor, q, &e, params, false));
         if removable {
             skipped.push(m);
@@ -70,18 +105,18 @@ fn check_structure(n: usize, kept: &[usize]) {
 }
 
 /// The guarantee: every removed sample lies within the tolerance of the retained segment that
-/// spans it, and within the angle of it.
+/// spans it, within the angle of it (beyond `d_d` from the anchor, unless `angle_near_anchor`),
+/// and, with the interpolation gate, within `delta_p` of the interpolated pressure.
 fn check_guarantee(samples: &[Sample], kept: &[usize], params: &AcutsParams) {
     for w in kept.windows(2) {
         let (a, e) = (&samples[w[0]], &samples[w[1]]);
         for (k, q) in samples.iter().enumerate().take(w[1]).skip(w[0] + 1) {
             assert!(
                 naive_admits(a, q, e, params, true),
-                "removed sample {k} {q:?} is {} from segment {}-{} (tolerance {}), angle {}°",
+                "removed sample {k} {q:?} is {} from segment {}-{} {a:?} {e:?} ({params:?}), angle {}°",
                 segment_distance(q, a, e),
                 w[0],
                 w[1],
-                params.tolerance,
                 angle(a, q, e).to_degrees()
             );
         }
@@ -110,7 +145,7 @@ fn replay(samples: &[Sample], kept: &[usize], params: &AcutsParams) -> Replay {
     let (mut anchor, mut skipped) = (0, Vec::<usize>::new());
     for m in 1..samples.len().saturating_sub(1) {
         let (a, e) = (&samples[anchor], &samples[m + 1]);
-        let gate = pressure_variance(a.p, samples[m].p, e.p) > params.pressure_variance;
+        let gate = gate_retains(a, &samples[m], e, params);
         let all = |slack_on| {
             skipped.iter().chain([&m]).all(|&q| naive_admits(a, &samples[q], e, params, slack_on))
         };
@@ -133,19 +168,20 @@ fn replay(samples: &[Sample], kept: &[usize], params: &AcutsParams) -> Replay {
 // ---------------------------------------------------------------------------------------------
 // Generators.
 
-/// One step of a random walk: heading change (radians), step length, pressure change.
-type Step = (f64, f64, f64);
+/// One step of a random walk: heading change (radians), step length, pressure change, time step.
+type Step = (f64, f64, f64, f64);
 
 /// A random walk from `start` whose steps are scaled by `scale`.
 fn walk(start: (f64, f64), scale: f64, steps: &[Step]) -> Vec<Sample> {
-    let (mut x, mut y, mut heading, mut p) = (start.0, start.1, 0.0_f64, 0.5_f64);
+    let (mut x, mut y, mut heading, mut p, mut t) = (start.0, start.1, 0.0_f64, 0.5_f64, 0.0);
     let mut samples = Vec::with_capacity(steps.len() + 1);
-    for (i, &(turn, len, dp)) in [(0.0, 0.0, 0.0)].iter().chain(steps).enumerate() {
+    for &(turn, len, dp, dt) in [(0.0, 0.0, 0.0, 0.0)].iter().chain(steps) {
         heading += turn;
         x += heading.cos() * len * scale;
         y += heading.sin() * len * scale;
         p = (p + dp).clamp(0.0, 1.0);
-        samples.push(Sample::new(x, y, i as f64 * 5.0, p));
+        t += dt;
+        samples.push(Sample::new(x, y, t, p));
     }
     samples
 }
@@ -155,7 +191,9 @@ fn steps(max_len: usize, max_turn: f64) -> impl Strategy<Value = Vec<Step>> {
         (
             -max_turn..max_turn,
             prop_oneof![1 => Just(0.0), 6 => 0.0..3.0],
-            prop_oneof![4 => Just(0.0), 1 => -0.1..0.1],
+            prop_oneof![4 => Just(0.0), 1 => -0.1..0.1, 1 => -0.5..0.5],
+            // Mostly a steady rate, sometimes repeated timestamps or a pause.
+            prop_oneof![6 => Just(5.0), 1 => Just(0.0), 1 => 0.0..50.0],
         ),
         0..max_len,
     )
@@ -178,7 +216,7 @@ fn stroke() -> impl Strategy<Value = Vec<Sample>> {
                     Sample::new(
                         o.0 + f64::from(x),
                         o.1 + f64::from(y),
-                        i as f64,
+                        (i / 2) as f64,
                         f64::from(p) / 2.0,
                     )
                 })
@@ -203,15 +241,21 @@ fn stroke() -> impl Strategy<Value = Vec<Sample>> {
 }
 
 fn params() -> impl Strategy<Value = AcutsParams> {
+    let variance =
+        prop_oneof![Just(0.0), Just(0.0015), Just(1.0), 0.0..0.05].prop_map(PressureGate::Variance);
+    let interpolation = prop_oneof![Just(0.0), Just(0.2), Just(1.0), 0.0..0.3]
+        .prop_map(PressureGate::Interpolation);
     (
-        prop_oneof![Just(0.0), Just(0.74), 0.0..3.0],
-        prop_oneof![Just(0.0), Just(15.0), Just(90.0), 0.0..=90.0],
-        prop_oneof![Just(0.0), Just(0.0015), Just(1.0), 0.0..0.05],
+        prop_oneof![Just(0.0), Just(0.74), Just(1.74), 0.0..3.0],
+        prop_oneof![Just(0.0), Just(15.0), Just(45.0), Just(90.0), 0.0..=90.0],
+        any::<bool>(),
+        prop_oneof![variance, interpolation],
     )
-        .prop_map(|(tolerance, angle_deg, pressure_variance)| AcutsParams {
+        .prop_map(|(tolerance, angle_deg, angle_near_anchor, pressure)| AcutsParams {
             tolerance,
             angle_deg,
-            pressure_variance,
+            angle_near_anchor,
+            pressure,
         })
 }
 
@@ -348,6 +392,8 @@ fn long_straight_line() {
     let out = acuts(&samples, 1.0, &AcutsParams::default());
     assert_eq!(out.resampled.len(), n);
     assert_eq!(out.kept, [0, n - 1]);
+    let out = acuts(&samples, 0.0, &AcutsParams::paper());
+    assert_eq!(out.kept, [0, n - 1]);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -414,6 +460,7 @@ fn report_conservativeness_vs_naive() {
     let param_sets = [
         ("defaults", AcutsParams::default()),
         ("d_d 3, 45°", AcutsParams { tolerance: 3.0, angle_deg: 45.0, ..AcutsParams::default() }),
+        ("paper", AcutsParams::paper()),
     ];
     for (kind, generate) in kinds {
         for (param_name, params) in param_sets {

@@ -57,10 +57,9 @@ pub const SVC2004_PX_PER_UNIT: f64 = 96.0 / 2540.0;
 /// Px per SigComp2011 tablet unit (5080 lines per inch).
 pub const HWR_PX_PER_UNIT: f64 = 96.0 / 5080.0;
 /// The ACUTS setting of the paper's table 3 and the spec (`acuts-paper`), for before/after
-/// comparisons: d_d, l_eps, d_alpha, d_sigma2.
-const PAPER: AcutsParams =
-    AcutsParams { tolerance: 0.74, angle_deg: 15.0, pressure_variance: 0.0015 };
-const PAPER_RESAMPLE: f64 = 1.0;
+/// comparisons: d_d, l_eps, d_alpha (near the anchor too), d_sigma2.
+const PAPER: AcutsParams = AcutsParams::paper();
+const PAPER_RESAMPLE: f64 = penmesh::PAPER_RESAMPLE_DISTANCE;
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -80,9 +79,17 @@ pub struct EvalArgs {
     /// ACUTS angle threshold, degrees.
     #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
     pub angle: f64,
-    /// ACUTS pressure-variance threshold.
-    #[arg(long = "pressure-var", default_value_t = penmesh::DEFAULT_PRESSURE_VARIANCE)]
-    pub pressure_var: f64,
+    /// ACUTS: also ask the angle of skipped samples within d_d of the anchor (the paper's test).
+    #[arg(long)]
+    pub angle_near_anchor: bool,
+    /// ACUTS pressure tolerance delta_p: every removed sample's pressure within this of the
+    /// pressure interpolated in time along its segment.
+    #[arg(long, default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
+    pub pressure_tolerance: f64,
+    /// ACUTS with the paper's pressure-variance gate at this threshold instead of the pressure
+    /// tolerance (the paper: 0.0015).
+    #[arg(long = "pressure-var", conflicts_with = "pressure_tolerance")]
+    pub pressure_var: Option<f64>,
     /// Px per tablet unit for .txt and .hwr files (default: per format, see the docs).
     #[arg(long)]
     pub px_per_unit: Option<f64>,
@@ -276,7 +283,8 @@ pub struct EvalReport {
     pub tolerance: f64,
     pub resample: f64,
     pub angle_deg: f64,
-    pub pressure_variance: f64,
+    pub angle_near_anchor: bool,
+    pub pressure: penmesh::PressureGate,
     pub bound: f64,
     pub data_sets: Vec<DataSetReport>,
 }
@@ -285,7 +293,8 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     let params = AcutsParams {
         tolerance: args.tolerance,
         angle_deg: args.angle,
-        pressure_variance: args.pressure_var,
+        angle_near_anchor: args.angle_near_anchor,
+        pressure: crate::cli::pressure_gate(args.pressure_tolerance, args.pressure_var),
     };
     params.validate().map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
     anyhow::ensure!(
@@ -329,7 +338,8 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         tolerance: args.tolerance,
         resample: args.resample,
         angle_deg: args.angle,
-        pressure_variance: args.pressure_var,
+        angle_near_anchor: args.angle_near_anchor,
+        pressure: params.pressure,
         bound,
         data_sets: reports,
     };
@@ -658,9 +668,17 @@ pub fn markdown(report: &EvalReport) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "ACUTS: d_d = {} px, l_eps = {} px, angle = {}°, pressure variance = {}; \
+        "ACUTS: d_d = {} px, l_eps = {} px, angle = {}° ({}), {}; \
          guaranteed bound B = d_d + l_eps = {} px (the baselines' tolerance).\n",
-        report.tolerance, report.resample, report.angle_deg, report.pressure_variance, report.bound
+        report.tolerance,
+        report.resample,
+        report.angle_deg,
+        if report.angle_near_anchor { "near the anchor too" } else { "beyond d_d from the anchor" },
+        match report.pressure {
+            penmesh::PressureGate::Interpolation(d) => format!("pressure tolerance = {d}"),
+            penmesh::PressureGate::Variance(v) => format!("pressure variance = {v}"),
+        },
+        report.bound
     );
     for d in &report.data_sets {
         let _ = writeln!(

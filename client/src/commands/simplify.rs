@@ -42,7 +42,8 @@ pub struct SimplifyReport {
 pub struct Params {
     pub tolerance: f64,
     pub angle_deg: f64,
-    pub pressure_variance: f64,
+    pub angle_near_anchor: bool,
+    pub pressure: penmesh::PressureGate,
     pub resample: f64,
 }
 
@@ -113,7 +114,8 @@ pub fn simplify_strokes(
         params: Params {
             tolerance: params.tolerance,
             angle_deg: params.angle_deg,
-            pressure_variance: params.pressure_variance,
+            angle_near_anchor: params.angle_near_anchor,
+            pressure: params.pressure,
             resample: resample_distance,
         },
         strokes: per_stroke,
