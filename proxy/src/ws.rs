@@ -284,6 +284,7 @@ pub async fn serve<Si, St, E>(
     conn.wind_down().await;
     let end = conn.end.take().unwrap_or(End::Gone);
     let out = conn.out.clone();
+    let overflow = std::mem::take(&mut conn.overflow);
     drop(conn);
     match end {
         End::SlowReader => {
@@ -293,7 +294,16 @@ pub async fn serve<Si, St, E>(
         End::Gone => sender.abort(),
         End::Close(code, reason) => {
             let grace = Duration::from_secs(2);
-            let _ = tokio::time::timeout(grace, out.send(Frame::Close(Some((code, reason))))).await;
+            // The answers still owed go first (the acks of the last commits), then the close.
+            let frames = overflow.into_iter().chain([Frame::Close(Some((code, reason)))]);
+            let _ = tokio::time::timeout(grace, async {
+                for frame in frames {
+                    if out.send(frame).await.is_err() {
+                        break;
+                    }
+                }
+            })
+            .await;
             drop(out);
             let mut sender = sender;
             if tokio::time::timeout(grace, &mut sender).await.is_err() {
@@ -460,18 +470,24 @@ impl Connection {
         }
     }
 
-    /// Sends, waiting for room in the outgoing queue (history and resyncs, which can be long).
-    /// A client that reads nothing for the idle timeout is dropped as a slow reader.
+    /// Sends, waiting for room in the outgoing queue (history and resyncs, which can be long),
+    /// after the overflowed answers, so that the order holds. A client that reads nothing for
+    /// the idle timeout is dropped as a slow reader.
     async fn send_wait(&mut self, msg: ServerMessage) {
         if self.end.is_some() {
             return;
         }
         let frame = self.encode(&msg);
         let idle = Duration::from_secs(self.state.config.idle_timeout_secs);
-        match tokio::time::timeout(idle, self.out.send(frame)).await {
-            Ok(Ok(())) => {}
-            Ok(Err(_)) => self.end_with(End::Gone),
-            Err(_) => self.end_with(End::SlowReader),
+        let mut frames = std::mem::take(&mut self.overflow);
+        self.overflow_since = None;
+        frames.push_back(frame);
+        for frame in frames {
+            match tokio::time::timeout(idle, self.out.send(frame)).await {
+                Ok(Ok(())) => self.count_sent(),
+                Ok(Err(_)) => return self.end_with(End::Gone),
+                Err(_) => return self.end_with(End::SlowReader),
+            }
         }
     }
 
