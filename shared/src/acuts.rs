@@ -38,16 +38,19 @@
 //!
 //! Measured on the real signatures of `../shared/data` (`docs/results.md`, 2026-11-22):
 //! - **Pressure**: the spec's gate is the variance of `{a, m, e}` (formula 3). It bounds no
-//!   error (a steady ramp of pressure retains a sample every few samples while a slow drift
-//!   passes), and on the 200 Hz Dutch signatures it was the largest cost (1.97x the optimum).
-//!   The interpolation test bounds exactly the error the mesh sees, the radius interpolated
-//!   along a segment, and lets ramps through. `delta_p = 0.2` is 0.8 px of radius with the
+//!   error (measured `P_max` 0.275 on SVC2004 at 0.01) yet retains a sample at every ~0.2 of
+//!   drift on a linear pressure ramp, which interpolation reproduces exactly; on the 200 Hz
+//!   Dutch signatures it was the largest cost (1.97x the optimum with the former defaults).
+//!   The interpolation test bounds exactly the error `penmesh eval` measures as `P_max` (time
+//!   interpolation, a close stand-in for the radius the mesh interpolates along a segment), and
+//!   lets ramps through. `delta_p = 0.2` is 0.8 px of radius with the
 //!   default brush, under half of the 1.74 px position bound. The variance gate stays
 //!   available ([`PressureGate::Variance`], [`AcutsParams::paper`]).
 //! - **Angle near the anchor**: the spec asks the angle of every skipped sample. Within `d_d` of
 //!   the anchor a sample is within `d_d` of every segment from the anchor, and its direction is
-//!   pen jitter; on the Dutch set asking it there cost more than any other geometric test (with
-//!   pressure off, 1.38x the optimum against 1.07x without it). Beyond `d_d` the angle holds.
+//!   pen jitter; on the Dutch set asking it there cost more than any other geometric test (the
+//!   naive stage 2 with `l_eps` 0 and pressure off: 1.38x the optimum against 1.07x without
+//!   it). Beyond `d_d` the angle holds.
 //! - **Stage 1**: `l_eps = 0` (the spec: 1.0), so `d_d = 1.74` is the whole bound, and no
 //!   pressure change is dropped unseen.
 //!

@@ -1,9 +1,10 @@
 //! The baseline simplifiers against brute-force checks of their own guarantees.
 
-use penmesh::Sample;
 use penmesh::baselines::{
-    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, Simplify, SquishE, Visvalingam, VwStop,
+    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, OptimalPressure, PressureWindow, Simplify,
+    SquishE, Visvalingam, VwStop,
 };
+use penmesh::{AcutsParams, PressureGate, Sample};
 use proptest::prelude::*;
 
 /// Rounding slack of the geometric tests.
@@ -28,6 +29,44 @@ fn e_max(samples: &[Sample], kept: &[usize]) -> f64 {
         }
     }
     worst
+}
+
+/// The largest pressure error of a removed sample against the pressure interpolated in time
+/// along its kept segment (within both ends' pressures when the segment has no duration).
+fn p_max(samples: &[Sample], kept: &[usize]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for pair in kept.windows(2) {
+        let (a, b) = (&samples[pair[0]], &samples[pair[1]]);
+        for q in &samples[pair[0] + 1..pair[1]] {
+            let error = if b.t > a.t {
+                let tau = (q.t - a.t) / (b.t - a.t);
+                (q.p - (a.p + tau * (b.p - a.p))).abs()
+            } else {
+                (q.p - a.p).abs().max((q.p - b.p).abs())
+            };
+            worst = worst.max(error);
+        }
+    }
+    worst
+}
+
+/// The fewest samples keeping both bounds, by trying every subset with both ends (n <= 12).
+fn brute_force_min_with_pressure(samples: &[Sample], tolerance: f64, pressure: f64) -> usize {
+    let n = samples.len();
+    if n <= 2 {
+        return n;
+    }
+    let inner = n - 2;
+    (0..1_u32 << inner)
+        .filter_map(|mask| {
+            let mut kept = vec![0];
+            kept.extend((0..inner).filter(|b| mask >> b & 1 == 1).map(|b| b + 1));
+            kept.push(n - 1);
+            (e_max(samples, &kept) <= tolerance && p_max(samples, &kept) <= pressure)
+                .then_some(kept.len())
+        })
+        .min()
+        .unwrap()
 }
 
 /// Kept indices are strictly increasing, in range, with both ends.
@@ -94,6 +133,8 @@ fn error_bounded() -> Vec<Box<dyn Simplify>> {
         Box::new(Bqs { fast: true }),
         Box::new(Dpts::default()),
         Box::new(Optimal),
+        Box::new(PressureWindow { pressure_tolerance: 0.2 }),
+        Box::new(OptimalPressure { pressure_tolerance: 0.2 }),
     ]
 }
 
@@ -119,6 +160,42 @@ proptest! {
     fn optimal_is_minimal(samples in stroke(12, 3.0), tolerance in 0.0..3.0_f64) {
         let kept = Optimal.run(&samples, tolerance);
         prop_assert_eq!(kept.len(), brute_force_min(&samples, tolerance));
+    }
+
+    // Optimal min-# under both bounds keeps exactly as few samples as an exhaustive search finds.
+    #[test]
+    fn optimal_with_pressure_is_minimal(
+        samples in stroke(12, 3.0),
+        tolerance in 0.0..3.0_f64,
+        pressure in prop_oneof![Just(0.0), 0.0..0.6_f64],
+    ) {
+        let kept = OptimalPressure { pressure_tolerance: pressure }.run(&samples, tolerance);
+        prop_assert_eq!(kept.len(), brute_force_min_with_pressure(&samples, tolerance, pressure));
+    }
+
+    // The pressure-aware baselines hold the pressure bound, and neither they nor ACUTS with the
+    // same pressure tolerance (and no stage 1) keep fewer samples than optimal min-# under both.
+    #[test]
+    fn pressure_bounded_baselines(
+        samples in stroke(80, 3.0),
+        tolerance in 0.0..4.0_f64,
+        pressure in 0.0..0.6_f64,
+    ) {
+        let optimum = OptimalPressure { pressure_tolerance: pressure }.run(&samples, tolerance);
+        prop_assert!(p_max(&samples, &optimum) <= pressure + 1e-9);
+        let window = PressureWindow { pressure_tolerance: pressure }.run(&samples, tolerance);
+        assert_well_formed(&samples, &window, "window-p");
+        prop_assert!(p_max(&samples, &window) <= pressure + 1e-9);
+        prop_assert!(e_max(&samples, &window) <= tolerance + slack(tolerance));
+        prop_assert!(window.len() >= optimum.len());
+        let params = AcutsParams {
+            tolerance,
+            pressure: PressureGate::Interpolation(pressure),
+            ..AcutsParams::default()
+        };
+        let acuts = penmesh::simplify(&samples, &params);
+        prop_assert!(p_max(&samples, &acuts) <= pressure + 1e-9);
+        prop_assert!(acuts.len() >= optimum.len(), "acuts {} < optimum {}", acuts.len(), optimum.len());
     }
 
     // BQS decides exactly as the plain greedy window (its bounds only save work).

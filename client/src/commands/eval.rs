@@ -24,8 +24,8 @@ use anyhow::Context;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use penmesh::baselines::{
-    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, Simplify, SquishE, Visvalingam, VwStop,
-    min_points,
+    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, OptimalPressure, PressureWindow, Simplify,
+    SquishE, Visvalingam, VwStop, min_points,
 };
 use penmesh::{
     AcutsParams, Brush, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample, SolidOptions,
@@ -36,20 +36,23 @@ use serde::Serialize;
 use crate::io;
 
 /// Every algorithm `--algos` knows, in the order of the tables.
-pub const ALGOS: [&str; 11] = [
+pub const ALGOS: [&str; 13] = [
     "acuts",
     "acuts-paper",
     "dp",
     "vw",
     "window",
     "window-d",
+    "window-p",
     "squish-e",
     "bqs",
     "fbqs",
     "dpts",
     "optimal",
+    "optimal-p",
 ];
-const DEFAULT_ALGOS: &str = "acuts,acuts-paper,dp,vw,window,squish-e,bqs,fbqs,dpts,optimal";
+const DEFAULT_ALGOS: &str =
+    "acuts,acuts-paper,dp,vw,window,window-p,squish-e,bqs,fbqs,dpts,optimal,optimal-p";
 /// The bounds of `--sweep`, px.
 const SWEEP_BOUNDS: [f64; 10] = [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0];
 /// Px per SVC2004 tablet unit (2540 lines per inch).
@@ -66,8 +69,9 @@ pub struct EvalArgs {
     /// Data: directories (searched recursively for .txt, .hwr, .csv, .json) or files. Each
     /// folder is one data set.
     pub inputs: Vec<PathBuf>,
-    /// Algorithms, comma separated: acuts, acuts-paper, dp, vw, window, window-d, squish-e, bqs,
-    /// fbqs, dpts, optimal.
+    /// Algorithms, comma separated: acuts, acuts-paper, dp, vw, window, window-d, window-p,
+    /// squish-e, bqs, fbqs, dpts, optimal, optimal-p (window-p and optimal-p also bound the
+    /// pressure error by ACUTS's pressure tolerance).
     #[arg(long, value_delimiter = ',', default_value = DEFAULT_ALGOS)]
     pub algos: Vec<String>,
     /// ACUTS chord-height tolerance d_d, px.
@@ -188,6 +192,11 @@ pub fn algos(names: &[String], args_acuts: (f64, AcutsParams)) -> anyhow::Result
         .iter()
         .map(|name| {
             let name = name.trim().to_ascii_lowercase();
+            // The pressure-aware baselines bound pressure as ACUTS's interpolation gate does.
+            let pressure_tolerance = match args_acuts.1.pressure {
+                penmesh::PressureGate::Interpolation(d) => d,
+                penmesh::PressureGate::Variance(_) => penmesh::DEFAULT_PRESSURE_TOLERANCE,
+            };
             let (online, method) = match name.as_str() {
                 "acuts" => (true, Method::Acuts { resample: args_acuts.0, params: args_acuts.1 }),
                 "acuts-paper" => (true, Method::Acuts { resample: PAPER_RESAMPLE, params: PAPER }),
@@ -197,11 +206,17 @@ pub fn algos(names: &[String], args_acuts: (f64, AcutsParams)) -> anyhow::Result
                 }
                 "window" => (true, Method::Baseline(Box::new(OpeningWindow::default()))),
                 "window-d" => (true, Method::Baseline(Box::new(OpeningWindow { angle_deg: None }))),
+                "window-p" => {
+                    (true, Method::Baseline(Box::new(PressureWindow { pressure_tolerance })))
+                }
                 "squish-e" => (true, Method::Baseline(Box::new(SquishE::default()))),
                 "bqs" => (true, Method::Baseline(Box::new(Bqs { fast: false }))),
                 "fbqs" => (true, Method::Baseline(Box::new(Bqs { fast: true }))),
                 "dpts" => (true, Method::Baseline(Box::new(Dpts::default()))),
                 "optimal" => (false, Method::Baseline(Box::new(Optimal))),
+                "optimal-p" => {
+                    (false, Method::Baseline(Box::new(OptimalPressure { pressure_tolerance })))
+                }
                 other => anyhow::bail!("unknown algorithm {other:?}: expected one of {ALGOS:?}"),
             };
             Ok(Algo { name, online, method })

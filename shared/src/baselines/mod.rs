@@ -10,6 +10,8 @@
 //! | [`Bqs`] | online | segment distance (the bounded quadrant system decides most samples in O(1)) |
 //! | [`Dpts`] | online | segment distance, and every original direction within an angle |
 //! | [`Optimal`] | batch | the fewest samples with every removed one within `tolerance` |
+//! | [`PressureWindow`] | online | segment distance, and pressure within a tolerance of the interpolation (ACUTS's default pressure bound) |
+//! | [`OptimalPressure`] | batch | the fewest samples keeping both: the reference for a pressure-aware method |
 //!
 //! The *segment distance* of a removed sample `q` is its distance to the retained segment
 //! `a–b` with `a < q < b` ([`segment_distance`]): what `E_max` measures. Every simplifier keeps
@@ -26,10 +28,10 @@ mod window;
 pub use bqs::Bqs;
 pub use douglas_peucker::DouglasPeucker;
 pub use dpts::{DEFAULT_DPTS_ANGLE_DEG, Dpts};
-pub use optimal::{Optimal, min_points};
+pub use optimal::{Optimal, OptimalPressure, min_points, min_points_with_pressure};
 pub use squish_e::{SquishE, sed};
 pub use visvalingam::{Visvalingam, VwStop};
-pub use window::{DEFAULT_WINDOW_ANGLE_DEG, OpeningWindow};
+pub use window::{DEFAULT_WINDOW_ANGLE_DEG, OpeningWindow, PressureWindow};
 
 use crate::acuts::segment_distance;
 use crate::model::Sample;
@@ -73,6 +75,21 @@ fn greedy_window(samples: &[Sample], mut admits: impl FnMut(usize, usize) -> boo
 pub fn span_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bool {
     let (sa, sb) = (&samples[a], &samples[b]);
     samples[a + 1..b].iter().all(|q| segment_distance(q, sa, sb) <= tolerance)
+}
+
+/// Whether every sample strictly between `a` and `b` has its pressure within `tolerance` of the
+/// pressure interpolated in time along `a–b` (ACUTS's default pressure bound; when `t_b == t_a`,
+/// within `tolerance` of both `p_a` and `p_b`). O(b - a).
+pub fn pressure_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bool {
+    let (sa, sb) = (&samples[a], &samples[b]);
+    samples[a + 1..b].iter().all(|q| {
+        if sb.t > sa.t {
+            let tau = (q.t - sa.t) / (sb.t - sa.t);
+            (q.p - (sa.p + tau * (sb.p - sa.p))).abs() <= tolerance
+        } else {
+            (q.p - sa.p).abs() <= tolerance && (q.p - sb.p).abs() <= tolerance
+        }
+    })
 }
 
 /// The angle in radians between the vectors `u` and `v` (0 when either is zero).

@@ -28,6 +28,84 @@ use crate::model::Sample;
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Optimal;
 
+/// Optimal min-# under the segment distance and the pressure bound of ACUTS's default gate:
+/// every removed sample's pressure within `pressure_tolerance` of the pressure interpolated in
+/// time along its segment ([`pressure_within`](super::pressure_within)). The fewest points any
+/// method bounding both can keep: the fair reference for a pressure-aware simplifier.
+#[derive(Debug, Clone, Copy)]
+pub struct OptimalPressure {
+    pub pressure_tolerance: f64,
+}
+
+impl Simplify for OptimalPressure {
+    fn name(&self) -> &'static str {
+        "optimal-p"
+    }
+
+    fn is_online(&self) -> bool {
+        false
+    }
+
+    fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize> {
+        min_points_with_pressure(samples, tolerance, Some(self.pressure_tolerance))
+    }
+}
+
+/// The pressure half of an edge `i -> j`, scanning `j` forward from `i`: the slopes
+/// `(p_j - p_i) / (t_j - t_i)` that keep every folded sample within the tolerance of the
+/// interpolation (a one-dimensional wedge), and the range of pressures for `t_j == t_i`.
+#[derive(Debug, Clone, Copy)]
+struct PressureScan {
+    apex: Sample,
+    tolerance: f64,
+    slope_lo: f64,
+    slope_hi: f64,
+    p_min: f64,
+    p_max: f64,
+}
+
+impl PressureScan {
+    fn new(apex: Sample, tolerance: f64) -> PressureScan {
+        PressureScan {
+            apex,
+            tolerance,
+            slope_lo: f64::NEG_INFINITY,
+            slope_hi: f64::INFINITY,
+            p_min: f64::INFINITY,
+            p_max: f64::NEG_INFINITY,
+        }
+    }
+
+    fn admits(&self, end: &Sample) -> bool {
+        let (dt, dp) = (end.t - self.apex.t, end.p - self.apex.p);
+        if dt > 0.0 {
+            self.slope_lo * dt <= dp && dp <= self.slope_hi * dt
+        } else {
+            let (lo, hi) = (self.apex.p.min(end.p), self.apex.p.max(end.p));
+            self.p_max - self.tolerance <= lo && hi <= self.p_min + self.tolerance
+        }
+    }
+
+    fn fold(&mut self, q: &Sample) {
+        self.p_min = self.p_min.min(q.p);
+        self.p_max = self.p_max.max(q.p);
+        let (dt, dp) = (q.t - self.apex.t, q.p - self.apex.p);
+        if dt > 0.0 {
+            self.slope_lo = self.slope_lo.max((dp - self.tolerance) / dt);
+            self.slope_hi = self.slope_hi.min((dp + self.tolerance) / dt);
+        } else if (dp).abs() > self.tolerance {
+            // tau = 0 for every later chord: off by more than the tolerance whatever `p_j`.
+            self.slope_lo = f64::INFINITY;
+        }
+    }
+
+    /// Whether no later chord can be admitted (slopes only narrow; a folded sample at the
+    /// apex's time off by more than the tolerance empties them too).
+    fn is_dead(&self) -> bool {
+        self.slope_lo > self.slope_hi
+    }
+}
+
 impl Simplify for Optimal {
     fn name(&self) -> &'static str {
         "optimal"
@@ -118,6 +196,16 @@ impl Scan {
 /// The fewest kept indices (first and last included) such that every removed sample lies within
 /// `tolerance` of its spanning retained segment.
 pub fn min_points(samples: &[Sample], tolerance: f64) -> Vec<usize> {
+    min_points_with_pressure(samples, tolerance, None)
+}
+
+/// [`min_points`], and with `pressure_tolerance` every removed sample's pressure also within it
+/// of the pressure interpolated in time along its segment (see [`OptimalPressure`]).
+pub fn min_points_with_pressure(
+    samples: &[Sample],
+    tolerance: f64,
+    pressure_tolerance: Option<f64>,
+) -> Vec<usize> {
     if let Some(all) = whole_if_short(samples) {
         return all;
     }
@@ -145,14 +233,22 @@ pub fn min_points(samples: &[Sample], tolerance: f64) -> Vec<usize> {
             continue;
         }
         let mut scan = Scan::new(samples[i].pos(), tolerance);
+        let mut pressure = pressure_tolerance.map(|d| PressureScan::new(samples[i], d));
         for j in i + 1..n {
             let back = backward[j * words + i / 64] >> (i % 64) & 1 == 1;
-            if back && scan.admits(samples[j].pos()) && hops[i] + 1 < hops[j] {
+            if back
+                && scan.admits(samples[j].pos())
+                && pressure.is_none_or(|p| p.admits(&samples[j]))
+                && hops[i] + 1 < hops[j]
+            {
                 hops[j] = hops[i] + 1;
                 parent[j] = i;
             }
             scan.fold(samples[j].pos());
-            if scan.is_dead() {
+            if let Some(p) = &mut pressure {
+                p.fold(&samples[j]);
+            }
+            if scan.is_dead() || pressure.is_some_and(|p| p.is_dead()) {
                 break;
             }
         }

@@ -64,3 +64,30 @@ impl Simplify for OpeningWindow {
         greedy_window(samples, |anchor, e| self.admits(samples, anchor, e, tolerance))
     }
 }
+
+/// The plain greedy window (distance only, as [`Bqs`](super::Bqs) decides) with the pressure
+/// bound of ACUTS's default gate added: `e` extends the window only if every sample between also
+/// has its pressure within `pressure_tolerance` of the interpolation along `a–e`
+/// ([`pressure_within`](super::pressure_within)). The online method ACUTS's default is fairly
+/// compared with: the same two bounds, no angle. Online, O(window) per sample.
+#[derive(Debug, Clone, Copy)]
+pub struct PressureWindow {
+    pub pressure_tolerance: f64,
+}
+
+impl Simplify for PressureWindow {
+    fn name(&self) -> &'static str {
+        "window-p"
+    }
+
+    fn is_online(&self) -> bool {
+        true
+    }
+
+    fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize> {
+        greedy_window(samples, |a, e| {
+            super::span_within(samples, a, e, tolerance)
+                && super::pressure_within(samples, a, e, self.pressure_tolerance)
+        })
+    }
+}
