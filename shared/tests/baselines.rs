@@ -83,20 +83,7 @@ fn assert_well_formed(samples: &[Sample], kept: &[usize], name: &str) {
 
 /// The fewest samples, by trying every subset with both ends (n <= 12).
 fn brute_force_min(samples: &[Sample], tolerance: f64) -> usize {
-    let n = samples.len();
-    if n <= 2 {
-        return n;
-    }
-    let inner = n - 2;
-    (0..1_u32 << inner)
-        .filter_map(|mask| {
-            let mut kept = vec![0];
-            kept.extend((0..inner).filter(|b| mask >> b & 1 == 1).map(|b| b + 1));
-            kept.push(n - 1);
-            (e_max(samples, &kept) <= tolerance).then_some(kept.len())
-        })
-        .min()
-        .unwrap()
+    brute_force_min_with_pressure(samples, tolerance, f64::INFINITY)
 }
 
 /// A pen-like stroke: a random walk with steps of up to `step` in each axis, 10 ms apart, some

@@ -33,6 +33,7 @@ use penmesh::{
 };
 use serde::Serialize;
 
+use crate::cli::AcutsArgs;
 use crate::io;
 
 /// Every algorithm `--algos` knows, in the order of the tables.
@@ -74,26 +75,9 @@ pub struct EvalArgs {
     /// pressure error by ACUTS's pressure tolerance).
     #[arg(long, value_delimiter = ',', default_value = DEFAULT_ALGOS)]
     pub algos: Vec<String>,
-    /// ACUTS chord-height tolerance d_d, px.
-    #[arg(long, default_value_t = penmesh::DEFAULT_TOLERANCE)]
-    pub tolerance: f64,
-    /// ACUTS stage-1 resampling distance l_eps, px. The bound of every method is d_d + l_eps.
-    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
-    pub resample: f64,
-    /// ACUTS angle threshold, degrees.
-    #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
-    pub angle: f64,
-    /// ACUTS: also ask the angle of skipped samples within d_d of the anchor (the paper's test).
-    #[arg(long)]
-    pub angle_near_anchor: bool,
-    /// ACUTS pressure tolerance delta_p: every removed sample's pressure within this of the
-    /// pressure interpolated in time along its segment.
-    #[arg(long, default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
-    pub pressure_tolerance: f64,
-    /// ACUTS with the paper's pressure-variance gate at this threshold instead of the pressure
-    /// tolerance (the paper: 0.0015).
-    #[arg(long = "pressure-var", conflicts_with = "pressure_tolerance")]
-    pub pressure_var: Option<f64>,
+    /// ACUTS's setting; the bound of every method is d_d + l_eps.
+    #[command(flatten)]
+    pub acuts: AcutsArgs,
     /// Px per tablet unit for .txt and .hwr files (default: per format, see the docs).
     #[arg(long)]
     pub px_per_unit: Option<f64>,
@@ -305,28 +289,17 @@ pub struct EvalReport {
 }
 
 pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
-    let params = AcutsParams {
-        tolerance: args.tolerance,
-        angle_deg: args.angle,
-        angle_near_anchor: args.angle_near_anchor,
-        pressure: crate::cli::pressure_gate(args.pressure_tolerance, args.pressure_var),
-    };
-    params.validate().map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
-    anyhow::ensure!(
-        args.resample.is_finite() && args.resample >= 0.0,
-        "bad ACUTS setting: resample = {} must be a finite number >= 0",
-        args.resample
-    );
+    let params = args.acuts.params()?;
     if let Some(scale) = args.px_per_unit {
         anyhow::ensure!(scale.is_finite() && scale > 0.0, "--px-per-unit must be > 0");
     }
-    let algos = algos(&args.algos, (args.resample, params))?;
+    let algos = algos(&args.algos, (args.acuts.resample, params))?;
     let mut data_sets = load_data_sets(&args.inputs, args.px_per_unit)?;
     if args.synth {
         data_sets.push(synthetic_data_set()?);
     }
     anyhow::ensure!(!data_sets.is_empty(), "nothing to evaluate: give files, folders or --synth");
-    let bound = args.tolerance + args.resample;
+    let bound = args.acuts.tolerance + args.acuts.resample;
 
     let work: usize = data_sets
         .iter()
@@ -350,10 +323,10 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     progress.finish_and_clear();
 
     let report = EvalReport {
-        tolerance: args.tolerance,
-        resample: args.resample,
-        angle_deg: args.angle,
-        angle_near_anchor: args.angle_near_anchor,
+        tolerance: args.acuts.tolerance,
+        resample: args.acuts.resample,
+        angle_deg: args.acuts.angle,
+        angle_near_anchor: args.acuts.angle_near_anchor,
         pressure: params.pressure,
         bound,
         data_sets: reports,
