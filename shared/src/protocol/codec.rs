@@ -73,8 +73,11 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use super::{ClientMessage, PointBatch, ServerMessage};
 use crate::model::Sample;
 
-/// Version byte that opens every binary frame.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// Version byte that opens every binary frame, and the version a `Hello` names.
+///
+/// 2: `AcutsParams` carries the pressure gate as an enum and the `angle_near_anchor` flag, so
+/// a version-1 peer would misread a session's parameters.
+pub const PROTOCOL_VERSION: u16 = 2;
 /// Default largest frame a decoder accepts.
 pub const MAX_FRAME_BYTES_DEFAULT: usize = 256 * 1024;
 /// Quantisation step of x and y in the binary encoding (stroke units). A power of two.

@@ -1,6 +1,7 @@
 use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, Hello, Ping, ServerMessage, StrokeBegin, encode_client,
+    ClientMessage, ErrorCode, Hello, PROTOCOL_VERSION, Ping, ServerMessage, StrokeBegin,
+    encode_client,
 };
 use penmesh_e2e::{WsClient, spawn_proxy, stroke_samples};
 use uuid::Uuid;
@@ -32,7 +33,7 @@ async fn with_stroke(proxy: &penmesh_e2e::TestProxy, n: usize) -> (WsClient, Uui
 async fn malformed_binary_is_refused_and_the_connection_goes_on() {
     let proxy = spawn_proxy().await;
     let (_, mut ws) = ready(&proxy).await;
-    ws.send_binary(vec![1, 2, 0xff, 0xff, 0xff, 0xff, 0xff]).await;
+    ws.send_binary(vec![PROTOCOL_VERSION as u8, 2, 0xff, 0xff, 0xff, 0xff, 0xff]).await;
     let err = ws.expect_error(ErrorCode::Malformed).await;
     assert!(!err.message.is_empty());
     ws.send_binary(vec![]).await;
@@ -59,7 +60,7 @@ async fn unknown_messages_are_refused_in_json_and_binary() {
     let err = ws.expect_error(ErrorCode::UnknownMessage).await;
     assert!(err.message.contains("dance"), "{}", err.message);
     // Binary: a valid version byte, then a variant index no message has.
-    ws.send_binary(vec![1, 77]).await;
+    ws.send_binary(vec![PROTOCOL_VERSION as u8, 77]).await;
     ws.expect_error(ErrorCode::UnknownMessage).await;
     still_alive(&mut ws).await;
 }
@@ -209,7 +210,7 @@ async fn a_wrong_protocol_version_closes_and_a_second_hello_does_not() {
     let mut ws = proxy.connect(&session).await;
     ws.hello(vec![]).await;
     ws.send(&ClientMessage::Hello(Hello {
-        protocol: 1,
+        protocol: PROTOCOL_VERSION,
         client: "again".into(),
         name: None,
         resume: vec![],
@@ -232,7 +233,7 @@ async fn bad_input_on_one_connection_does_not_disturb_another() {
     good.begin(stroke).await;
     good.points(stroke, 0, &samples[..25]).await;
     for _ in 0..10 {
-        bad.send_binary(vec![1, 0xff, 0xff]).await;
+        bad.send_binary(vec![PROTOCOL_VERSION as u8, 0xff, 0xff]).await;
         bad.send_text("nope").await;
     }
     good.points(stroke, 25, &samples[25..]).await;

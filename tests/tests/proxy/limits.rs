@@ -99,7 +99,7 @@ async fn connections_per_session_are_limited() {
     for _ in 0..50 {
         let mut ws = proxy.connect(&session).await;
         ws.send(&ClientMessage::Hello(penmesh::protocol::Hello {
-            protocol: 1,
+            protocol: penmesh::protocol::PROTOCOL_VERSION,
             client: "t".into(),
             name: None,
             resume: vec![],
