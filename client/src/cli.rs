@@ -79,13 +79,13 @@ pub fn pressure_gate(tolerance: f64, variance: Option<f64>) -> penmesh::Pressure
 
 impl AcutsArgs {
     pub fn params(&self) -> anyhow::Result<penmesh::AcutsParams> {
-        let params = penmesh::AcutsParams {
-            tolerance: self.tolerance,
-            angle_deg: self.angle,
-            angle_near_anchor: self.angle_near_anchor,
-            pressure: pressure_gate(self.pressure_tolerance, self.pressure_var),
-        };
-        params.validate().map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
+        let params = penmesh::AcutsParams::new(
+            self.tolerance,
+            self.angle,
+            self.angle_near_anchor,
+            pressure_gate(self.pressure_tolerance, self.pressure_var),
+        )
+        .map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
         anyhow::ensure!(
             self.resample.is_finite() && self.resample >= 0.0,
             "bad ACUTS setting: resample = {} must be a finite number >= 0",
@@ -146,18 +146,39 @@ pub struct SynthArgs {
     /// Where to write the stroke; `.json` writes JSON, anything else CSV.
     #[arg(long)]
     pub out: PathBuf,
-    /// Average pen speed, px/s (the paper's table 4 uses 200 to 500).
+    #[command(flatten)]
+    pub generator: GeneratorArgs,
+}
+
+/// How generated strokes are drawn: shared by `synth` and `draw --synth`.
+#[derive(Debug, Clone, Args)]
+pub struct GeneratorArgs {
+    /// Generated strokes: average pen speed, px/s (the paper's table 4 uses 200 to 500).
     #[arg(long, default_value_t = penmesh::DEFAULT_SPEED_PX_PER_S)]
     pub speed: f64,
-    /// Longer side of the shape's bounding box, px.
+    /// Generated strokes: longer side of the shape's bounding box, px.
     #[arg(long, default_value_t = penmesh::DEFAULT_SHAPE_SIZE_PX)]
     pub size: f64,
-    /// Tablet sampling rate, Hz.
+    /// Generated strokes: tablet sampling rate, Hz.
     #[arg(long, default_value_t = penmesh::DEFAULT_SAMPLE_RATE_HZ)]
     pub rate: f64,
-    /// Seed of the hand's jitter and timing; the same seed gives the same stroke.
+    /// Generated strokes: seed of the hand's jitter and timing; the same seed gives the same
+    /// stroke (`draw --count N` uses SEED, SEED+1, ...).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+}
+
+impl GeneratorArgs {
+    /// The generator's settings for `shape`, with the seed moved on by `seed_offset`.
+    pub fn params(&self, shape: penmesh::Shape, seed_offset: u64) -> penmesh::GeneratorParams {
+        penmesh::GeneratorParams {
+            shape,
+            speed: self.speed,
+            size: self.size,
+            rate_hz: self.rate,
+            seed: self.seed.wrapping_add(seed_offset),
+        }
+    }
 }
 
 /// Settings of the live path shared by `draw` and `demo`.
@@ -226,18 +247,8 @@ pub struct DrawArgs {
     /// Synth: how many strokes to draw (seeds SEED, SEED+1, ...).
     #[arg(long, default_value_t = 1)]
     pub count: u32,
-    /// Synth: average pen speed, px/s.
-    #[arg(long, default_value_t = penmesh::DEFAULT_SPEED_PX_PER_S)]
-    pub speed: f64,
-    /// Synth: longer side of the shape's bounding box, px.
-    #[arg(long, default_value_t = penmesh::DEFAULT_SHAPE_SIZE_PX)]
-    pub size: f64,
-    /// Synth: tablet sampling rate, Hz.
-    #[arg(long, default_value_t = penmesh::DEFAULT_SAMPLE_RATE_HZ)]
-    pub rate: f64,
-    /// Synth: seed of the hand's jitter and timing.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub generator: GeneratorArgs,
     /// evdev: ABS_X range MIN:MAX (read from the device when absent).
     #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
     pub abs_x: Option<crate::input::AxisRange>,

@@ -2,10 +2,13 @@
 //!
 //! File and network I/O happen here; the algorithms come from the pure `penmesh` crate.
 
+mod backoff;
 pub mod cli;
 mod commands;
 pub mod input;
 mod io;
 pub mod live;
+mod plot;
 pub mod reconstruct;
 pub mod report;
+mod wire;

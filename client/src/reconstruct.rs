@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use tokio::time::Instant;
 use uuid::Uuid;
 
+use crate::backoff::Backoff;
 use crate::live::{DrawOptions, Endpoint};
 
 /// A stroke the proxy has stored, with what the client drew.
@@ -198,7 +199,7 @@ where
     Fut: Future<Output = Result<reqwest::Response, reqwest::Error>>,
 {
     let started = Instant::now();
-    let mut backoff = Duration::from_millis(100);
+    let mut backoff = Backoff::default();
     loop {
         let err = match request().await {
             Ok(response) if response.status().is_success() => return Ok(response),
@@ -214,12 +215,12 @@ where
             Ok(response) => anyhow::anyhow!("HTTP {}", response.status()),
             Err(err) => anyhow::Error::new(err),
         };
-        if started.elapsed() + backoff > budget {
+        let delay = backoff.next_delay();
+        if started.elapsed() + delay > budget {
             return Err(err);
         }
         tracing::info!(error = %format!("{err:#}"), "request failed; retrying");
-        tokio::time::sleep(backoff).await;
-        backoff = (backoff * 2).min(Duration::from_secs(2));
+        tokio::time::sleep(delay).await;
     }
 }
 

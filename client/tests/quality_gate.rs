@@ -12,7 +12,8 @@ use std::path::PathBuf;
 
 use penmesh::baselines::min_points;
 use penmesh::{
-    AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PressureGate, Sample, acuts, segment_distance,
+    AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PressureGate, Sample, acuts, pressure_error,
+    segment_distance,
 };
 use serde::Deserialize;
 
@@ -71,10 +72,7 @@ fn acuts_quality_gate() {
                         "{file}: sample {i} is {distance} px from its segment, beyond {bound} px"
                     );
                     if let Some(delta) = pressure_bound {
-                        let tau = if b.t > a.t { (q.t - a.t) / (b.t - a.t) } else { 0.0 };
-                        let off = (q.p - (a.p + tau * (b.p - a.p))).abs();
-                        let both_ends = (q.p - a.p).abs().max((q.p - b.p).abs());
-                        let error = if b.t > a.t { off } else { both_ends };
+                        let error = pressure_error(q, a, b);
                         assert!(
                             error <= delta + 1e-9,
                             "{file}: sample {i}'s pressure is {error} off its segment's, beyond {delta}"

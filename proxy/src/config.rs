@@ -199,6 +199,22 @@ impl Config {
         Config::from_arg_matches(&matches).expect("defaults parse")
     }
 
+    /// Refuses settings that cannot work, naming the setting, so that a bad value stops the
+    /// proxy at start-up instead of refusing every stroke later.
+    pub fn check(&self) -> anyhow::Result<()> {
+        let params = self.default_params();
+        params.validate().map_err(|e| {
+            let setting = match e.name {
+                "tolerance" => "--tolerance (PENMESH_TOLERANCE)",
+                "angle_deg" => "--angle-deg (PENMESH_ANGLE_DEG)",
+                _ => "--pressure-tolerance (PENMESH_PRESSURE_TOLERANCE)",
+            };
+            anyhow::anyhow!("bad setting {setting}: {e}")
+        })
+    }
+
+    /// The ACUTS parameters of a stroke whose `StrokeBegin` names none ([`Config::check`]
+    /// refuses them at start-up when they are out of range).
     pub fn default_params(&self) -> penmesh::AcutsParams {
         penmesh::AcutsParams {
             tolerance: self.tolerance,
@@ -221,13 +237,24 @@ impl Config {
 mod tests {
     use super::*;
 
+    /// Loads settings from `args` with no environment variable seen, as on a clean machine.
+    fn load_without_env(args: &[&str]) -> anyhow::Result<Config> {
+        let matches = Config::command()
+            .mut_args(|a| a.env(None::<&str>))
+            .try_get_matches_from(args.iter().copied())?;
+        let config = Config::from_arg_matches(&matches)?;
+        match config.config.clone() {
+            Some(path) => config.merge_file(&path, &matches),
+            None => Ok(config),
+        }
+    }
+
     #[test]
     fn file_fills_what_flags_do_not_give() {
-        let dir = std::env::temp_dir().join(format!("penmesh-config-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("proxy.toml");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("proxy.toml");
         std::fs::write(&path, "port = 9000\nmax-open-strokes = 3\n").unwrap();
-        let config = Config::load_from([
+        let config = load_without_env(&[
             "penmesh-proxy",
             "--config",
             path.to_str().unwrap(),
@@ -235,17 +262,14 @@ mod tests {
             "5",
         ])
         .unwrap();
-        assert_eq!(config.max_open_strokes, 5);
-        if std::env::var_os("PORT").is_none() {
-            assert_eq!(config.port, 9000);
-        }
+        assert_eq!(config.max_open_strokes, 5, "a flag wins over the file");
+        assert_eq!(config.port, 9000, "the file fills what no flag gave");
     }
 
     #[test]
     fn unknown_file_setting_is_refused() {
-        let dir = std::env::temp_dir().join(format!("penmesh-config-u-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("proxy.json");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("proxy.json");
         std::fs::write(&path, r#"{"prot": 1}"#).unwrap();
         let err =
             Config::load_from(["penmesh-proxy", "--config", path.to_str().unwrap()]).unwrap_err();
@@ -253,10 +277,42 @@ mod tests {
     }
 
     #[test]
-    fn help_documents_every_setting_with_its_default() {
-        let help = Config::command().render_long_help().to_string();
-        for needle in ["--database-url", "sqlite://penmesh.db", "PORT", "--commit-interval-ms"] {
-            assert!(help.contains(needle), "help lacks {needle}");
+    fn help_documents_every_setting_with_its_default_and_variable() {
+        let mut command = Config::command();
+        let help = command.render_long_help().to_string();
+        for arg in command.get_arguments() {
+            let id = arg.get_id().as_str();
+            if matches!(id, "help" | "version") {
+                continue;
+            }
+            let long = arg.get_long().unwrap_or_else(|| panic!("setting {id} has no flag"));
+            assert!(help.contains(&format!("--{long}")), "help lacks --{long}");
+            assert!(arg.get_help().is_some(), "--{long} has no help text");
+            if id != "config" {
+                let env = arg.get_env().unwrap_or_else(|| panic!("--{long} has no variable"));
+                assert!(help.contains(env.to_str().unwrap()), "help lacks {env:?}");
+            }
+            for default in arg.get_default_values() {
+                assert!(
+                    help.contains(&format!("default: {}", default.to_str().unwrap())),
+                    "help lacks --{long}'s default {default:?}"
+                );
+            }
         }
+    }
+
+    #[test]
+    fn out_of_range_acuts_defaults_are_refused_at_start_up() {
+        for (flag, value, named) in [
+            ("--tolerance", "-1", "PENMESH_TOLERANCE"),
+            ("--tolerance", "NaN", "PENMESH_TOLERANCE"),
+            ("--angle-deg", "91", "PENMESH_ANGLE_DEG"),
+            ("--pressure-tolerance", "-0.5", "PENMESH_PRESSURE_TOLERANCE"),
+        ] {
+            let config = load_without_env(&["penmesh-proxy", flag, value]).unwrap();
+            let err = config.check().unwrap_err().to_string();
+            assert!(err.contains(named), "{flag} {value}: {err}");
+        }
+        assert!(Config::defaults().check().is_ok());
     }
 }

@@ -43,6 +43,7 @@ pub struct Application {
 impl Application {
     /// Connects to the database (migrating it), starts the writer and binds the listener.
     pub async fn build(config: Config) -> anyhow::Result<Application> {
+        config.check()?;
         let metrics = metrics::install();
         let store = Store::connect(&config).await?;
         let orphans = store.interrupt_orphans().await?;

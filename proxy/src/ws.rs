@@ -1153,9 +1153,9 @@ mod tests {
     /// The connection loop driven through channels, with no socket.
     #[tokio::test]
     async fn serve_speaks_the_protocol_over_channels() {
-        let dir = std::env::temp_dir().join(format!("penmesh-ws-{}", Uuid::new_v4()));
+        let dir = tempfile::tempdir().unwrap();
         let mut config = Config::defaults();
-        config.database_url = format!("sqlite://{}", dir.join("t.db").display());
+        config.database_url = format!("sqlite://{}", dir.path().join("t.db").display());
         let store = Store::connect(&config).await.unwrap();
         let (writer, writer_task) =
             WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default())

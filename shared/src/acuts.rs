@@ -123,8 +123,10 @@
 //! would underflow or overflow), and half-angles within `1e-12` rad of 90°, are also treated
 //! conservatively: the candidate is retained. Retaining a sample never breaks the guarantee.
 //!
-//! Parameters outside their range (see [`AcutsParams::validate`]) are clamped by the simplifier:
-//! a negative or NaN tolerance acts as 0, the angle is clamped to `[0°, 90°]` (NaN acts as 0°).
+//! Parameters outside their range are refused where they enter, never clamped:
+//! [`AcutsParams::new`] and [`AcutsParams::validate`] name the bad one, and every entry point
+//! (the CLI, the proxy's settings at start-up, `StrokeBegin`) checks them before a [`Simplifier`]
+//! is built.
 
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -283,6 +285,20 @@ pub struct ParamError {
 }
 
 impl AcutsParams {
+    /// Parameters checked on construction: an out-of-range value is refused with its name.
+    pub fn new(
+        tolerance: f64,
+        angle_deg: f64,
+        angle_near_anchor: bool,
+        pressure: PressureGate,
+    ) -> Result<AcutsParams, ParamError> {
+        let params = AcutsParams { tolerance, angle_deg, angle_near_anchor, pressure };
+        params.validate()?;
+        Ok(params)
+    }
+
+    /// Checks every parameter against its range (`tolerance` and the pressure threshold
+    /// finite and `>= 0`, `angle_deg` in `[0, 90]`).
     pub fn validate(&self) -> Result<(), ParamError> {
         let bad = |name, value: f64, ok: bool, range| {
             if ok && value.is_finite() { Ok(()) } else { Err(ParamError { name, value, range }) }
@@ -538,10 +554,12 @@ impl PressureWedge {
 }
 
 impl Simplifier {
+    /// A simplifier for valid parameters ([`AcutsParams::validate`]; every entry point checks
+    /// them, so an invalid value here is a bug of the caller's).
     pub fn new(params: AcutsParams) -> Simplifier {
-        let tolerance = if params.tolerance > 0.0 { params.tolerance } else { 0.0 };
-        let angle_deg = if params.angle_deg > 0.0 { params.angle_deg.min(90.0) } else { 0.0 };
-        let (sin_angle, cos_angle) = angle_deg.to_radians().sin_cos();
+        debug_assert!(params.validate().is_ok(), "unchecked ACUTS parameters: {params:?}");
+        let tolerance = params.tolerance;
+        let (sin_angle, cos_angle) = params.angle_deg.to_radians().sin_cos();
         Simplifier {
             params,
             tolerance,
@@ -1062,13 +1080,15 @@ mod tests {
         check_simplify(&xys, paper(), &[0, 1, 2, 3]);
     }
 
-    // Stage 2 clamps out-of-range parameters instead of misbehaving.
+    // Out-of-range parameters are refused by the constructor, naming the parameter.
     #[test]
-    fn simplify_out_of_range_params() {
-        let xys = [(0.0, 0.0), (1.0, 0.0), (2.0, 0.0), (3.0, 0.1), (4.0, 0.0)];
-        check_simplify(&xys, params(-1.0, 15.0), &[0, 2, 3, 4]);
-        check_simplify(&xys, params(f64::NAN, f64::NAN), &[0, 2, 3, 4]);
-        check_simplify(&xys, params(1.0, 400.0), &[0, 4]);
+    fn out_of_range_params_are_refused() {
+        let gate = PressureGate::Interpolation(0.2);
+        assert_eq!(AcutsParams::new(-1.0, 15.0, false, gate).unwrap_err().name, "tolerance");
+        assert_eq!(AcutsParams::new(f64::NAN, 15.0, false, gate).unwrap_err().name, "tolerance");
+        assert_eq!(AcutsParams::new(1.0, 400.0, false, gate).unwrap_err().name, "angle_deg");
+        assert_eq!(AcutsParams::new(1.0, f64::NAN, false, gate).unwrap_err().name, "angle_deg");
+        assert!(AcutsParams::new(0.0, 90.0, true, gate).is_ok());
     }
 
     // Stage 2 streaming: decisions come one sample late, with the right index and sample, and

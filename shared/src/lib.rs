@@ -47,6 +47,7 @@ pub use crate::mesh::{
     mesh_defect, signed_volume, solid_mesh, stroke_mesh,
 };
 pub use crate::metrics::{
-    MetricsError, SimplificationMetrics, cdf_error_area, simplification_metrics,
+    MetricsError, SimplificationMetrics, cdf_error_area, e_max, p_max, pressure_error,
+    simplification_metrics,
 };
 pub use crate::svg::{SvgStroke, simplification_svg, strokes_svg};

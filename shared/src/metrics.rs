@@ -111,6 +111,45 @@ fn synchronised_point(original: &[Sample], i: usize, a: usize, b: usize) -> glam
     sa.pos().lerp(sb.pos(), f)
 }
 
+/// The pressure error of sample `q` spanned by the retained segment `a–b`: its distance to the
+/// pressure interpolated linearly in time along the segment, `|p_q - lerp(p_a, p_b, tau_q)|`.
+/// A segment without duration (`t_b <= t_a`) cannot place `q` in time, so the error is the
+/// larger distance to either end's pressure. This is the quantity ACUTS's interpolation gate
+/// ([`crate::PressureGate::Interpolation`]) bounds, and the same rule on a zero-duration segment.
+pub fn pressure_error(q: &Sample, a: &Sample, b: &Sample) -> f64 {
+    if b.t > a.t {
+        let tau = (q.t - a.t) / (b.t - a.t);
+        (q.p - (a.p + tau * (b.p - a.p))).abs()
+    } else {
+        (q.p - a.p).abs().max((q.p - b.p).abs())
+    }
+}
+
+/// `P_max`: the largest [`pressure_error`] of a removed sample against the retained segment
+/// that spans it. `kept` must be strictly increasing indices into `original` (samples outside
+/// the kept range are not measured: no segment spans them).
+pub fn p_max(original: &[Sample], kept: &[usize]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for pair in kept.windows(2) {
+        let (a, b) = (&original[pair[0]], &original[pair[1]]);
+        for q in &original[pair[0] + 1..pair[1]] {
+            worst = worst.max(pressure_error(q, a, b));
+        }
+    }
+    worst
+}
+
+/// `E_max` without the other metrics: the largest distance of an original sample to the
+/// retained segment that spans it, as in [`simplification_metrics`]. `kept` must be non-empty,
+/// strictly increasing indices into `original`.
+pub fn e_max(original: &[Sample], kept: &[usize]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for_each_spanned(original.len(), kept, |i, a, b| {
+        worst = worst.max(segment_distance(&original[i], &original[a], &original[b]));
+    });
+    worst
+}
+
 /// CR, E_max, E_l and SED of the simplification of `original` that keeps the samples at `kept`.
 pub fn simplification_metrics(
     original: &[Sample],
@@ -120,12 +159,9 @@ pub fn simplification_metrics(
     let n_input = original.len();
     let n_output = kept.len();
 
-    let mut e_max: f64 = 0.0;
     let mut sed_sum = 0.0;
     for_each_spanned(n_input, kept, |i, a, b| {
-        let q = &original[i];
-        e_max = e_max.max(segment_distance(q, &original[a], &original[b]));
-        sed_sum += q.pos().distance(synchronised_point(original, i, a, b));
+        sed_sum += original[i].pos().distance(synchronised_point(original, i, a, b));
     });
 
     let simplified: Vec<Sample> = kept.iter().map(|&i| original[i]).collect();
@@ -141,7 +177,7 @@ pub fn simplification_metrics(
         n_input,
         n_output,
         cr: (1.0 - n_output as f64 / n_input as f64) * 100.0,
-        e_max,
+        e_max: e_max(original, kept),
         e_l,
         sed: sed_sum / n_input as f64,
     })

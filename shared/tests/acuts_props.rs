@@ -6,8 +6,8 @@
 //! the O(1) test retains a sample the naive test would remove.
 
 use penmesh::{
-    AcutsParams, PressureGate, Resampler, Sample, Simplifier, acuts, pressure_variance,
-    segment_distance, simplify,
+    AcutsParams, PressureGate, Resampler, Sample, Simplifier, acuts, pressure_error,
+    pressure_variance, segment_distance, simplify,
 };
 use proptest::prelude::*;
 
@@ -38,12 +38,7 @@ fn naive_pressure_admits(
 ) -> bool {
     let PressureGate::Interpolation(delta) = params.pressure else { return true };
     let delta = delta + if slack_on { 1e-9 } else { 0.0 };
-    if e.t > a.t {
-        let tau = (q.t - a.t) / (e.t - a.t);
-        (q.p - (a.p + tau * (e.p - a.p))).abs() <= delta
-    } else {
-        (q.p - a.p).abs() <= delta && (q.p - e.p).abs() <= delta
-    }
+    pressure_error(q, a, e) <= delta
 }
 
 /// Whether the variance gate (paper formula 3) retains `m`; `false` for the interpolation test.

@@ -4,50 +4,12 @@ use penmesh::baselines::{
     Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, OptimalPressure, PressureWindow, Simplify,
     SquishE, Visvalingam, VwStop,
 };
-use penmesh::{AcutsParams, PressureGate, Sample};
+use penmesh::{AcutsParams, PressureGate, Sample, e_max, p_max};
 use proptest::prelude::*;
 
 /// Rounding slack of the geometric tests.
 fn slack(tolerance: f64) -> f64 {
     tolerance * 1e-9 + 1e-9
-}
-
-/// Distance from `q` to the segment `a–b`, written out independently of the library.
-fn distance(q: &Sample, a: &Sample, b: &Sample) -> f64 {
-    let (abx, aby, aqx, aqy) = (b.x - a.x, b.y - a.y, q.x - a.x, q.y - a.y);
-    let len2 = abx * abx + aby * aby;
-    let t = if len2 == 0.0 { 0.0 } else { ((aqx * abx + aqy * aby) / len2).clamp(0.0, 1.0) };
-    (aqx - t * abx).hypot(aqy - t * aby)
-}
-
-/// The largest distance of a removed sample to its spanning kept segment.
-fn e_max(samples: &[Sample], kept: &[usize]) -> f64 {
-    let mut worst: f64 = 0.0;
-    for pair in kept.windows(2) {
-        for q in &samples[pair[0] + 1..pair[1]] {
-            worst = worst.max(distance(q, &samples[pair[0]], &samples[pair[1]]));
-        }
-    }
-    worst
-}
-
-/// The largest pressure error of a removed sample against the pressure interpolated in time
-/// along its kept segment (within both ends' pressures when the segment has no duration).
-fn p_max(samples: &[Sample], kept: &[usize]) -> f64 {
-    let mut worst: f64 = 0.0;
-    for pair in kept.windows(2) {
-        let (a, b) = (&samples[pair[0]], &samples[pair[1]]);
-        for q in &samples[pair[0] + 1..pair[1]] {
-            let error = if b.t > a.t {
-                let tau = (q.t - a.t) / (b.t - a.t);
-                (q.p - (a.p + tau * (b.p - a.p))).abs()
-            } else {
-                (q.p - a.p).abs().max((q.p - b.p).abs())
-            };
-            worst = worst.max(error);
-        }
-    }
-    worst
 }
 
 /// The fewest samples keeping both bounds, by trying every subset with both ends (n <= 12).

@@ -77,15 +77,8 @@ fn source(args: &DrawArgs) -> anyhow::Result<Box<dyn PenSource>> {
     }
     if let Some(shape) = args.synth {
         anyhow::ensure!(args.count >= 1, "--count must be at least 1");
-        let params: Vec<GeneratorParams> = (0..u64::from(args.count))
-            .map(|i| GeneratorParams {
-                shape,
-                speed: args.speed,
-                size: args.size,
-                rate_hz: args.rate,
-                seed: args.seed.wrapping_add(i),
-            })
-            .collect();
+        let params: Vec<GeneratorParams> =
+            (0..u64::from(args.count)).map(|i| args.generator.params(shape, i)).collect();
         return Ok(Box::new(ReplaySource::synth(&params, pacing)?));
     }
     let Some(path) = &args.device else {

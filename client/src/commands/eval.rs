@@ -35,6 +35,7 @@ use serde::Serialize;
 
 use crate::cli::AcutsArgs;
 use crate::io;
+use crate::plot::{LineChart, Series, SeriesLabelPosition};
 
 /// Every algorithm `--algos` knows, in the order of the tables.
 pub const ALGOS: [&str; 13] = [
@@ -445,24 +446,6 @@ struct Totals {
     p_max: f64,
 }
 
-/// The largest pressure interpolation error of a simplification (see [`Row::p_max`]).
-fn pressure_error(samples: &[Sample], kept: &[usize]) -> f64 {
-    let mut worst: f64 = 0.0;
-    for pair in kept.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        let (sa, sb) = (&samples[a], &samples[b]);
-        for (i, q) in samples.iter().enumerate().take(b).skip(a + 1) {
-            let f = if sb.t > sa.t {
-                (q.t - sa.t) / (sb.t - sa.t)
-            } else {
-                (i - a) as f64 / (b - a) as f64
-            };
-            worst = worst.max((q.p - (sa.p + f * (sb.p - sa.p))).abs());
-        }
-    }
-    worst
-}
-
 /// Runs `algo` over every stroke at `bound`; `optimal` holds optimal min-# per stroke at `bound`.
 fn measure(
     data_set: &DataSet,
@@ -485,7 +468,7 @@ fn measure(
         totals.sed_sum += m.sed * samples.len() as f64;
         totals.e_max = totals.e_max.max(m.e_max);
         totals.e_max_sum += m.e_max;
-        totals.p_max = totals.p_max.max(pressure_error(samples, &kept));
+        totals.p_max = totals.p_max.max(penmesh::p_max(samples, &kept));
         totals.length_in += penmesh::polyline_length(samples);
         totals.length_out += penmesh::polyline_length(&picked(samples, &kept));
         totals.optimal_at_bound += n_optimal;
@@ -756,21 +739,6 @@ pub fn markdown(report: &EvalReport) -> String {
     md
 }
 
-/// Line colours, one per algorithm in turn.
-const COLOURS: [(u8, u8, u8); 11] = [
-    (214, 39, 40),
-    (255, 152, 150),
-    (31, 119, 180),
-    (44, 160, 44),
-    (148, 103, 189),
-    (140, 86, 75),
-    (227, 119, 194),
-    (127, 127, 127),
-    (188, 189, 34),
-    (23, 190, 207),
-    (0, 0, 0),
-];
-
 fn write_plots(
     dir: &Path,
     data_set: &DataSet,
@@ -782,8 +750,7 @@ fn write_plots(
     if !report.sweep.is_empty() {
         for (metric, label) in [("emax", "mean E_max per stroke (px)"), ("sed", "SED (px)")] {
             let path = dir.join(format!("rd_{metric}_{}.svg", report.name));
-            rate_distortion_plot(&path, report, metric, label)
-                .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+            rate_distortion_plot(&path, report, metric, label)?;
         }
     }
     // Figure 12: one signature (the first file) and each algorithm's simplification at B.
@@ -803,53 +770,30 @@ fn write_plots(
     Ok(())
 }
 
+/// Figure 11: points kept against `metric` for every algorithm of the sweep.
 fn rate_distortion_plot(
     path: &Path,
     report: &DataSetReport,
     metric: &str,
     label: &str,
-) -> Result<(), Box<dyn std::error::Error>> {
-    use plotters::prelude::*;
-
+) -> anyhow::Result<()> {
     let value = |p: &SweepPoint| if metric == "sed" { p.sed } else { p.e_max_mean };
-    let x_max = report.sweep.iter().map(|p| p.kept_percent).fold(0.0, f64::max) * 1.05;
-    let y_max = report.sweep.iter().map(value).fold(0.0, f64::max) * 1.05;
-    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{}: points kept vs {label}", report.name), ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(56)
-        .build_cartesian_2d(0.0..x_max.max(1.0), 0.0..y_max.max(0.1))?;
-    chart.configure_mesh().x_desc("points kept (% of N)").y_desc(label).draw()?;
-    let mut names: Vec<&str> = Vec::new();
+    let mut series: Vec<Series> = Vec::new();
     for p in &report.sweep {
-        if !names.contains(&p.algo.as_str()) {
-            names.push(&p.algo);
+        let point = (p.kept_percent, value(p));
+        match series.iter_mut().find(|s| s.name == p.algo) {
+            Some(line) => line.points.push(point),
+            None => series.push(Series { name: p.algo.clone(), points: vec![point] }),
         }
     }
-    for (k, name) in names.iter().enumerate() {
-        let (r, g, b) = COLOURS[k % COLOURS.len()];
-        let colour = RGBColor(r, g, b);
-        let points: Vec<(f64, f64)> = report
-            .sweep
-            .iter()
-            .filter(|p| p.algo == *name)
-            .map(|p| (p.kept_percent, value(p)))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
-        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
+    LineChart {
+        caption: &format!("{}: points kept vs {label}", report.name),
+        x_label: "points kept (% of N)",
+        y_label: label,
+        series: &series,
+        log_y: false,
+        legend: SeriesLabelPosition::UpperRight,
+        size: (800, 560),
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
-    root.present()?;
-    Ok(())
+    .write_svg(path)
 }

@@ -1,18 +1,10 @@
 //! `penmesh synth`: write a generated stroke to a file.
 
-use penmesh::GeneratorParams;
-
 use crate::cli::SynthArgs;
 use crate::io;
 
 pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
-    let params = GeneratorParams {
-        shape: args.shape,
-        speed: args.speed,
-        size: args.size,
-        rate_hz: args.rate,
-        seed: args.seed,
-    };
+    let params = args.generator.params(args.shape, 0);
     let stroke = penmesh::generate_stroke(&params).map_err(|e| anyhow::anyhow!("{e}"))?;
     let is_json = args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let strokes = [stroke];

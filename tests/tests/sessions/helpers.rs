@@ -239,19 +239,14 @@ pub async fn put_mesh(proxy: &TestProxy, session: &TestSession, stroke: StrokeId
     assert_eq!(response.status(), 200, "PUT mesh");
 }
 
-/// Two replicas on one fresh PostgreSQL database, or `None` (with a note) when
-/// `PENMESH_TEST_POSTGRES_URL` is not set. When it is set, PostgreSQL must work: a failure
-/// fails the test.
-pub async fn two_replicas(test: &str) -> Option<(TestProxy, TestProxy)> {
-    if std::env::var(POSTGRES_ENV).map(|u| u.is_empty()).unwrap_or(true) {
-        eprintln!("note: {test} needs PostgreSQL; skipped because {POSTGRES_ENV} is not set");
-        return None;
-    }
+/// Two replicas on one fresh PostgreSQL database. PostgreSQL must work: without
+/// `PENMESH_TEST_POSTGRES_URL`, or with a server that fails, the test fails.
+pub async fn two_replicas() -> (TestProxy, TestProxy) {
     let db = TestDatabase::fresh().await;
-    assert!(db.is_postgres());
+    assert!(db.is_postgres(), "two replicas need PostgreSQL: set {POSTGRES_ENV}");
     let a = spawn_replica(db.clone(), |_| {}).await;
     let b = spawn_replica(db, |_| {}).await;
-    Some((a, b))
+    (a, b)
 }
 
 /// The proxies a test spreads its participants over: two replicas with PostgreSQL, else one.

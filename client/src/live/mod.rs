@@ -13,7 +13,9 @@
 //! When the proxy reports a stroke done, a task of its own reconstructs it (see
 //! [`crate::reconstruct`]) while drawing goes on.
 
-use std::collections::VecDeque;
+mod endpoint;
+mod stroke_log;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
@@ -22,23 +24,24 @@ use anyhow::Context;
 use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
 use indicatif::ProgressBar;
+use penmesh::Brush;
+use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION, Ping, PointBatch, Points,
-    ResumeState, ServerMessage, StrokeBegin, StrokeEnd, StrokeStatus, decode_server,
-    decode_server_json, encode_client, quantize_sample,
+    ClientMessage, ErrorCode, ErrorMessage, Ping, PointBatch, Points, ResumeState, ServerMessage,
+    StrokeBegin, StrokeEnd, quantize_sample,
 };
-use penmesh::{Brush, Resampler, Sample};
-use tokio::net::TcpStream;
 use tokio::sync::mpsc;
 use tokio::task::JoinSet;
 use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::tungstenite::client::IntoClientRequest;
-use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 use uuid::Uuid;
 
+pub use self::endpoint::Endpoint;
+use self::stroke_log::{Resumed, StrokeLog};
+use crate::backoff::Backoff;
 use crate::input::{PenEvent, PenSource};
 use crate::reconstruct::{self, FinishedStroke, StrokeReport};
+use crate::wire::{self, OpenError, Socket};
 
 /// Default time between two batches, ms.
 pub const DEFAULT_BATCH_MS: u64 = 16;
@@ -52,46 +55,6 @@ const FIRST_CONNECT_ATTEMPTS: u32 = 3;
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 /// A ping keeps an idle connection (a pen at rest) from the proxy's idle timeout.
 const KEEPALIVE: Duration = Duration::from_secs(20);
-const BACKOFF_FIRST: Duration = Duration::from_millis(100);
-const BACKOFF_MAX: Duration = Duration::from_secs(2);
-
-/// Where the proxy is and which session to draw in.
-#[derive(Debug, Clone)]
-pub struct Endpoint {
-    /// `http://HOST:PORT` (a `ws://` URL is accepted and turned into this).
-    pub base: String,
-    pub session: Uuid,
-    pub token: String,
-}
-
-impl Endpoint {
-    /// Checks and normalises the server URL.
-    pub fn new(server: &str, session: Uuid, token: String) -> anyhow::Result<Endpoint> {
-        let server = server.trim().trim_end_matches('/');
-        let base = if let Some(rest) = server.strip_prefix("ws://") {
-            format!("http://{rest}")
-        } else if server.starts_with("http://") {
-            server.to_string()
-        } else if server.starts_with("https://") || server.starts_with("wss://") {
-            anyhow::bail!(
-                "{server}: TLS is not built into this client; put the proxy behind plain http:// (e.g. a local TLS-terminating tunnel)"
-            );
-        } else {
-            anyhow::bail!("{server}: the server URL must start with http:// or ws://");
-        };
-        anyhow::ensure!(!token.trim().is_empty(), "the session token is empty");
-        Ok(Endpoint { base, session, token })
-    }
-
-    pub fn ws_url(&self) -> String {
-        let rest = self.base.strip_prefix("http://").unwrap_or(&self.base);
-        format!("ws://{rest}/v1/sessions/{}/ws", self.session)
-    }
-
-    pub fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
-    }
-}
 
 /// How one person draws.
 #[derive(Debug, Clone)]
@@ -153,7 +116,7 @@ pub async fn draw(
         stroke_devices,
         http,
         strokes: Vec::new(),
-        drawing: None,
+        pen: Pen::Up,
         reconstructions: JoinSet::new(),
         last_progress: Instant::now(),
         ever_connected: false,
@@ -167,7 +130,7 @@ pub async fn draw(
     Ok(reports)
 }
 
-type WsSink = SplitSink<WebSocketStream<MaybeTlsStream<TcpStream>>, Message>;
+type WsSink = SplitSink<Socket, Message>;
 
 /// One open connection: the write half, and what the read half received.
 struct Link {
@@ -183,57 +146,21 @@ impl Drop for Link {
     }
 }
 
-/// One stroke, from its first sample until the proxy reports it done.
-struct StrokeLog {
-    id: Uuid,
-    index: usize,
-    device: String,
-    resampler: Resampler,
-    /// Every drawn sample (quantised), and for each kept one its index among them.
-    drawn: Vec<Sample>,
-    resampled_from: Vec<usize>,
-    /// Kept samples `acked..acked + unacked.len()`: everything the proxy has not committed.
-    unacked: VecDeque<Sample>,
-    acked: u64,
-    /// The next seq to send on the current connection.
-    sent: u64,
-    pen_up: Option<Instant>,
-    /// `StrokeBegin` was sent on some connection (so a reconnect resumes it).
-    begun: bool,
-    /// Begun or resumed on the current connection.
-    on_link: bool,
-    end_sent: bool,
-    done: bool,
-    /// A lone unsent sample was held back at the last tick (see `flush`).
-    held_lone: bool,
-}
-
-impl StrokeLog {
-    fn n_kept(&self) -> u64 {
-        self.acked + self.unacked.len() as u64
-    }
-
-    fn keep(&mut self, drawn_idx: usize, s: Sample) {
-        self.resampled_from.push(drawn_idx);
-        self.unacked.push_back(s);
-    }
-
-    /// Forgets what the proxy has committed.
-    fn ack(&mut self, upto_seq: u64) {
-        if upto_seq > self.acked {
-            let n = ((upto_seq - self.acked) as usize).min(self.unacked.len());
-            self.unacked.drain(..n);
-            self.acked += n as u64;
-        }
-        self.sent = self.sent.max(self.acked);
-    }
-}
-
 /// What to do about an `Error` from the proxy.
 enum ErrorAction {
     /// Drop the connection and resume on a new one.
     Reconnect,
     Fail(anyhow::Error),
+}
+
+/// Where the pen is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pen {
+    Up,
+    /// Down, before its first sample.
+    Down,
+    /// Drawing the stroke at this index of `strokes`.
+    Drawing(usize),
 }
 
 struct Live {
@@ -243,9 +170,7 @@ struct Live {
     stroke_devices: Vec<String>,
     http: reqwest::Client,
     strokes: Vec<StrokeLog>,
-    /// Index in `strokes` of the stroke the pen is drawing; `Some(None)` after a pen-down
-    /// before its first sample.
-    drawing: Option<Option<usize>>,
+    pen: Pen,
     reconstructions: JoinSet<anyhow::Result<StrokeReport>>,
     last_progress: Instant,
     ever_connected: bool,
@@ -258,7 +183,7 @@ impl Live {
     ) -> anyhow::Result<()> {
         let mut link: Option<Link> = None;
         let mut source_open = true;
-        let mut backoff = BACKOFF_FIRST;
+        let mut backoff = Backoff::default();
         let mut attempts = 0u32;
         let mut retry_at = Instant::now();
         let mut interrupts = self.options.interrupts.clone();
@@ -279,7 +204,7 @@ impl Live {
                         tracing::info!(name = %self.options.name, "connected");
                         self.ever_connected = true;
                         self.last_progress = Instant::now();
-                        backoff = BACKOFF_FIRST;
+                        backoff.reset();
                         attempts = 0;
                         link = Some(new_link);
                     }
@@ -293,9 +218,8 @@ impl Live {
                         if gave_up {
                             return Err(err);
                         }
-                        tracing::info!(error = %format!("{err:#}"), retry_in_ms = backoff.as_millis() as u64, "connection failed");
-                        retry_at = Instant::now() + backoff;
-                        backoff = (backoff * 2).min(BACKOFF_MAX);
+                        tracing::info!(error = %format!("{err:#}"), retry_in_ms = backoff.peek().as_millis() as u64, "connection failed");
+                        retry_at = Instant::now() + backoff.next_delay();
                     }
                 }
                 continue;
@@ -329,16 +253,16 @@ impl Live {
                                 ErrorAction::Fail(err) => return Err(err),
                                 ErrorAction::Reconnect => self.lost(&mut link, anyhow::anyhow!("the proxy asked to resume")),
                             }
-                            retry_at = Instant::now() + backoff;
+                            retry_at = Instant::now() + backoff.peek();
                         }
                     }
                     Some(Err(err)) => {
                         self.lost(&mut link, err);
-                        retry_at = Instant::now() + backoff;
+                        retry_at = Instant::now() + backoff.peek();
                     }
                     None => {
                         self.lost(&mut link, anyhow::anyhow!("the connection closed"));
-                        retry_at = Instant::now() + backoff;
+                        retry_at = Instant::now() + backoff.peek();
                     }
                 },
                 _ = tick.tick() => {
@@ -350,7 +274,7 @@ impl Live {
                         };
                         if let Err(err) = result.and(self.flush(l).await) {
                             self.lost(&mut link, err);
-                            retry_at = Instant::now() + backoff;
+                            retry_at = Instant::now() + backoff.peek();
                         }
                     }
                     if link.is_none() && self.ever_connected && self.last_progress.elapsed() >= self.options.retry_for {
@@ -379,9 +303,7 @@ impl Live {
             tracing::warn!(name = %self.options.name, error = %format!("{err:#}"), "connection lost; resuming");
         }
         for s in &mut self.strokes {
-            s.on_link = false;
-            s.end_sent = false;
-            s.sent = s.acked;
+            s.connection_lost();
         }
     }
 
@@ -390,39 +312,23 @@ impl Live {
         match event {
             PenEvent::Down => {
                 self.pen_up();
-                self.drawing = Some(None);
+                self.pen = Pen::Down;
                 None
             }
             PenEvent::Sample(raw) => {
                 if let Some(progress) = &self.options.progress {
                     progress.inc(1);
                 }
-                let stroke_idx = match self.drawing {
+                let stroke_idx = match self.pen {
                     // A sample with the pen up (a source that sends no Down) starts a stroke.
-                    None | Some(None) => {
+                    Pen::Up | Pen::Down => {
                         let index = self.strokes.len();
                         let device = self.stroke_devices.get(index).unwrap_or(&self.device).clone();
-                        self.strokes.push(StrokeLog {
-                            id: Uuid::new_v4(),
-                            index,
-                            device,
-                            resampler: Resampler::new(self.options.resample),
-                            drawn: Vec::new(),
-                            resampled_from: Vec::new(),
-                            unacked: VecDeque::new(),
-                            acked: 0,
-                            sent: 0,
-                            pen_up: None,
-                            begun: false,
-                            on_link: false,
-                            end_sent: false,
-                            held_lone: false,
-                            done: false,
-                        });
-                        self.drawing = Some(Some(index));
+                        self.strokes.push(StrokeLog::new(index, device, self.options.resample));
+                        self.pen = Pen::Drawing(index);
                         index
                     }
-                    Some(Some(index)) => index,
+                    Pen::Drawing(index) => index,
                 };
                 let s = &mut self.strokes[stroke_idx];
                 let mut q = quantize_sample(&raw);
@@ -436,7 +342,10 @@ impl Live {
                 Some(stroke_idx)
             }
             PenEvent::Up => {
-                let touched = self.drawing.flatten();
+                let touched = match self.pen {
+                    Pen::Drawing(index) => Some(index),
+                    Pen::Up | Pen::Down => None,
+                };
                 self.pen_up();
                 touched
             }
@@ -445,7 +354,7 @@ impl Live {
 
     /// Ends the stroke being drawn, if any.
     fn pen_up(&mut self) {
-        if let Some(Some(stroke_idx)) = self.drawing.take() {
+        if let Pen::Drawing(stroke_idx) = std::mem::replace(&mut self.pen, Pen::Up) {
             let s = &mut self.strokes[stroke_idx];
             if let Some((drawn_idx, tail)) = s.resampler.finish() {
                 s.keep(drawn_idx, tail);
@@ -589,61 +498,34 @@ impl Live {
 
     /// Opens a connection and resumes every stroke begun and not done.
     async fn connect(&mut self) -> Result<Link, ConnectError> {
-        let url = self.endpoint.ws_url();
-        let mut request = url
-            .as_str()
-            .into_client_request()
-            .map_err(|e| ConnectError::Fatal(anyhow::anyhow!("bad server URL {url}: {e}")))?;
-        let bearer = format!("Bearer {}", self.endpoint.token).parse().map_err(|_| {
-            ConnectError::Fatal(anyhow::anyhow!("the token has characters a header cannot carry"))
-        })?;
-        request.headers_mut().insert("authorization", bearer);
-        let connected =
-            tokio::time::timeout(HANDSHAKE_TIMEOUT, connect_without_nagle(request)).await;
-        let (ws, _) = match connected {
-            Err(_) => {
-                return Err(ConnectError::Transient(anyhow::anyhow!(
-                    "cannot connect to {}: no answer within {} s",
-                    self.endpoint.base,
-                    HANDSHAKE_TIMEOUT.as_secs()
-                )));
-            }
-            Ok(Err(tokio_tungstenite::tungstenite::Error::Http(response))) => {
-                let status = response.status();
-                let err = anyhow::anyhow!(
-                    "the proxy at {} refused the connection to session {}: HTTP {status}{}",
-                    self.endpoint.base,
-                    self.endpoint.session,
-                    if status.as_u16() == 401 { " (wrong session or token)" } else { "" }
-                );
-                return Err(if status.is_server_error() {
-                    ConnectError::Transient(err)
-                } else {
-                    ConnectError::Fatal(err)
-                });
-            }
-            Ok(Err(err)) => {
-                return Err(ConnectError::Transient(anyhow::anyhow!(
-                    "cannot connect to {}: {err}",
-                    self.endpoint.base
-                )));
-            }
-            Ok(Ok(ws)) => ws,
-        };
+        let ws = wire::open(&self.endpoint.ws_url(), &self.endpoint.token, None, HANDSHAKE_TIMEOUT)
+            .await
+            .map_err(|err| {
+                let transient = match &err {
+                    OpenError::BadRequest(_) => false,
+                    OpenError::Refused { status } => status.is_server_error(),
+                    OpenError::Timeout(_) | OpenError::Failed(_) => true,
+                };
+                let err = match err {
+                    OpenError::Refused { .. } => anyhow::anyhow!(
+                        "the proxy at {} refused the connection to session {}: {err}",
+                        self.endpoint.base,
+                        self.endpoint.session
+                    ),
+                    OpenError::BadRequest(_) => anyhow::anyhow!(err),
+                    _ => anyhow::anyhow!("cannot connect to {}: {err}", self.endpoint.base),
+                };
+                if transient { ConnectError::Transient(err) } else { ConnectError::Fatal(err) }
+            })?;
         let (sink, mut stream) = ws.split();
         let (tx, incoming) = mpsc::unbounded_channel();
         let reader = tokio::spawn(async move {
             while let Some(frame) = stream.next().await {
                 let msg = match frame {
-                    Ok(Message::Binary(bytes)) => decode_server(&bytes, usize::MAX)
-                        .map_err(|e| anyhow::anyhow!("undecodable message from the proxy: {e}")),
-                    Ok(Message::Text(text)) => decode_server_json(&text, usize::MAX)
-                        .map_err(|e| anyhow::anyhow!("undecodable message from the proxy: {e}")),
-                    Ok(Message::Close(close)) => Err(anyhow::anyhow!(
-                        "the proxy closed the connection{}",
-                        close.map(|c| format!(" ({} {})", c.code, c.reason)).unwrap_or_default()
-                    )),
-                    Ok(_) => continue,
+                    Ok(frame) => match wire::decode_frame(frame) {
+                        Some(msg) => msg,
+                        None => continue,
+                    },
                     Err(err) => Err(anyhow::anyhow!("connection lost: {err}")),
                 };
                 let stop = msg.is_err();
@@ -655,35 +537,21 @@ impl Live {
         let mut link = Link { sink, incoming, reader, last_sent: Instant::now() };
         let resume: Vec<Uuid> =
             self.strokes.iter().filter(|s| s.begun && !s.done).map(|s| s.id).collect();
-        let hello = Hello {
-            protocol: PROTOCOL_VERSION,
-            client: format!("penmesh-client/{}", env!("CARGO_PKG_VERSION")),
-            name: Some(self.options.name.clone()),
-            resume,
-        };
-        send(&mut link, &ClientMessage::Hello(hello)).await.map_err(ConnectError::Transient)?;
-        let welcome = loop {
-            let msg = tokio::time::timeout(HANDSHAKE_TIMEOUT, link.incoming.recv()).await.map_err(
-                |_| ConnectError::Transient(anyhow::anyhow!("no welcome from the proxy")),
-            )?;
-            match msg {
-                Some(Ok(ServerMessage::Welcome(welcome))) => break welcome,
-                Some(Ok(ServerMessage::Error(err))) => {
-                    return Err(match self.on_error(err) {
-                        ErrorAction::Reconnect => {
-                            ConnectError::Transient(anyhow::anyhow!("the proxy is not ready"))
-                        }
-                        ErrorAction::Fail(err) => ConnectError::Fatal(err),
-                    });
-                }
-                Some(Ok(_)) => continue,
-                Some(Err(err)) => return Err(ConnectError::Transient(err)),
-                None => {
-                    return Err(ConnectError::Transient(anyhow::anyhow!(
-                        "the connection closed before welcome"
-                    )));
-                }
+        let hello = wire::hello("penmesh-client", Some(self.options.name.clone()), resume);
+        send(&mut link, &hello).await.map_err(ConnectError::Transient)?;
+        let incoming = futures_util::stream::poll_fn(|cx| link.incoming.poll_recv(cx));
+        let answer = wire::await_welcome(HANDSHAKE_TIMEOUT, incoming).await;
+        let welcome = match answer {
+            Ok(Ok(welcome)) => welcome,
+            Ok(Err(refusal)) => {
+                return Err(match self.on_error(refusal) {
+                    ErrorAction::Reconnect => {
+                        ConnectError::Transient(anyhow::anyhow!("the proxy is not ready"))
+                    }
+                    ErrorAction::Fail(err) => ConnectError::Fatal(err),
+                });
             }
+            Err(err) => return Err(ConnectError::Transient(err)),
         };
         for state in welcome.resume {
             self.apply_resume(state).map_err(ConnectError::Fatal)?;
@@ -693,34 +561,8 @@ impl Live {
 
     fn apply_resume(&mut self, state: ResumeState) -> anyhow::Result<()> {
         let Some(s) = self.stroke_mut(state.stroke) else { return Ok(()) };
-        tracing::debug!(stroke = %s.id, next_seq = state.next_seq, status = state.status.as_str(), acked = s.acked, "resume");
-        match state.status {
-            StrokeStatus::Open | StrokeStatus::Interrupted => {
-                anyhow::ensure!(
-                    state.next_seq >= s.acked && state.next_seq <= s.n_kept(),
-                    "stroke {}: the proxy resumes at sample {} but {} were acknowledged and {} drawn",
-                    s.id,
-                    state.next_seq,
-                    s.acked,
-                    s.n_kept()
-                );
-                s.ack(state.next_seq);
-                s.on_link = true;
-                s.sent = s.acked;
-            }
-            StrokeStatus::Done => {
-                let id = s.id;
-                self.finish_stroke(id);
-            }
-            StrokeStatus::Unknown => {
-                anyhow::ensure!(
-                    s.acked == 0,
-                    "stroke {}: the proxy no longer knows it, but acknowledged {} samples",
-                    s.id,
-                    s.acked
-                );
-                s.on_link = false;
-            }
+        if s.resume(&state)? == Resumed::Done {
+            self.finish_stroke(state.stroke);
         }
         Ok(())
     }
@@ -733,25 +575,8 @@ enum ConnectError {
     Fatal(anyhow::Error),
 }
 
-/// Small frames go out at once: with Nagle's algorithm a `StrokeEnd` right after a batch
-/// would wait for the proxy's delayed ACK (~40 ms).
-async fn connect_without_nagle(
-    request: tokio_tungstenite::tungstenite::handshake::client::Request,
-) -> Result<
-    (
-        WebSocketStream<MaybeTlsStream<TcpStream>>,
-        tokio_tungstenite::tungstenite::handshake::client::Response,
-    ),
-    tokio_tungstenite::tungstenite::Error,
-> {
-    tokio_tungstenite::connect_async_with_config(request, None, true).await
-}
-
 async fn send(link: &mut Link, msg: &ClientMessage) -> anyhow::Result<()> {
-    link.sink
-        .send(Message::Binary(encode_client(msg).into()))
-        .await
-        .context("sending to the proxy")?;
+    link.sink.send(wire::frame(msg)).await.context("sending to the proxy")?;
     link.last_sent = Instant::now();
     Ok(())
 }
@@ -775,56 +600,5 @@ async fn recv(link: &mut Option<Link>) -> Option<anyhow::Result<ServerMessage>> 
     match link {
         Some(link) => link.incoming.recv().await,
         None => std::future::pending().await,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn server_urls_are_normalised_and_tls_is_refused_clearly() {
-        let session = Uuid::nil();
-        let e = Endpoint::new("ws://127.0.0.1:8080/", session, "t".into()).unwrap();
-        assert_eq!(e.base, "http://127.0.0.1:8080");
-        assert_eq!(e.ws_url(), format!("ws://127.0.0.1:8080/v1/sessions/{session}/ws"));
-        assert!(
-            Endpoint::new("https://x", session, "t".into())
-                .unwrap_err()
-                .to_string()
-                .contains("TLS")
-        );
-        assert!(Endpoint::new("localhost:1", session, "t".into()).is_err());
-    }
-
-    #[test]
-    fn an_ack_forgets_exactly_the_committed_samples() {
-        let mut s = StrokeLog {
-            id: Uuid::nil(),
-            index: 0,
-            device: String::new(),
-            resampler: Resampler::new(0.0),
-            drawn: Vec::new(),
-            resampled_from: Vec::new(),
-            unacked: VecDeque::new(),
-            acked: 0,
-            sent: 0,
-            pen_up: None,
-            begun: true,
-            on_link: true,
-            end_sent: false,
-            held_lone: false,
-            done: false,
-        };
-        for i in 0..10 {
-            s.keep(i, Sample::new(i as f64, 0.0, i as f64, 0.5));
-        }
-        s.sent = 10;
-        s.ack(4);
-        assert_eq!((s.acked, s.unacked.len(), s.unacked[0].x), (4, 6, 4.0));
-        s.ack(2);
-        assert_eq!(s.acked, 4);
-        s.ack(99);
-        assert_eq!((s.acked, s.unacked.len()), (10, 0));
     }
 }
