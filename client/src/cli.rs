@@ -35,7 +35,7 @@ pub enum Command {
     Ceiling(commands::ceiling::CeilingArgs),
     /// The proxy itself, for `load --spawn-proxy` (the flags of `penmesh-proxy`).
     #[command(hide = true)]
-    ServeProxy(commands::load::ServeProxyArgs),
+    ServeProxy(commands::demo::ServeProxyArgs),
     /// Time LRPDP and ACUTS against perfect-freehand and simplify-js (see bench/run.sh).
     #[command(hide = true)]
     Peers(commands::peers::PeersArgs),
@@ -307,7 +307,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(args) => commands::demo::run(&args),
         Command::Load(args) => commands::load::run(&args),
         Command::Ceiling(args) => commands::ceiling::run(&args),
-        Command::ServeProxy(args) => commands::load::serve_proxy(&args),
+        Command::ServeProxy(args) => commands::demo::serve_proxy(&args),
         Command::Peers(args) => commands::peers::run(&args),
         Command::LoadReport(args) => commands::load::report(&args),
     }

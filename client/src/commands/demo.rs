@@ -211,3 +211,20 @@ async fn create_session(base: &str) -> anyhow::Result<NewSession> {
 fn absolute(path: &Path) -> PathBuf {
     std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
 }
+
+/// `penmesh serve-proxy` (hidden): the proxy, the same code as the `penmesh-proxy` binary,
+/// so that `penmesh load --spawn-proxy` needs nothing but this program.
+#[derive(Debug, clap::Args)]
+pub struct ServeProxyArgs {
+    /// The proxy's own flags (see `penmesh-proxy --help`).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    pub args: Vec<String>,
+}
+
+pub fn serve_proxy(args: &ServeProxyArgs) -> anyhow::Result<()> {
+    let config = Config::load_from(
+        std::iter::once("penmesh-proxy".to_string()).chain(args.args.iter().cloned()),
+    )?;
+    penmesh_proxy::init_tracing();
+    penmesh_proxy::run(config)
+}

@@ -1,0 +1,177 @@
+//! What a run of `penmesh load` reports: the `--json` summary and its table.
+
+use hdrhistogram::Histogram;
+use serde::{Deserialize, Serialize};
+
+/// The whole summary of a run (the `--json` output).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Summary {
+    pub label: Option<String>,
+    /// `proxy` or `ceiling`.
+    pub target: String,
+    pub url: String,
+    pub machine: Machine,
+    pub settings: serde_json::Value,
+    pub connections: Connections,
+    pub samples: Samples,
+    pub strokes: Strokes,
+    pub throughput: Throughput,
+    pub latency_ms: Latencies,
+    pub errors: Errors,
+    pub server: Option<ProcessStats>,
+    pub load_tool: ProcessStats,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Machine {
+    pub cores: usize,
+    pub loadavg_before: Option<String>,
+    pub loadavg_after: Option<String>,
+    pub started_at_unix_s: u64,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Connections {
+    pub made: u64,
+    pub failed: u64,
+    /// Connections that ended before the run did (closed or broken).
+    pub dropped: u64,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Samples {
+    pub sent: u64,
+    pub acknowledged: u64,
+    /// Counted back through the HTTP API; `None` for the ceiling, which stores nothing.
+    pub stored: Option<u64>,
+    /// `sent - stored`.
+    pub lost: Option<i64>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Strokes {
+    pub begun: u64,
+    pub done: u64,
+    /// Strokes the server lists as `done` (proxy only).
+    pub stored_done: Option<u64>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Throughput {
+    /// The steady window: from the end of the ramp to the end of the drawing.
+    pub window_s: f64,
+    pub acked_per_s: f64,
+    pub sent_per_s: f64,
+    /// `clients * rate`: what the pens would send if they never lifted.
+    pub offered_per_s: f64,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Latencies {
+    pub sample_to_ack: Percentiles,
+    pub pen_up_to_stroke_done: Percentiles,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Percentiles {
+    pub count: u64,
+    pub p50: f64,
+    pub p95: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl Percentiles {
+    pub(super) fn of(hist: &Histogram<u64>) -> Percentiles {
+        let ms = |us: u64| us as f64 / 1000.0;
+        Percentiles {
+            count: hist.len(),
+            p50: ms(hist.value_at_quantile(0.50)),
+            p95: ms(hist.value_at_quantile(0.95)),
+            p99: ms(hist.value_at_quantile(0.99)),
+            max: ms(hist.max()),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Errors {
+    pub count: u64,
+    /// The first few distinct error texts.
+    pub first: Vec<String>,
+}
+
+/// CPU and memory of a process, from /proc.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ProcessStats {
+    pub pid: u32,
+    /// CPU time over the steady window, as a percentage of one core.
+    pub cpu_percent: f64,
+    /// CPU time over the whole run (ramp, drawing and drain), seconds.
+    pub cpu_seconds: f64,
+    pub rss_before_kb: u64,
+    /// Resident memory with every connection open (at the end of the drawing).
+    pub rss_connected_kb: u64,
+    pub peak_rss_kb: u64,
+    /// `(rss_connected - rss_before) / connections`, in KB.
+    pub kb_per_connection: Option<f64>,
+}
+
+/// The summary as the table `penmesh load` prints.
+pub(super) fn print_table(s: &Summary) {
+    let lat = &s.latency_ms;
+    println!("target            {} at {}", s.target, s.url);
+    println!(
+        "pens              {} connected, {} failed, {} dropped",
+        s.connections.made, s.connections.failed, s.connections.dropped
+    );
+    println!(
+        "samples           sent {}, acknowledged {}, stored {}, lost {}",
+        s.samples.sent,
+        s.samples.acknowledged,
+        s.samples.stored.map_or("-".into(), |v| v.to_string()),
+        s.samples.lost.map_or("-".into(), |v| v.to_string()),
+    );
+    println!("strokes           begun {}, done {}", s.strokes.begun, s.strokes.done);
+    println!(
+        "throughput        {:.0} samples/s acknowledged ({:.0} sent, {:.0} offered) over {:.1} s",
+        s.throughput.acked_per_s,
+        s.throughput.sent_per_s,
+        s.throughput.offered_per_s,
+        s.throughput.window_s
+    );
+    for (name, p) in
+        [("sample -> Ack", &lat.sample_to_ack), ("pen-up -> Done", &lat.pen_up_to_stroke_done)]
+    {
+        println!(
+            "{name:<18}p50 {:.2} ms, p95 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} measured)",
+            p.p50, p.p95, p.p99, p.max, p.count
+        );
+    }
+    if let Some(server) = &s.server {
+        println!(
+            "server            {:.0} % of a core, {:.1} CPU s, RSS {} KB before, {} KB connected, peak {} KB{}",
+            server.cpu_percent,
+            server.cpu_seconds,
+            server.rss_before_kb,
+            server.rss_connected_kb,
+            server.peak_rss_kb,
+            server
+                .kb_per_connection
+                .map_or(String::new(), |kb| format!(", {kb:.1} KB per connection")),
+        );
+    }
+    println!(
+        "load tool         {:.0} % of a core, peak RSS {} KB",
+        s.load_tool.cpu_percent, s.load_tool.peak_rss_kb
+    );
+    println!(
+        "machine           {} cores, load average {} before, {} after",
+        s.machine.cores,
+        s.machine.loadavg_before.as_deref().unwrap_or("?"),
+        s.machine.loadavg_after.as_deref().unwrap_or("?")
+    );
+    if s.errors.count > 0 {
+        println!("errors            {}: {}", s.errors.count, s.errors.first.join("; "));
+    }
+}
