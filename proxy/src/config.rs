@@ -309,7 +309,8 @@ mod tests {
             ("--angle-deg", "91", "PENMESH_ANGLE_DEG"),
             ("--pressure-tolerance", "-0.5", "PENMESH_PRESSURE_TOLERANCE"),
         ] {
-            let config = load_without_env(&["penmesh-proxy", flag, value]).unwrap();
+            let setting = format!("{flag}={value}");
+            let config = load_without_env(&["penmesh-proxy", &setting]).unwrap();
             let err = config.check().unwrap_err().to_string();
             assert!(err.contains(named), "{flag} {value}: {err}");
         }
