@@ -140,10 +140,13 @@ pub fn p_max(original: &[Sample], kept: &[usize]) -> f64 {
 }
 
 /// `E_max` without the other metrics: the largest distance of an original sample to the
-/// retained segment that spans it, as in [`simplification_metrics`]. `kept` must be non-empty,
-/// strictly increasing indices into `original`.
+/// retained segment that spans it, as in [`simplification_metrics`]. `kept` must be strictly
+/// increasing indices into `original`; 0 when it is empty (an empty stroke keeps nothing).
 pub fn e_max(original: &[Sample], kept: &[usize]) -> f64 {
     let mut worst: f64 = 0.0;
+    if kept.is_empty() {
+        return worst;
+    }
     for_each_spanned(original.len(), kept, |i, a, b| {
         worst = worst.max(segment_distance(&original[i], &original[a], &original[b]));
     });
