@@ -13,6 +13,8 @@ use std::hint::black_box;
 mod cpu_time;
 
 use cpu_time::ThreadCpuTime;
+use rand::rngs::StdRng;
+use rand::{Rng as _, SeedableRng};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use penmesh::{
     AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PAPER_RESAMPLE_DISTANCE, PressureGate, Sample, acuts,
@@ -20,39 +22,31 @@ use penmesh::{
 
 const SIZES: [usize; 4] = [1_000, 10_000, 100_000, 1_000_000];
 
-/// A small deterministic generator (xorshift64*), so every run measures the same strokes.
-struct Rng(u64);
+/// A seeded generator, so every run uses the same strokes.
+type Rng = StdRng;
 
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
+/// A uniform value in `[lo, hi)` (`lo` when the range is empty).
+fn range(rng: &mut Rng, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * rng.random::<f64>()
 }
 
 /// A pen-like stroke: a smooth random walk 1-3 px per sample whose curvature drifts and now and
 /// then jumps (a new letter stroke), with a slight hand tremor, samples 8 ms apart and pressure
 /// drifting between 0.1 and 1.
 fn curvy_stroke(n: usize) -> Vec<Sample> {
-    let mut rng = Rng(0x5eed_ac75_5eed_0001);
+    let mut rng = Rng::seed_from_u64(0x5eed_ac75_5eed_0001);
     let (mut x, mut y, mut heading, mut curvature, mut p) = (0.0, 0.0, 0.0_f64, 0.0, 0.5);
     (0..n)
         .map(|i| {
-            curvature = f64::clamp(curvature + rng.range(-0.01, 0.01), -0.3, 0.3);
-            if rng.next() < 0.005 {
-                curvature = rng.range(-0.3, 0.3);
+            curvature = f64::clamp(curvature + range(&mut rng, -0.01, 0.01), -0.3, 0.3);
+            if rng.random::<f64>() < 0.005 {
+                curvature = range(&mut rng, -0.3, 0.3);
             }
             heading += curvature;
-            let step = rng.range(1.0, 3.0);
-            x += heading.cos() * step + rng.range(-0.05, 0.05);
-            y += heading.sin() * step + rng.range(-0.05, 0.05);
-            p = f64::clamp(p + rng.range(-0.01, 0.01), 0.1, 1.0);
+            let step = range(&mut rng, 1.0, 3.0);
+            x += heading.cos() * step + range(&mut rng, -0.05, 0.05);
+            y += heading.sin() * step + range(&mut rng, -0.05, 0.05);
+            p = f64::clamp(p + range(&mut rng, -0.01, 0.01), 0.1, 1.0);
             Sample::new(x, y, i as f64 * 8.0, p)
         })
         .collect()
