@@ -13,12 +13,12 @@ use std::hint::black_box;
 mod cpu_time;
 
 use cpu_time::ThreadCpuTime;
-use rand::rngs::StdRng;
-use rand::{Rng as _, SeedableRng};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use penmesh::{
     AcutsParams, DEFAULT_RESAMPLE_DISTANCE, PAPER_RESAMPLE_DISTANCE, PressureGate, Sample, acuts,
 };
+use rand::rngs::StdRng;
+use rand::{Rng as _, SeedableRng};
 
 const SIZES: [usize; 4] = [1_000, 10_000, 100_000, 1_000_000];
 

@@ -21,7 +21,6 @@
 //! the same stroke.
 
 use std::f64::consts::{PI, TAU};
-use std::fmt;
 use std::str::FromStr;
 
 use glam::DVec2;
@@ -40,8 +39,20 @@ pub const DEFAULT_SHAPE_SIZE_PX: f64 = 300.0;
 pub const MAX_GENERATED_SAMPLES: usize = 1_000_000;
 
 /// A shape to draw.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Shape {
     /// A figure-8 drawn in one closed stroke.
     Figure8,
@@ -62,19 +73,7 @@ impl Shape {
 
     /// The shape's name, as [`FromStr`] reads it.
     pub fn name(self) -> &'static str {
-        match self {
-            Shape::Figure8 => "figure8",
-            Shape::Semicircles => "semicircles",
-            Shape::Chromosome => "chromosome",
-            Shape::Leaf => "leaf",
-            Shape::Scribble => "scribble",
-        }
-    }
-}
-
-impl fmt::Display for Shape {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+        self.into()
     }
 }
 

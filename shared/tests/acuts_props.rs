@@ -431,7 +431,9 @@ fn pen_stroke(rng: &mut Rng, n: usize, jitter: f64) -> Vec<Sample> {
 
 /// Uniformly random points in a 20 x 20 box: the worst case for the reach bound.
 fn scribble(rng: &mut Rng, n: usize) -> Vec<Sample> {
-    (0..n).map(|i| Sample::new(range(rng, 0.0, 20.0), range(rng, 0.0, 20.0), i as f64, 0.5)).collect()
+    (0..n)
+        .map(|i| Sample::new(range(rng, 0.0, 20.0), range(rng, 0.0, 20.0), i as f64, 0.5))
+        .collect()
 }
 
 // Reports (without asserting) how often the O(1) test retains a sample the naive test removes,

@@ -137,8 +137,19 @@ pub struct ResumeState {
     pub status: StrokeStatus,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::EnumString,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum StrokeStatus {
     Open,
     Done,
@@ -147,23 +158,13 @@ pub enum StrokeStatus {
 }
 
 impl StrokeStatus {
+    /// The name on the wire and in the database (`open`, `done`, ...).
     pub fn as_str(self) -> &'static str {
-        match self {
-            StrokeStatus::Open => "open",
-            StrokeStatus::Done => "done",
-            StrokeStatus::Interrupted => "interrupted",
-            StrokeStatus::Unknown => "unknown",
-        }
+        self.into()
     }
 
     pub fn parse(s: &str) -> Option<StrokeStatus> {
-        Some(match s {
-            "open" => StrokeStatus::Open,
-            "done" => StrokeStatus::Done,
-            "interrupted" => StrokeStatus::Interrupted,
-            "unknown" => StrokeStatus::Unknown,
-            _ => return None,
-        })
+        s.parse().ok()
     }
 }
 
@@ -189,8 +190,9 @@ pub struct StrokeDone {
 }
 
 /// Machine-readable error codes; the message says the rest in words.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, strum::IntoStaticStr)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum ErrorCode {
     /// A binary frame that does not decode.
     Malformed,
@@ -225,30 +227,9 @@ pub enum ErrorCode {
 }
 
 impl ErrorCode {
+    /// The code's name on the wire (`bad_sample`, ...).
     pub fn as_str(self) -> &'static str {
-        match self {
-            ErrorCode::Malformed => "malformed",
-            ErrorCode::BadJson => "bad_json",
-            ErrorCode::UnknownMessage => "unknown_message",
-            ErrorCode::Protocol => "protocol",
-            ErrorCode::BadSample => "bad_sample",
-            ErrorCode::BadBrush => "bad_brush",
-            ErrorCode::BadParams => "bad_params",
-            ErrorCode::UnknownStroke => "unknown_stroke",
-            ErrorCode::StrokeFinished => "stroke_finished",
-            ErrorCode::StrokeConflict => "stroke_conflict",
-            ErrorCode::SeqGap => "seq_gap",
-            ErrorCode::CountMismatch => "count_mismatch",
-            ErrorCode::FrameTooLarge => "frame_too_large",
-            ErrorCode::BatchTooLarge => "batch_too_large",
-            ErrorCode::StrokeTooLong => "stroke_too_long",
-            ErrorCode::TooManyOpenStrokes => "too_many_open_strokes",
-            ErrorCode::TooManyConnections => "too_many_connections",
-            ErrorCode::IdleTimeout => "idle_timeout",
-            ErrorCode::Lagged => "lagged",
-            ErrorCode::ShuttingDown => "shutting_down",
-            ErrorCode::Internal => "internal",
-        }
+        self.into()
     }
 }
 
