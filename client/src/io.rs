@@ -7,8 +7,7 @@ use penmesh::Stroke;
 
 /// Reads every stroke of a CSV, JSON, SVC2004 (`.txt`) or SigComp2011 (`.hwr`) file.
 pub fn read_strokes(path: &Path) -> anyhow::Result<Vec<Stroke>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = fs_err::read_to_string(path)?;
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
     let strokes =
         penmesh::read_strokes(name, &text).with_context(|| format!("{}", path.display()))?;
@@ -18,5 +17,5 @@ pub fn read_strokes(path: &Path) -> anyhow::Result<Vec<Stroke>> {
 
 /// Writes `bytes` to `path`, naming the file on failure.
 pub fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> anyhow::Result<()> {
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    Ok(fs_err::write(path, bytes)?)
 }

@@ -1212,6 +1212,5 @@ mod tests {
         drop(to_server);
         task.await.unwrap();
         writer_task.stop().await;
-        let _ = std::fs::remove_dir_all(dir);
     }
 }

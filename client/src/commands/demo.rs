@@ -66,8 +66,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let (db, temporary) = match &args.db {
         Some(path) => {
             if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-                std::fs::create_dir_all(parent)
-                    .with_context(|| format!("cannot create {}", parent.display()))?;
+                fs_err::create_dir_all(parent)?;
             }
             (path.clone(), None)
         }
@@ -79,8 +78,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             (dir.path().join("penmesh.db"), Some(dir))
         }
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    fs_err::create_dir_all(&args.out)?;
     let out_dir = std::fs::canonicalize(&args.out).unwrap_or_else(|_| args.out.clone());
     let db = absolute(&db);
 

@@ -23,7 +23,7 @@ pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     // Bad input fails here, before anything touches the network.
     let source = source(args)?;
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        fs_err::create_dir_all(dir)?;
         options.out_dir = Some(dir.clone());
     }
     let progress = (!args.live.json).then(|| progress_bar(source.total_samples(), &args.name));
@@ -101,7 +101,7 @@ fn source(args: &DrawArgs) -> anyhow::Result<Box<dyn PenSource>> {
         }
     };
     // Fail now, not in the reading thread, when the file cannot be opened.
-    std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    fs_err::File::open(path)?;
     let ranges = AxisRanges { x, y, pressure, canvas_width: args.canvas_width };
     Ok(Box::new(EvdevSource::new(path.clone(), name, ranges)))
 }
@@ -180,7 +180,7 @@ pub(crate) fn init_tracing(verbose: u8) {
 /// `--watch` alone: prints the session until Ctrl-C.
 fn watch_only(args: &DrawArgs, endpoint: &Endpoint) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        fs_err::create_dir_all(dir)?;
     }
     let runtime = runtime()?;
     let result = runtime.block_on(async {
@@ -280,8 +280,7 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                 let saved = match &args.out {
                     Some(dir) => {
                         let path = dir.join(format!("{}.glb", m.stroke));
-                        std::fs::write(&path, &glb)
-                            .with_context(|| format!("cannot write {}", path.display()))?;
+                        fs_err::write(&path, &glb)?;
                         format!(" -> {}", path.display())
                     }
                     None => String::new(),

@@ -389,8 +389,7 @@ fn extension(path: &Path) -> String {
 
 fn collect_files(path: &Path, out: &mut Vec<PathBuf>) -> anyhow::Result<()> {
     if path.is_dir() {
-        let entries =
-            std::fs::read_dir(path).with_context(|| format!("cannot list {}", path.display()))?;
+        let entries = fs_err::read_dir(path)?;
         for entry in entries {
             let entry = entry.with_context(|| format!("cannot list {}", path.display()))?;
             let child = entry.path();
@@ -746,7 +745,7 @@ fn write_plots(
     algos: &[Algo],
     bound: f64,
 ) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    fs_err::create_dir_all(dir)?;
     if !report.sweep.is_empty() {
         for (metric, label) in [("emax", "mean E_max per stroke (px)"), ("sed", "SED (px)")] {
             let path = dir.join(format!("rd_{metric}_{}.svg", report.name));

@@ -145,13 +145,12 @@ fn export(out: &PathBuf, rate: f64, seeds: u64) -> anyhow::Result<()> {
         pressure_response: brush.pressure_response,
         strokes,
     };
-    std::fs::write(out, serde_json::to_string(&file)?)
-        .with_context(|| format!("cannot write {}", out.display()))?;
+    fs_err::write(out, serde_json::to_string(&file)?)?;
     Ok(())
 }
 
 fn read_text(path: &PathBuf) -> anyhow::Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+    Ok(fs_err::read_to_string(path)?)
 }
 
 fn ns_per_call(mut f: impl FnMut()) -> f64 {
@@ -296,8 +295,7 @@ fn compare(
         comparison.tolerance
     );
     if let Some(path) = json {
-        std::fs::write(path, serde_json::to_string_pretty(&comparison)? + "\n")
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        fs_err::write(path, serde_json::to_string_pretty(&comparison)? + "\n")?;
     }
     Ok(())
 }

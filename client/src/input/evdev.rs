@@ -314,8 +314,7 @@ fn read_device(
     ranges: AxisRanges,
     tx: &mpsc::Sender<anyhow::Result<PenEvent>>,
 ) -> anyhow::Result<()> {
-    let mut file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut file = fs_err::File::open(path)?;
     let mut decoder = EvdevDecoder::new(ranges);
     let mut record = [0u8; EVENT_SIZE];
     let mut out = Vec::new();

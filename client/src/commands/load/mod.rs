@@ -243,11 +243,9 @@ pub fn run(args: &LoadArgs) -> anyhow::Result<()> {
         Some(path) if path == Path::new("-") => println!("{json}"),
         Some(path) => {
             if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-                std::fs::create_dir_all(parent)
-                    .with_context(|| format!("cannot create {}", parent.display()))?;
+                fs_err::create_dir_all(parent)?;
             }
-            std::fs::write(path, format!("{json}\n"))
-                .with_context(|| format!("cannot write {}", path.display()))?;
+            fs_err::write(path, format!("{json}\n"))?;
             print_table(&summary);
         }
         None => print_table(&summary),

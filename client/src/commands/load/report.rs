@@ -25,8 +25,7 @@ pub fn report(args: &LoadReportArgs) -> anyhow::Result<()> {
         .runs
         .iter()
         .map(|path| {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read {}", path.display()))?;
+            let text = fs_err::read_to_string(path)?;
             serde_json::from_str(&text)
                 .with_context(|| format!("{}: not a penmesh load summary", path.display()))
         })
@@ -53,8 +52,7 @@ pub fn report(args: &LoadReportArgs) -> anyhow::Result<()> {
             r.machine.loadavg_before.as_deref().and_then(|l| l.split(' ').next()).unwrap_or("?"),
         );
     }
-    std::fs::create_dir_all(&args.out_dir)
-        .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
+    fs_err::create_dir_all(&args.out_dir)?;
     let series = |name: &str, target: &str, value: fn(&Summary) -> f64| Series {
         name: name.to_string(),
         points: runs

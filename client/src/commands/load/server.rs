@@ -58,7 +58,7 @@ pub(super) fn spawn_server(args: &LoadArgs, plan: &Plan) -> anyhow::Result<(Stri
     } else {
         command.arg("ceiling").args(["--host", "127.0.0.1", "--port", &port.to_string()]);
     }
-    let log = std::fs::File::create(dir.path().join("server.log"))?;
+    let log = fs_err::File::create(dir.path().join("server.log"))?.into_parts().0;
     command
         .env("RUST_LOG", std::env::var("RUST_LOG").unwrap_or_else(|_| "warn".into()))
         .env_remove("PORT")
