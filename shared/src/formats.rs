@@ -199,11 +199,24 @@ fn parse_number(field: &str, line: usize, column: usize) -> Result<f64, FormatEr
 
 /// Reads a CSV stroke file (see the module documentation for the format).
 pub fn read_csv(text: &str) -> Result<Vec<Stroke>, FormatError> {
-    let mut lines = numbered_lines(text);
-    let Some((header_line, header)) = lines.next() else {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    // Each non-blank line with its number (a line of blanks only is a blank line too).
+    let mut lines = reader.records().filter_map(|record| match record {
+        Ok(record) if record.len() == 1 && record[0].is_empty() => None,
+        Ok(record) => Some(Ok((record.position().map_or(0, |p| p.line() as usize), record))),
+        Err(err) => {
+            let line = err.position().map_or(0, |p| p.line() as usize);
+            Some(Err(syntax(line, 1, format!("not CSV: {err}"))))
+        }
+    });
+    let Some((header_line, header)) = lines.next().transpose()? else {
         return Err(syntax(1, 1, "empty file: expected a header line such as x,y,t,p"));
     };
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let names: Vec<&str> = header.iter().collect();
     let mut column_of = [None::<usize>; 5]; // x, y, t, p, stroke
     const NAMES: [&str; 5] = ["x", "y", "t", "p", "stroke"];
     for (column, name) in names.iter().enumerate() {
@@ -229,8 +242,8 @@ pub fn read_csv(text: &str) -> Result<Vec<Stroke>, FormatError> {
     let mut strokes = Vec::new();
     let mut current = StrokeBuilder::default();
     let mut current_label: Option<String> = None;
-    for (line_number, line) in lines {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+    for line in lines {
+        let (line_number, fields) = line?;
         if fields.len() != names.len() {
             return Err(syntax(
                 line_number,
@@ -241,10 +254,10 @@ pub fn read_csv(text: &str) -> Result<Vec<Stroke>, FormatError> {
         let mut values = [0.0; 4];
         for (slot, value) in values.iter_mut().enumerate() {
             let column = column_of[slot].unwrap_or_default();
-            *value = parse_number(fields[column], line_number, column + 1)?;
+            *value = parse_number(&fields[column], line_number, column + 1)?;
         }
         if let Some(column) = column_of[4] {
-            let label = fields[column];
+            let label = &fields[column];
             if label.is_empty() {
                 return Err(syntax(line_number, column + 1, "empty stroke label"));
             }

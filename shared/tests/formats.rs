@@ -140,7 +140,8 @@ fn format_is_chosen_by_extension() {
 }
 
 #[test]
-// A CSV with the plain header is one stroke; columns may come in any order; CRLF is fine.
+// A CSV with the plain header is one stroke; columns may come in any order; CRLF, quotes and
+// blank lines are fine.
 fn csv_reads_one_stroke() {
     let strokes = read_csv("x,y,t,p\r\n1,2,0,0.5\r\n3,4,6.5,1\r\n\r\n").unwrap();
     assert_eq!(strokes.len(), 1);
@@ -148,6 +149,9 @@ fn csv_reads_one_stroke() {
     let strokes = read_csv("p, t, y, x\n0.5,0,2,1\n").unwrap();
     assert_eq!(strokes[0].samples(), &[s(1.0, 2.0, 0.0, 0.5)]);
     assert_eq!(read_csv("x,y,t,p\n").unwrap(), vec![]);
+    // Quoted fields (as spreadsheets write them) and lines of blanks only.
+    let strokes = read_csv("\"x\",\"y\",\"t\",\"p\"\n  \n\"1\",2,0,0.5\n").unwrap();
+    assert_eq!(strokes[0].samples(), &[s(1.0, 2.0, 0.0, 0.5)]);
 }
 
 #[test]
