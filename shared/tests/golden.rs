@@ -35,7 +35,7 @@ fn golden_line(shape: Shape) -> String {
     let glb = stroke_glb(&mesh, &meta, &GlbOptions::default());
     let stats = mesh.stats();
     format!(
-        "{shape:<12} n={} resampled={} kept={} cr={:.6} e_max={:.6} e_l={:.6} sed={:.6} vertices={} triangles={} glb_bytes={}",
+        "{shape} n={} resampled={} kept={} cr={:.6} e_max={:.6} e_l={:.6} sed={:.6} vertices={} triangles={} glb_bytes={}",
         samples.len(),
         output.resampled.len(),
         output.kept.len(),
