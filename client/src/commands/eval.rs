@@ -23,10 +23,7 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use penmesh::baselines::{
-    Bqs, DouglasPeucker, Dpts, OpeningWindow, Optimal, OptimalPressure, PressureWindow, Simplify,
-    SquishE, Visvalingam, VwStop, min_points,
-};
+use penmesh::baselines::{BASELINE_NAMES, Simplify, baseline, min_points};
 use penmesh::{
     AcutsParams, Brush, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample, SolidOptions,
     SvgStroke,
@@ -37,22 +34,8 @@ use crate::cli::AcutsArgs;
 use crate::io;
 use crate::plot::{LineChart, Series, SeriesLabelPosition};
 
-/// Every algorithm `--algos` knows, in the order of the tables.
-pub const ALGOS: [&str; 13] = [
-    "acuts",
-    "acuts-paper",
-    "dp",
-    "vw",
-    "window",
-    "window-d",
-    "window-p",
-    "squish-e",
-    "bqs",
-    "fbqs",
-    "dpts",
-    "optimal",
-    "optimal-p",
-];
+/// The ACUTS settings `--algos` knows, before the baselines ([`BASELINE_NAMES`]).
+const ACUTS_NAMES: [&str; 2] = ["acuts", "acuts-paper"];
 const DEFAULT_ALGOS: &str =
     "acuts,acuts-paper,dp,vw,window,window-p,squish-e,bqs,fbqs,dpts,optimal,optimal-p";
 /// The bounds of `--sweep`, px.
@@ -185,24 +168,20 @@ pub fn algos(names: &[String], args_acuts: (f64, AcutsParams)) -> anyhow::Result
             let (online, method) = match name.as_str() {
                 "acuts" => (true, Method::Acuts { resample: args_acuts.0, params: args_acuts.1 }),
                 "acuts-paper" => (true, Method::Acuts { resample: PAPER_RESAMPLE, params: PAPER }),
-                "dp" => (false, Method::Baseline(Box::new(DouglasPeucker))),
-                "vw" => {
-                    (false, Method::Baseline(Box::new(Visvalingam { stop: VwStop::ErrorBound })))
+                other => {
+                    let b = baseline(other, pressure_tolerance).ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "unknown algorithm {other:?}: expected one of {}",
+                            ACUTS_NAMES
+                                .iter()
+                                .chain(&BASELINE_NAMES)
+                                .copied()
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )
+                    })?;
+                    (b.is_online(), Method::Baseline(b))
                 }
-                "window" => (true, Method::Baseline(Box::new(OpeningWindow::default()))),
-                "window-d" => (true, Method::Baseline(Box::new(OpeningWindow { angle_deg: None }))),
-                "window-p" => {
-                    (true, Method::Baseline(Box::new(PressureWindow { pressure_tolerance })))
-                }
-                "squish-e" => (true, Method::Baseline(Box::new(SquishE::default()))),
-                "bqs" => (true, Method::Baseline(Box::new(Bqs { fast: false }))),
-                "fbqs" => (true, Method::Baseline(Box::new(Bqs { fast: true }))),
-                "dpts" => (true, Method::Baseline(Box::new(Dpts::default()))),
-                "optimal" => (false, Method::Baseline(Box::new(Optimal))),
-                "optimal-p" => {
-                    (false, Method::Baseline(Box::new(OptimalPressure { pressure_tolerance })))
-                }
-                other => anyhow::bail!("unknown algorithm {other:?}: expected one of {ALGOS:?}"),
             };
             Ok(Algo { name, online, method })
         })

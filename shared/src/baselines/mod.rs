@@ -34,6 +34,7 @@ pub use visvalingam::{Visvalingam, VwStop};
 pub use window::{DEFAULT_WINDOW_ANGLE_DEG, OpeningWindow, PressureWindow};
 
 use crate::acuts::segment_distance;
+use crate::metrics::pressure_error;
 use crate::model::Sample;
 
 /// A simplifier that keeps a subset of a stroke's samples.
@@ -44,6 +45,41 @@ pub trait Simplify {
     fn is_online(&self) -> bool;
     /// The kept indices, strictly increasing, always with the first and the last sample.
     fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize>;
+}
+
+/// Every baseline's name, in the order of `penmesh eval`'s tables.
+pub const BASELINE_NAMES: [&str; 11] = [
+    "dp",
+    "vw",
+    "window",
+    "window-d",
+    "window-p",
+    "squish-e",
+    "bqs",
+    "fbqs",
+    "dpts",
+    "optimal",
+    "optimal-p",
+];
+
+/// The baseline called `name` (one of [`BASELINE_NAMES`]) in its evaluation setting; the
+/// pressure-aware ones (`window-p`, `optimal-p`) bound the pressure error by
+/// `pressure_tolerance`, as ACUTS's interpolation gate does. `None` for an unknown name.
+pub fn baseline(name: &str, pressure_tolerance: f64) -> Option<Box<dyn Simplify>> {
+    Some(match name {
+        "dp" => Box::new(DouglasPeucker),
+        "vw" => Box::new(Visvalingam { stop: VwStop::ErrorBound }),
+        "window" => Box::new(OpeningWindow::default()),
+        "window-d" => Box::new(OpeningWindow { angle_deg: None }),
+        "window-p" => Box::new(PressureWindow { pressure_tolerance }),
+        "squish-e" => Box::new(SquishE::default()),
+        "bqs" => Box::new(Bqs { fast: false }),
+        "fbqs" => Box::new(Bqs { fast: true }),
+        "dpts" => Box::new(Dpts::default()),
+        "optimal" => Box::new(Optimal),
+        "optimal-p" => Box::new(OptimalPressure { pressure_tolerance }),
+        _ => return None,
+    })
 }
 
 /// The answer for strokes too short to simplify: all of their samples.
@@ -82,14 +118,7 @@ pub fn span_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bo
 /// within `tolerance` of both `p_a` and `p_b`). O(b - a).
 pub fn pressure_within(samples: &[Sample], a: usize, b: usize, tolerance: f64) -> bool {
     let (sa, sb) = (&samples[a], &samples[b]);
-    samples[a + 1..b].iter().all(|q| {
-        if sb.t > sa.t {
-            let tau = (q.t - sa.t) / (sb.t - sa.t);
-            (q.p - (sa.p + tau * (sb.p - sa.p))).abs() <= tolerance
-        } else {
-            (q.p - sa.p).abs() <= tolerance && (q.p - sb.p).abs() <= tolerance
-        }
-    })
+    samples[a + 1..b].iter().all(|q| pressure_error(q, sa, sb) <= tolerance)
 }
 
 /// The angle in radians between the vectors `u` and `v` (0 when either is zero).
@@ -100,6 +129,15 @@ fn angle_between(u: glam::DVec2, v: glam::DVec2) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Every name finds the baseline that calls itself by it; other names find none.
+    #[test]
+    fn baselines_by_name() {
+        for name in BASELINE_NAMES {
+            assert_eq!(baseline(name, 0.2).map(|b| b.name()), Some(name));
+        }
+        assert!(baseline("acuts", 0.2).is_none());
+    }
 
     // The angle helper is symmetric, unsigned and 0 for a zero vector.
     #[test]
