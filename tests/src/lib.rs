@@ -586,13 +586,19 @@ pub async fn count_rows(db: &TestDatabase, sql: &str) -> i64 {
     n
 }
 
-/// A minimal GLB (binary glTF 2.0, JSON chunk only) declaring one indexed triangle list with
-/// `vertices` positions and `indices` indices: enough for the proxy's upload checks.
+/// A minimal GLB (binary glTF 2.0) holding one indexed triangle list of `vertices` positions
+/// and `indices` indices, its buffer zero-filled: enough for the proxy's upload checks, which
+/// believe a count only when the bytes behind it are in the file.
 pub fn minimal_glb(vertices: u64, indices: u64) -> Vec<u8> {
+    let (positions, bin_len) = (vertices * 12, vertices * 12 + indices * 4);
     let mut json = serde_json::json!({
         "asset": {"version": "2.0"},
-        "accessors": [{"count": vertices, "type": "VEC3", "componentType": 5126},
-                      {"count": indices, "type": "SCALAR", "componentType": 5125}],
+        "buffers": [{"byteLength": bin_len}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": positions},
+                        {"buffer": 0, "byteOffset": positions, "byteLength": indices * 4}],
+        "accessors": [{"bufferView": 0, "count": vertices, "type": "VEC3", "componentType": 5126,
+                       "min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0]},
+                      {"bufferView": 1, "count": indices, "type": "SCALAR", "componentType": 5125}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
     })
     .to_string()
@@ -600,11 +606,16 @@ pub fn minimal_glb(vertices: u64, indices: u64) -> Vec<u8> {
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
+    let bin_padded = bin_len.next_multiple_of(4) as usize;
+    let total = 20 + json.len() + 8 + bin_padded;
     let mut out = b"glTF".to_vec();
     out.extend(2u32.to_le_bytes());
-    out.extend(((20 + json.len()) as u32).to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
     out.extend((json.len() as u32).to_le_bytes());
     out.extend(0x4E4F_534Au32.to_le_bytes());
     out.extend(json);
+    out.extend((bin_padded as u32).to_le_bytes());
+    out.extend(0x004E_4942u32.to_le_bytes());
+    out.resize(total, 0);
     out
 }
