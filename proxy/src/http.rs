@@ -4,7 +4,6 @@
 //! Strokes are found by id and must belong to the token's session (404 otherwise).
 
 use axum::Json;
-use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -310,15 +309,19 @@ pub async fn put_mesh(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
-    body: Result<Bytes, axum::extract::rejection::BytesRejection>,
+    body: axum::body::Body,
 ) -> Result<Json<MeshInfo>, AppError> {
+    // The token and the stroke first: a stranger's upload is refused before its body is read.
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let body = body.map_err(|rejection| match rejection.status() {
-        StatusCode::PAYLOAD_TOO_LARGE => AppError::TooLarge(format!(
-            "the body is larger than the limit of {} bytes",
-            state.config.max_body_bytes
-        )),
-        _ => AppError::BadRequest(rejection.body_text()),
+    let limit = state.config.max_body_bytes;
+    let body = axum::body::to_bytes(body, limit).await.map_err(|err| {
+        if std::error::Error::source(&err)
+            .is_some_and(|e| e.is::<http_body_util::LengthLimitError>())
+        {
+            AppError::TooLarge(format!("the body is larger than the limit of {limit} bytes"))
+        } else {
+            AppError::BadRequest(format!("cannot read the body: {err}"))
+        }
     })?;
     if row.status != penmesh::protocol::StrokeStatus::Done {
         return Err(AppError::Conflict(format!(

@@ -159,6 +159,40 @@ async fn the_http_body_size_is_limited() {
 }
 
 #[tokio::test]
+async fn a_mesh_upload_with_a_wrong_token_is_refused_before_its_body_is_read() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let proxy = spawn_proxy_with(|_| {}).await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    penmesh_e2e::draw_stroke(&mut ws, stroke, &stroke_samples(10), 10).await;
+    for token in ["wrong", session.token.as_str()] {
+        // Announce 10 MB and send a few bytes: a server that reads the body first would wait.
+        let mut socket = tokio::net::TcpStream::connect(("127.0.0.1", proxy.port)).await.unwrap();
+        let head = format!(
+            "PUT /v1/strokes/{stroke}/mesh HTTP/1.1\r\nhost: localhost\r\n\
+             authorization: Bearer {token}\r\ncontent-length: 10000000\r\n\r\nglTF"
+        );
+        socket.write_all(head.as_bytes()).await.unwrap();
+        let mut answer = vec![0u8; 64];
+        let read = tokio::time::timeout(Duration::from_secs(5), socket.read(&mut answer)).await;
+        if token == "wrong" {
+            let n = read.expect("a wrong token is answered without the body").unwrap();
+            let status = String::from_utf8_lossy(&answer[..n]).to_string();
+            assert!(status.starts_with("HTTP/1.1 401"), "{status}");
+        } else {
+            // The right token: the proxy waits for the body it was promised (or refuses it as too
+            // large at once); either way it does not answer 401.
+            if let Ok(Ok(n)) = read {
+                let status = String::from_utf8_lossy(&answer[..n]).to_string();
+                assert!(!status.starts_with("HTTP/1.1 401"), "{status}");
+            }
+        }
+    }
+}
+
+#[tokio::test]
 async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
     let proxy = spawn_proxy_with(|c| {
         c.outgoing_queue = 4;
