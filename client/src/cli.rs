@@ -185,13 +185,13 @@ impl GeneratorArgs {
 #[derive(Debug, Clone, Args)]
 pub struct LiveArgs {
     /// Send what the resampler kept at least every this many milliseconds.
-    #[arg(long, default_value_t = crate::live::DEFAULT_BATCH_MS)]
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_MS)]
     pub batch_ms: u64,
     /// Send as soon as this many kept samples wait.
-    #[arg(long, default_value_t = crate::live::DEFAULT_BATCH_SAMPLES)]
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_SAMPLES)]
     pub batch_size: usize,
     /// After a lost connection, keep trying to resume this many seconds.
-    #[arg(long, default_value_t = crate::live::DEFAULT_RETRY_SECS)]
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_RETRY_SECS)]
     pub retry_for: u64,
     /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.
     #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]

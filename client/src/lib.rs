@@ -5,6 +5,8 @@
 mod backoff;
 pub mod cli;
 mod commands;
+pub mod draw_options;
+pub mod endpoint;
 pub mod input;
 mod io;
 pub mod live;

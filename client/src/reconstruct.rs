@@ -11,7 +11,8 @@ use tokio::time::Instant;
 use uuid::Uuid;
 
 use crate::backoff::Backoff;
-use crate::live::{DrawOptions, Endpoint};
+use crate::draw_options::DrawOptions;
+use crate::endpoint::Endpoint;
 
 /// A stroke the proxy has stored, with what the client drew.
 #[derive(Debug, Clone)]

@@ -13,8 +13,9 @@ use serde::Serialize;
 
 use super::draw::{draw_options, init_tracing, progress_bar, runtime};
 use crate::cli::DemoArgs;
+use crate::endpoint::Endpoint;
 use crate::input::{Pacing, PenSource, ReplaySource};
-use crate::live::{self, Endpoint};
+use crate::live;
 use crate::reconstruct::StrokeReport;
 use crate::report::{self, Totals};
 

@@ -8,8 +8,10 @@ use penmesh::{Brush, GeneratorParams};
 use serde::Serialize;
 
 use crate::cli::{DrawArgs, LiveArgs};
+use crate::draw_options::DrawOptions;
+use crate::endpoint::Endpoint;
 use crate::input::{AxisRanges, EvdevSource, Pacing, PenSource, ReplaySource};
-use crate::live::{self, DrawOptions, Endpoint};
+use crate::live;
 use crate::reconstruct::StrokeReport;
 use crate::report::{self, Totals};
 

@@ -13,18 +13,14 @@
 //! When the proxy reports a stroke done, a task of its own reconstructs it (see
 //! [`crate::reconstruct`]) while drawing goes on.
 
-mod endpoint;
 mod stroke_log;
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
 use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
-use indicatif::ProgressBar;
-use penmesh::Brush;
 use penmesh::Sample;
 use penmesh::protocol::{
     ClientMessage, ErrorCode, ErrorMessage, Ping, PointBatch, Points, ResumeState, ServerMessage,
@@ -36,64 +32,20 @@ use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
 use uuid::Uuid;
 
-pub use self::endpoint::Endpoint;
 use self::stroke_log::{Resumed, StrokeLog};
 use crate::backoff::Backoff;
+use crate::draw_options::DrawOptions;
+use crate::endpoint::Endpoint;
 use crate::input::{PenEvent, PenSource};
 use crate::reconstruct::{self, FinishedStroke, StrokeReport};
 use crate::wire::{self, OpenError, Socket};
 
-/// Default time between two batches, ms.
-pub const DEFAULT_BATCH_MS: u64 = 16;
-/// Default largest batch, samples.
-pub const DEFAULT_BATCH_SAMPLES: usize = 64;
-/// Default time to keep trying to reach the proxy again after a lost connection, s.
-pub const DEFAULT_RETRY_SECS: u64 = 30;
 /// Attempts to reach a proxy that was never reached before giving up.
 const FIRST_CONNECT_ATTEMPTS: u32 = 3;
 /// Longest wait for a handshake or a `Welcome`.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 /// A ping keeps an idle connection (a pen at rest) from the proxy's idle timeout.
 const KEEPALIVE: Duration = Duration::from_secs(20);
-
-/// How one person draws.
-#[derive(Debug, Clone)]
-pub struct DrawOptions {
-    /// Display name, also the GLB author and file name prefix.
-    pub name: String,
-    pub brush: Brush,
-    /// Stage-1 resampling distance `l_eps`.
-    pub resample: f64,
-    /// Send what was kept at least this often.
-    pub batch_interval: Duration,
-    /// Send as soon as this many kept samples wait.
-    pub batch_samples: usize,
-    /// After a lost connection, keep trying this long without progress.
-    pub retry_for: Duration,
-    /// Where to write each stroke's GLB.
-    pub out_dir: Option<PathBuf>,
-    /// Advanced by one per drawn sample.
-    pub progress: Option<ProgressBar>,
-    /// Counts interrupts (Ctrl-C): the first ends the input as if the source ended, so what
-    /// was drawn is still stored and meshed; the second gives up at once.
-    pub interrupts: Option<tokio::sync::watch::Receiver<u32>>,
-}
-
-impl DrawOptions {
-    pub fn new(name: impl Into<String>) -> DrawOptions {
-        DrawOptions {
-            name: name.into(),
-            brush: Brush::default(),
-            resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
-            batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),
-            batch_samples: DEFAULT_BATCH_SAMPLES,
-            retry_for: Duration::from_secs(DEFAULT_RETRY_SECS),
-            out_dir: None,
-            progress: None,
-            interrupts: None,
-        }
-    }
-}
 
 /// Draws everything `source` produces into the session, and reconstructs each stroke.
 /// Returns one report per stroke, in drawing order.

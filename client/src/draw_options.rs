@@ -1,0 +1,53 @@
+//! How one person draws: the settings of the live path and of the reconstruction after each
+//! stroke, with their defaults.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use indicatif::ProgressBar;
+use penmesh::Brush;
+
+/// Default time between two batches, ms.
+pub const DEFAULT_BATCH_MS: u64 = 16;
+/// Default largest batch, samples.
+pub const DEFAULT_BATCH_SAMPLES: usize = 64;
+/// Default time to keep trying to reach the proxy again after a lost connection, s.
+pub const DEFAULT_RETRY_SECS: u64 = 30;
+/// How one person draws.
+#[derive(Debug, Clone)]
+pub struct DrawOptions {
+    /// Display name, also the GLB author and file name prefix.
+    pub name: String,
+    pub brush: Brush,
+    /// Stage-1 resampling distance `l_eps`.
+    pub resample: f64,
+    /// Send what was kept at least this often.
+    pub batch_interval: Duration,
+    /// Send as soon as this many kept samples wait.
+    pub batch_samples: usize,
+    /// After a lost connection, keep trying this long without progress.
+    pub retry_for: Duration,
+    /// Where to write each stroke's GLB.
+    pub out_dir: Option<PathBuf>,
+    /// Advanced by one per drawn sample.
+    pub progress: Option<ProgressBar>,
+    /// Counts interrupts (Ctrl-C): the first ends the input as if the source ended, so what
+    /// was drawn is still stored and meshed; the second gives up at once.
+    pub interrupts: Option<tokio::sync::watch::Receiver<u32>>,
+}
+
+impl DrawOptions {
+    pub fn new(name: impl Into<String>) -> DrawOptions {
+        DrawOptions {
+            name: name.into(),
+            brush: Brush::default(),
+            resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
+            batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),
+            batch_samples: DEFAULT_BATCH_SAMPLES,
+            retry_for: Duration::from_secs(DEFAULT_RETRY_SECS),
+            out_dir: None,
+            progress: None,
+            interrupts: None,
+        }
+    }
+}
