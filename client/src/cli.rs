@@ -17,15 +17,15 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Simplify the strokes of a file with ACUTS and report what was kept.
-    Simplify(SimplifyArgs),
+    Simplify(commands::simplify::SimplifyArgs),
     /// Simplify, build the LRPDP solid mesh and write it as binary glTF.
     Mesh(MeshArgs),
     /// Generate a stroke like a person draws on a tablet and write it as CSV or JSON.
-    Synth(SynthArgs),
+    Synth(commands::synth::SynthArgs),
     /// Evaluate ACUTS against the baselines and optimal min-#: tables, sweeps, plots.
     Eval(commands::eval::EvalArgs),
     /// Draw into a proxy session live: resample, stream, reconstruct, upload the meshes.
-    Draw(DrawArgs),
+    Draw(commands::draw::DrawArgs),
     /// Start a proxy in process and let simulated people draw at once through the real path.
     Demo(DemoArgs),
     /// Load a proxy on this machine with many simulated pens; throughput, latency, lost samples.
@@ -42,78 +42,6 @@ pub enum Command {
     /// Tables and plots from `load --json` summaries.
     #[command(hide = true)]
     LoadReport(commands::load::LoadReportArgs),
-}
-
-/// ACUTS settings shared by the commands that simplify.
-#[derive(Debug, Clone, Args)]
-pub struct AcutsArgs {
-    /// Chord-height tolerance d_d, in the stroke's unit.
-    #[arg(long, default_value_t = penmesh::DEFAULT_TOLERANCE)]
-    pub tolerance: f64,
-    /// Angle threshold d_alpha, in degrees.
-    #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
-    pub angle: f64,
-    /// Also ask the angle of skipped samples within d_d of the anchor (the paper's test).
-    #[arg(long)]
-    pub angle_near_anchor: bool,
-    /// Pressure tolerance delta_p (pressure in [0, 1]): every removed sample's pressure within
-    /// this of the pressure interpolated in time along its retained segment.
-    #[arg(long, default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
-    pub pressure_tolerance: f64,
-    /// Use the paper's pressure-variance gate (formula 3) with this threshold d_sigma2 instead
-    /// of the pressure tolerance (the paper: 0.0015).
-    #[arg(long = "pressure-var", conflicts_with = "pressure_tolerance")]
-    pub pressure_var: Option<f64>,
-    /// Stage-1 chord-length resampling distance l_eps; 0 turns resampling off.
-    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
-    pub resample: f64,
-}
-
-/// The pressure gate the flags pick: `--pressure-var` if given, else `--pressure-tolerance`.
-pub fn pressure_gate(tolerance: f64, variance: Option<f64>) -> penmesh::PressureGate {
-    match variance {
-        Some(v) => penmesh::PressureGate::Variance(v),
-        None => penmesh::PressureGate::Interpolation(tolerance),
-    }
-}
-
-impl AcutsArgs {
-    pub fn params(&self) -> anyhow::Result<penmesh::AcutsParams> {
-        let params = penmesh::AcutsParams::new(
-            self.tolerance,
-            self.angle,
-            self.angle_near_anchor,
-            pressure_gate(self.pressure_tolerance, self.pressure_var),
-        )
-        .map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
-        anyhow::ensure!(
-            self.resample.is_finite() && self.resample >= 0.0,
-            "bad ACUTS setting: resample = {} must be a finite number >= 0",
-            self.resample
-        );
-        Ok(params)
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Algo {
-    Acuts,
-}
-
-#[derive(Debug, Args)]
-pub struct SimplifyArgs {
-    /// Input file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
-    pub input: PathBuf,
-    #[arg(long, value_enum, default_value_t = Algo::Acuts)]
-    pub algo: Algo,
-    #[command(flatten)]
-    pub acuts: AcutsArgs,
-    /// Print exactly one JSON object instead of a table.
-    #[arg(long)]
-    pub json: bool,
-    /// Write an SVG of the original and simplified strokes.
-    #[arg(long, value_name = "OUT")]
-    pub svg: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -136,137 +64,7 @@ pub struct MeshArgs {
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
     pub pressure_response: f64,
     #[command(flatten)]
-    pub acuts: AcutsArgs,
-}
-
-#[derive(Debug, Args)]
-pub struct SynthArgs {
-    /// The shape: figure8, semicircles, chromosome, leaf or scribble.
-    pub shape: penmesh::Shape,
-    /// Where to write the stroke; `.json` writes JSON, anything else CSV.
-    #[arg(long)]
-    pub out: PathBuf,
-    #[command(flatten)]
-    pub generator: GeneratorArgs,
-}
-
-/// How generated strokes are drawn: shared by `synth` and `draw --synth`.
-#[derive(Debug, Clone, Args)]
-pub struct GeneratorArgs {
-    /// Generated strokes: average pen speed, px/s (the paper's table 4 uses 200 to 500).
-    #[arg(long, default_value_t = penmesh::DEFAULT_SPEED_PX_PER_S)]
-    pub speed: f64,
-    /// Generated strokes: longer side of the shape's bounding box, px.
-    #[arg(long, default_value_t = penmesh::DEFAULT_SHAPE_SIZE_PX)]
-    pub size: f64,
-    /// Generated strokes: tablet sampling rate, Hz.
-    #[arg(long, default_value_t = penmesh::DEFAULT_SAMPLE_RATE_HZ)]
-    pub rate: f64,
-    /// Generated strokes: seed of the hand's jitter and timing; the same seed gives the same
-    /// stroke (`draw --count N` uses SEED, SEED+1, ...).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-}
-
-impl GeneratorArgs {
-    /// The generator's settings for `shape`, with the seed moved on by `seed_offset`.
-    pub fn params(&self, shape: penmesh::Shape, seed_offset: u64) -> penmesh::GeneratorParams {
-        penmesh::GeneratorParams {
-            shape,
-            speed: self.speed,
-            size: self.size,
-            rate_hz: self.rate,
-            seed: self.seed.wrapping_add(seed_offset),
-        }
-    }
-}
-
-/// Settings of the live path shared by `draw` and `demo`.
-#[derive(Debug, Clone, Args)]
-pub struct LiveArgs {
-    /// Send what the resampler kept at least every this many milliseconds.
-    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_MS)]
-    pub batch_ms: u64,
-    /// Send as soon as this many kept samples wait.
-    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_SAMPLES)]
-    pub batch_size: usize,
-    /// After a lost connection, keep trying to resume this many seconds.
-    #[arg(long, default_value_t = crate::draw_options::DEFAULT_RETRY_SECS)]
-    pub retry_for: u64,
-    /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.
-    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
-    pub resample: f64,
-    /// Brush size E (px): the radius at full pressure with a pressure response of 1.
-    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
-    pub brush_size: f64,
-    /// Pressure response chi in [0, 1].
-    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
-    pub pressure_response: f64,
-    /// Print exactly one JSON object instead of the table.
-    #[arg(long)]
-    pub json: bool,
-    /// Log what happens to stderr (-v: info, -vv: debug).
-    #[arg(short, long, action = clap::ArgAction::Count)]
-    pub verbose: u8,
-}
-
-#[derive(Debug, Clone, Args)]
-#[command(group(clap::ArgGroup::new("source").args(["input", "synth", "device"])))]
-#[command(group(
-    clap::ArgGroup::new("draw_or_watch").required(true).multiple(true)
-        .args(["input", "synth", "device", "watch"])
-))]
-pub struct DrawArgs {
-    /// The proxy, e.g. http://127.0.0.1:8080.
-    #[arg(long, env = "PENMESH_SERVER")]
-    pub server: String,
-    /// The session id (from POST /v1/sessions or `penmesh demo --keep-serving`).
-    #[arg(long, env = "PENMESH_SESSION")]
-    pub session: uuid::Uuid,
-    /// The session's bearer token.
-    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
-    pub token: String,
-    /// Replay the strokes of a file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
-    #[arg(long, value_name = "FILE")]
-    pub input: Option<PathBuf>,
-    /// Draw generated strokes: figure8, semicircles, chromosome, leaf or scribble.
-    #[arg(long, value_name = "SHAPE")]
-    pub synth: Option<penmesh::Shape>,
-    /// Read a tablet through evdev, e.g. /dev/input/event5 (or a recorded event file).
-    #[arg(long, value_name = "PATH")]
-    pub device: Option<PathBuf>,
-    /// Replay at the recorded pace instead of as fast as possible (files and synth).
-    #[arg(long)]
-    pub realtime: bool,
-    /// Write each stroke's GLB into this folder.
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
-    /// Your name in the session.
-    #[arg(long, default_value = "penmesh")]
-    pub name: String,
-    /// Synth: how many strokes to draw (seeds SEED, SEED+1, ...).
-    #[arg(long, default_value_t = 1)]
-    pub count: u32,
-    #[command(flatten)]
-    pub generator: GeneratorArgs,
-    /// evdev: ABS_X range MIN:MAX (read from the device when absent).
-    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
-    pub abs_x: Option<crate::input::AxisRange>,
-    /// evdev: ABS_Y range MIN:MAX (read from the device when absent).
-    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
-    pub abs_y: Option<crate::input::AxisRange>,
-    /// evdev: ABS_PRESSURE range MIN:MAX (read from the device when absent).
-    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
-    pub abs_pressure: Option<crate::input::AxisRange>,
-    /// evdev: pixels spanned by the tablet's width (y uses the same scale).
-    #[arg(long, default_value_t = 1920.0)]
-    pub canvas_width: f64,
-    /// Print what the others in the session draw, and write their meshes' GLBs into --out.
-    /// Without --input, --synth or --device: watch only, until Ctrl-C.
-    #[arg(long)]
-    pub watch: bool,
-    #[command(flatten)]
-    pub live: LiveArgs,
+    pub acuts: crate::commands::args::AcutsArgs,
 }
 
 #[derive(Debug, Args)]
@@ -293,7 +91,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 0)]
     pub port: u16,
     #[command(flatten)]
-    pub live: LiveArgs,
+    pub live: crate::commands::draw::LiveArgs,
 }
 
 /// Runs the parsed command.

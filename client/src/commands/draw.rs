@@ -1,19 +1,109 @@
 //! `penmesh draw`: one person draws into a proxy session, live.
 
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use penmesh::{Brush, GeneratorParams};
 use serde::Serialize;
 
-use crate::cli::{DrawArgs, LiveArgs};
+use crate::commands::args::GeneratorArgs;
 use crate::draw_options::DrawOptions;
 use crate::endpoint::Endpoint;
 use crate::input::{AxisRanges, EvdevSource, Pacing, PenSource, ReplaySource};
 use crate::live;
 use crate::reconstruct::StrokeReport;
 use crate::report::{self, Totals};
+
+/// Settings of the live path shared by `draw` and `demo`.
+#[derive(Debug, Clone, Args)]
+pub struct LiveArgs {
+    /// Send what the resampler kept at least every this many milliseconds.
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_MS)]
+    pub batch_ms: u64,
+    /// Send as soon as this many kept samples wait.
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_SAMPLES)]
+    pub batch_size: usize,
+    /// After a lost connection, keep trying to resume this many seconds.
+    #[arg(long, default_value_t = crate::draw_options::DEFAULT_RETRY_SECS)]
+    pub retry_for: u64,
+    /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.
+    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
+    pub resample: f64,
+    /// Brush size E (px): the radius at full pressure with a pressure response of 1.
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
+    pub brush_size: f64,
+    /// Pressure response chi in [0, 1].
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
+    pub pressure_response: f64,
+    /// Print exactly one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Log what happens to stderr (-v: info, -vv: debug).
+    #[arg(short, long, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+#[derive(Debug, Clone, Args)]
+#[command(group(clap::ArgGroup::new("source").args(["input", "synth", "device"])))]
+#[command(group(
+    clap::ArgGroup::new("draw_or_watch").required(true).multiple(true)
+        .args(["input", "synth", "device", "watch"])
+))]
+pub struct DrawArgs {
+    /// The proxy, e.g. http://127.0.0.1:8080.
+    #[arg(long, env = "PENMESH_SERVER")]
+    pub server: String,
+    /// The session id (from POST /v1/sessions or `penmesh demo --keep-serving`).
+    #[arg(long, env = "PENMESH_SESSION")]
+    pub session: uuid::Uuid,
+    /// The session's bearer token.
+    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
+    pub token: String,
+    /// Replay the strokes of a file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
+    #[arg(long, value_name = "FILE")]
+    pub input: Option<PathBuf>,
+    /// Draw generated strokes: figure8, semicircles, chromosome, leaf or scribble.
+    #[arg(long, value_name = "SHAPE")]
+    pub synth: Option<penmesh::Shape>,
+    /// Read a tablet through evdev, e.g. /dev/input/event5 (or a recorded event file).
+    #[arg(long, value_name = "PATH")]
+    pub device: Option<PathBuf>,
+    /// Replay at the recorded pace instead of as fast as possible (files and synth).
+    #[arg(long)]
+    pub realtime: bool,
+    /// Write each stroke's GLB into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Your name in the session.
+    #[arg(long, default_value = "penmesh")]
+    pub name: String,
+    /// Synth: how many strokes to draw (seeds SEED, SEED+1, ...).
+    #[arg(long, default_value_t = 1)]
+    pub count: u32,
+    #[command(flatten)]
+    pub generator: GeneratorArgs,
+    /// evdev: ABS_X range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_x: Option<crate::input::AxisRange>,
+    /// evdev: ABS_Y range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_y: Option<crate::input::AxisRange>,
+    /// evdev: ABS_PRESSURE range MIN:MAX (read from the device when absent).
+    #[arg(long, value_name = "MIN:MAX", value_parser = crate::input::AxisRange::parse)]
+    pub abs_pressure: Option<crate::input::AxisRange>,
+    /// evdev: pixels spanned by the tablet's width (y uses the same scale).
+    #[arg(long, default_value_t = 1920.0)]
+    pub canvas_width: f64,
+    /// Print what the others in the session draw, and write their meshes' GLBs into --out.
+    /// Without --input, --synth or --device: watch only, until Ctrl-C.
+    #[arg(long)]
+    pub watch: bool,
+    #[command(flatten)]
+    pub live: LiveArgs,
+}
 
 pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     init_tracing(args.live.verbose);

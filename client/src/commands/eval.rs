@@ -30,7 +30,7 @@ use penmesh::{
 };
 use serde::Serialize;
 
-use crate::cli::AcutsArgs;
+use crate::commands::args::AcutsArgs;
 use crate::io;
 use crate::plot::{LineChart, Series, SeriesLabelPosition};
 

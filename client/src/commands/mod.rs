@@ -1,5 +1,6 @@
 //! One module per CLI subcommand.
 
+pub mod args;
 pub mod ceiling;
 pub mod demo;
 pub mod draw;

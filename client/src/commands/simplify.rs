@@ -1,10 +1,34 @@
 //! `penmesh simplify`: ACUTS over every stroke of a file, with the paper's metrics.
 
+use std::path::PathBuf;
+
+use clap::Args;
 use penmesh::{Stroke, SvgStroke, polyline_length};
 use serde::Serialize;
 
-use crate::cli::{Algo, SimplifyArgs};
+use crate::commands::args::AcutsArgs;
 use crate::io;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Algo {
+    Acuts,
+}
+
+#[derive(Debug, Args)]
+pub struct SimplifyArgs {
+    /// Input file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
+    pub input: PathBuf,
+    #[arg(long, value_enum, default_value_t = Algo::Acuts)]
+    pub algo: Algo,
+    #[command(flatten)]
+    pub acuts: AcutsArgs,
+    /// Print exactly one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write an SVG of the original and simplified strokes.
+    #[arg(long, value_name = "OUT")]
+    pub svg: Option<PathBuf>,
+}
 
 /// What one stroke's simplification gives.
 #[derive(Debug, Serialize)]

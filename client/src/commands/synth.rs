@@ -1,7 +1,22 @@
 //! `penmesh synth`: write a generated stroke to a file.
 
-use crate::cli::SynthArgs;
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::commands::args::GeneratorArgs;
 use crate::io;
+
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// The shape: figure8, semicircles, chromosome, leaf or scribble.
+    pub shape: penmesh::Shape,
+    /// Where to write the stroke; `.json` writes JSON, anything else CSV.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub generator: GeneratorArgs,
+}
 
 pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
     let params = args.generator.params(args.shape, 0);

@@ -1,0 +1,85 @@
+//! Flags that several commands share: the ACUTS setting and the stroke generator's.
+
+use clap::Args;
+
+/// ACUTS settings shared by the commands that simplify.
+#[derive(Debug, Clone, Args)]
+pub struct AcutsArgs {
+    /// Chord-height tolerance d_d, in the stroke's unit.
+    #[arg(long, default_value_t = penmesh::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    /// Angle threshold d_alpha, in degrees.
+    #[arg(long, default_value_t = penmesh::DEFAULT_ANGLE_DEG)]
+    pub angle: f64,
+    /// Also ask the angle of skipped samples within d_d of the anchor (the paper's test).
+    #[arg(long)]
+    pub angle_near_anchor: bool,
+    /// Pressure tolerance delta_p (pressure in [0, 1]): every removed sample's pressure within
+    /// this of the pressure interpolated in time along its retained segment.
+    #[arg(long, default_value_t = penmesh::DEFAULT_PRESSURE_TOLERANCE)]
+    pub pressure_tolerance: f64,
+    /// Use the paper's pressure-variance gate (formula 3) with this threshold d_sigma2 instead
+    /// of the pressure tolerance (the paper: 0.0015).
+    #[arg(long = "pressure-var", conflicts_with = "pressure_tolerance")]
+    pub pressure_var: Option<f64>,
+    /// Stage-1 chord-length resampling distance l_eps; 0 turns resampling off.
+    #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
+    pub resample: f64,
+}
+
+/// The pressure gate the flags pick: `--pressure-var` if given, else `--pressure-tolerance`.
+pub fn pressure_gate(tolerance: f64, variance: Option<f64>) -> penmesh::PressureGate {
+    match variance {
+        Some(v) => penmesh::PressureGate::Variance(v),
+        None => penmesh::PressureGate::Interpolation(tolerance),
+    }
+}
+
+impl AcutsArgs {
+    pub fn params(&self) -> anyhow::Result<penmesh::AcutsParams> {
+        let params = penmesh::AcutsParams::new(
+            self.tolerance,
+            self.angle,
+            self.angle_near_anchor,
+            pressure_gate(self.pressure_tolerance, self.pressure_var),
+        )
+        .map_err(|e| anyhow::anyhow!("bad ACUTS setting: {e}"))?;
+        anyhow::ensure!(
+            self.resample.is_finite() && self.resample >= 0.0,
+            "bad ACUTS setting: resample = {} must be a finite number >= 0",
+            self.resample
+        );
+        Ok(params)
+    }
+}
+
+/// How generated strokes are drawn: shared by `synth` and `draw --synth`.
+#[derive(Debug, Clone, Args)]
+pub struct GeneratorArgs {
+    /// Generated strokes: average pen speed, px/s (the paper's table 4 uses 200 to 500).
+    #[arg(long, default_value_t = penmesh::DEFAULT_SPEED_PX_PER_S)]
+    pub speed: f64,
+    /// Generated strokes: longer side of the shape's bounding box, px.
+    #[arg(long, default_value_t = penmesh::DEFAULT_SHAPE_SIZE_PX)]
+    pub size: f64,
+    /// Generated strokes: tablet sampling rate, Hz.
+    #[arg(long, default_value_t = penmesh::DEFAULT_SAMPLE_RATE_HZ)]
+    pub rate: f64,
+    /// Generated strokes: seed of the hand's jitter and timing; the same seed gives the same
+    /// stroke (`draw --count N` uses SEED, SEED+1, ...).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+impl GeneratorArgs {
+    /// The generator's settings for `shape`, with the seed moved on by `seed_offset`.
+    pub fn params(&self, shape: penmesh::Shape, seed_offset: u64) -> penmesh::GeneratorParams {
+        penmesh::GeneratorParams {
+            shape,
+            speed: self.speed,
+            size: self.size,
+            rate_hz: self.rate,
+            seed: self.seed.wrapping_add(seed_offset),
+        }
+    }
+}
