@@ -143,6 +143,14 @@ pub const DEFAULT_RESAMPLE_DISTANCE: f64 = 0.0;
 /// Default chord-height tolerance `d_d` (same unit as x, y; table 3: 0.74): the paper's
 /// guaranteed bound of 1.74 px, all of it for stage 2 (see [`DEFAULT_RESAMPLE_DISTANCE`]).
 pub const DEFAULT_TOLERANCE: f64 = 1.74;
+// The defaults keep the guaranteed bound of the paper's setting, d_d + l_eps = 0.74 + 1.0 px,
+// checked when the crate compiles.
+const _: () = assert!(
+    (DEFAULT_TOLERANCE + DEFAULT_RESAMPLE_DISTANCE
+        - (AcutsParams::paper().tolerance + PAPER_RESAMPLE_DISTANCE))
+        .abs()
+        < 1e-12
+);
 /// Default angle threshold `d_alpha` in degrees (table 3: 15°). At 15° the angle test, not the
 /// distance, retains most samples near the anchor, where pen jitter makes directions noisy; 45°
 /// still keeps every skipped sample beyond `d_d` of the anchor within 45° of the retained
@@ -1063,11 +1071,11 @@ mod tests {
         check_simplify(&xys, paper(), &[0, 2, 3]);
     }
 
-    // The defaults keep the paper's guaranteed bound d_d + l_eps = 0.74 + 1.0 = 1.74.
+    // The default and the paper's settings are in range.
     #[test]
-    fn defaults_keep_the_papers_bound() {
-        assert!((DEFAULT_TOLERANCE + DEFAULT_RESAMPLE_DISTANCE - 1.74).abs() < 1e-12);
+    fn default_and_paper_settings_are_valid() {
         assert!(AcutsParams::default().validate().is_ok());
+        assert!(AcutsParams::paper().validate().is_ok());
     }
 
     // Stage 2 on huge coordinates: exact on a line far from the origin, and no panic at the edge
