@@ -6,6 +6,7 @@
 
 mod acuts;
 pub mod baselines;
+pub mod centreline;
 mod formats;
 mod generator;
 mod glb;
@@ -27,6 +28,7 @@ pub use crate::model::{
     validate_samples,
 };
 
+pub use crate::centreline::{Centreline, SmoothOptions, smooth_centreline};
 pub use crate::formats::{
     FormatError, HWR_PERIOD_MS, SVC2004_GAP_MS, StrokeFormat, TABLET_PRESSURE_LEVELS, read_csv,
     read_hwr, read_json, read_strokes, read_svc2004, write_csv, write_json,

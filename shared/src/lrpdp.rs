@@ -13,6 +13,12 @@
 //! `T_c` runs `T_f, T_u, T_e, reverse(T_v)`: the spec lists the end cap last, but a loop must
 //! pass the end cap between the two sides, so that is the order built here.
 //!
+//! By default the offsets are taken along a smooth centreline through the samples
+//! ([`crate::centreline`]: centripetal Catmull–Rom, real corners kept, adaptively tessellated,
+//! radius interpolated along it), so the outline's `centres` are the tessellated points, a
+//! superset of the samples. [`Centreline::Straight`] (or [`OutlineOptions::paper`]) offsets
+//! straight through the samples, as the paper does.
+//!
 //! Limits: samples are expected to be validated (finite). Consecutive samples at the same
 //! position are merged (the larger radius wins), so repeated points never make a zero-length
 //! tangent. A stroke whose samples all coincide is a dot: its outline is a full circle. Where a
@@ -21,6 +27,7 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::centreline::{Centreline, smooth_centreline};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -45,6 +52,8 @@ pub struct OutlineOptions {
     pub miter: bool,
     /// Cap density `I`: each end cap has `max(3, ceil(I * r))` points.
     pub cap_density: f64,
+    /// The centreline the sides are offset from: smooth by default.
+    pub centreline: Centreline,
 }
 
 impl OutlineOptions {
@@ -58,6 +67,16 @@ impl OutlineOptions {
         self
     }
 
+    pub fn centreline(mut self, centreline: Centreline) -> OutlineOptions {
+        self.centreline = centreline;
+        self
+    }
+
+    /// The paper's outline: offsets straight through the samples.
+    pub fn paper() -> OutlineOptions {
+        OutlineOptions::default().centreline(Centreline::Straight)
+    }
+
     /// Number of points on an end cap of radius `radius`.
     pub fn cap_points(&self, radius: f64) -> usize {
         let wanted = (self.cap_density * radius).ceil();
@@ -69,18 +88,23 @@ impl OutlineOptions {
 
 impl Default for OutlineOptions {
     fn default() -> OutlineOptions {
-        OutlineOptions { miter: false, cap_density: DEFAULT_CAP_DENSITY }
+        OutlineOptions {
+            miter: false,
+            cap_density: DEFAULT_CAP_DENSITY,
+            centreline: Centreline::default(),
+        }
     }
 }
 
 /// The outline of one stroke: centre line, offset sides and end caps.
 ///
-/// All vectors indexed by sample (`centres`, `radii`, `normals`, `upper`, `lower`) have the same
-/// length, the number of samples left after merging repeated points. An empty stroke gives an
-/// empty outline.
+/// All vectors indexed by centre point (`centres`, `radii`, `normals`, `upper`, `lower`) have
+/// the same length: the tessellated centreline's points (the samples left after merging
+/// repeated points, with a straight centreline). An empty stroke gives an empty outline.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Outline {
-    /// The stroke's samples, repeated positions merged.
+    /// The centreline's points: the stroke's samples (repeated positions merged) and, with a
+    /// smooth centreline, the tessellated points between them.
     pub centres: Vec<DVec2>,
     /// Radius `r_k` at each centre.
     pub radii: Vec<f64>,
@@ -102,7 +126,7 @@ pub struct Outline {
 }
 
 impl Outline {
-    /// Number of (merged) samples.
+    /// Number of centreline points (the merged samples, with a straight centreline).
     pub fn n_samples(&self) -> usize {
         self.centres.len()
     }
@@ -186,13 +210,17 @@ fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
 /// Never panics; an empty stroke gives an empty outline, and a stroke whose samples all coincide
 /// gives a dot (a full circle of cap points around the one centre).
 pub fn outline(samples: &[Sample], brush: &Brush, options: &OutlineOptions) -> Outline {
-    let (centres, radii) = merged_centres(samples, brush);
+    let (mut centres, mut radii) = merged_centres(samples, brush);
+    if let Centreline::Smooth(smooth) = &options.centreline {
+        (centres, radii) = smooth_centreline(&centres, &radii, smooth);
+    }
     let n_samples = centres.len();
     if n_samples == 0 {
         return Outline::default();
     }
 
-    // Unit direction of each segment; merging guarantees none has zero length.
+    // Unit direction of each segment; merging (and the tessellation) guarantee none has zero
+    // length.
     let directions: Vec<DVec2> = centres.windows(2).map(|w| (w[1] - w[0]).normalize()).collect();
     let mut normals = Vec::with_capacity(n_samples);
     let mut upper = Vec::with_capacity(n_samples);
