@@ -30,17 +30,18 @@
 use glam::DVec2;
 
 /// Default largest distance of the curve from a tessellated piece's chord, px.
-pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.1;
+pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.25;
 /// Default largest turn of the tangent within one tessellated piece, degrees.
-pub const DEFAULT_MAX_TURN_DEG: f64 = 8.0;
+pub const DEFAULT_MAX_TURN_DEG: f64 = 9.0;
 /// A turn above this at a retained sample is always a corner (a hairpin is never rounded).
 pub const HARD_CORNER_DEG: f64 = 120.0;
 /// How much more than a smooth arc within the bound can turn a knot may turn and stay smooth.
 pub const CORNER_SLACK: f64 = 1.5;
 /// Most halvings of one segment in the tessellation (at most `2^MAX_DEPTH` pieces).
 pub const MAX_DEPTH: u32 = 10;
-/// Pieces shorter than this (px) are not split further.
-pub const MIN_PIECE: f64 = 0.05;
+/// No piece is made shorter than this (px): finer detail would not show at one px per unit,
+/// and a pen path that turns faster than that is not smooth (tight loops cost no more points).
+pub const MIN_PIECE: f64 = 0.5;
 
 /// How the outline's centreline is made from the simplified samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,8 +118,9 @@ struct Segment {
 }
 
 impl Segment {
-    /// The centripetal Catmull–Rom segment from `p1` to `p2` with neighbours `p0`, `p3`.
-    fn new(p: [DVec2; 4], r: [f64; 4]) -> Segment {
+    /// The centripetal Catmull–Rom segment from `p1` to `p2` with neighbours `p0`, `p3`, its
+    /// two tangents scaled by `scale` (1: the spline; 0: the straight chord).
+    fn new(p: [DVec2; 4], r: [f64; 4], scale: f64) -> Segment {
         let knot = |a: DVec2, b: DVec2| a.distance(b).sqrt();
         let (t01, t12, t23) = (knot(p[0], p[1]), knot(p[1], p[2]), knot(p[2], p[3]));
         let chord = p[2] - p[1];
@@ -128,7 +130,7 @@ impl Segment {
         let m2 = chord + t12 * ((p[3] - p[2]) / t23 - (p[3] - p[1]) / (t12 + t23));
         // A tangent that cancels out (only in degenerate geometry) falls back to the chord.
         let usable = |m: DVec2| if m.length() > 1e-9 * chord.length() { m } else { chord };
-        let (m1, m2) = (usable(m1), usable(m2));
+        let (m1, m2) = (scale * usable(m1), scale * usable(m2));
         let pos = [2.0 * (p[1] - p[2]) + m1 + m2, -3.0 * (p[1] - p[2]) - 2.0 * m1 - m2, m1, p[1]];
         let n1 = (r[2] - r[1]) + t12 * ((r[1] - r[0]) / t01 - (r[2] - r[0]) / (t01 + t12));
         let n2 = (r[2] - r[1]) + t12 * ((r[3] - r[2]) / t23 - (r[3] - r[1]) / (t12 + t23));
@@ -142,9 +144,11 @@ impl Segment {
         ((a * t + b) * t + c) * t + d
     }
 
+    /// The direction of travel at `t` (the chord where the derivative vanishes).
     fn tangent(&self, t: f64) -> DVec2 {
         let [a, b, c, _] = self.pos;
-        (3.0 * a * t + 2.0 * b) * t + c
+        let d = (3.0 * a * t + 2.0 * b) * t + c;
+        if d.length_squared() > 0.0 { d } else { self.point(1.0) - self.point(0.0) }
     }
 
     fn radius(&self, t: f64) -> f64 {
@@ -153,6 +157,10 @@ impl Segment {
     }
 }
 
+/// Tangent scales tried, in turn, for a segment the caller's check refuses; the last is the
+/// chord, which the check must accept (ACUTS bounds the raw samples by it).
+const TANGENT_SCALES: [f64; 4] = [1.0, 0.5, 0.25, 0.0];
+
 /// The smooth centreline through `centres` (distinct consecutive points) with their radii:
 /// the tessellated points and the radius at each. Every input point is an output point; the
 /// first and last are the input's. Fewer than three points give the input back.
@@ -160,6 +168,19 @@ pub fn smooth_centreline(
     centres: &[DVec2],
     radii: &[f64],
     options: &SmoothOptions,
+) -> (Vec<DVec2>, Vec<f64>) {
+    fit_centreline(centres, radii, options, &mut |_, _| true)
+}
+
+/// [`smooth_centreline`], with each segment's tessellation (both ends included) offered to
+/// `accept(segment index, points)`: a refused segment is rebuilt with its two tangents halved,
+/// then quartered, then as the straight chord. Halving keeps the tangents' directions, so the
+/// curve stays smooth at the knots; only the refused segment flattens.
+pub fn fit_centreline(
+    centres: &[DVec2],
+    radii: &[f64],
+    options: &SmoothOptions,
+    accept: &mut dyn FnMut(usize, &[DVec2]) -> bool,
 ) -> (Vec<DVec2>, Vec<f64>) {
     let n = centres.len().min(radii.len());
     if n < 3 {
@@ -172,9 +193,10 @@ pub fn smooth_centreline(
                 || is_corner(centres[k - 1], centres[k], centres[k + 1], options.bound)
         })
         .collect();
-    let max_turn = options.max_turn_deg.to_radians();
     let mut points = vec![centres[0]];
     let mut out_radii = vec![radii[0]];
+    let mut piece_points = Vec::new();
+    let mut piece_radii = Vec::new();
     for i in 0..n - 1 {
         // At a corner or an end, mirror the far neighbour: the curve leaves along the chord.
         let (p1, p2, r1, r2) = (centres[i], centres[i + 1], radii[i], radii[i + 1]);
@@ -185,30 +207,66 @@ pub fn smooth_centreline(
         } else {
             (centres[i + 2], radii[i + 2])
         };
-        let segment = Segment::new([p0, p1, p2, p3], [r0, r1, r2, r3]);
-        if corner[i] && corner[i + 1] {
-            // Both tangents are the chord: a straight piece.
-            points.push(p2);
-            out_radii.push(r2);
-            continue;
+        for scale in TANGENT_SCALES {
+            piece_points.clear();
+            piece_radii.clear();
+            piece_points.push(p1);
+            piece_radii.push(r1);
+            // Both tangents along the chord (two corners) or none: a straight piece.
+            if scale > 0.0 && !(corner[i] && corner[i + 1]) {
+                let segment = Segment::new([p0, p1, p2, p3], [r0, r1, r2, r3], scale);
+                tessellate(&segment, options, &mut piece_points, &mut piece_radii);
+            }
+            // The knot itself, exactly, replacing a tessellated point that rounds onto it.
+            if piece_points.len() > 1 && piece_points.last().is_some_and(|q| same_point(*q, p2)) {
+                piece_points.pop();
+                piece_radii.pop();
+            }
+            piece_points.push(p2);
+            piece_radii.push(r2);
+            if scale == 0.0 || accept(i, &piece_points) {
+                break;
+            }
         }
-        let mut piece = Piece {
-            segment: &segment,
-            options,
-            max_turn,
-            points: &mut points,
-            radii: &mut out_radii,
-        };
-        piece.split(0.0, p1, segment.tangent(0.0), 1.0, p2, segment.tangent(1.0), 0);
-        // The knot itself, exactly, replacing a tessellated point that rounds onto it.
-        if points.last().is_some_and(|last| same_point(*last, p2)) {
-            points.pop();
-            out_radii.pop();
-        }
-        points.push(p2);
-        out_radii.push(r2);
+        points.extend_from_slice(&piece_points[1..]);
+        out_radii.extend_from_slice(&piece_radii[1..]);
     }
     (points, out_radii)
+}
+
+/// Pushes the interior points of `segment`: first as many equal steps of `t` as its estimated
+/// turning needs, then each step halved until it is flat (see the module docs).
+fn tessellate(
+    segment: &Segment,
+    options: &SmoothOptions,
+    points: &mut Vec<DVec2>,
+    radii: &mut Vec<f64>,
+) {
+    const PROBES: usize = 16;
+    let max_turn = options.max_turn_deg.to_radians().max(1e-3);
+    let probes: Vec<DVec2> =
+        (0..=PROBES).map(|k| segment.point(k as f64 / PROBES as f64)).collect();
+    let chords: Vec<DVec2> = probes.windows(2).map(|w| w[1] - w[0]).collect();
+    let length: f64 = chords.iter().map(|c| c.length()).sum();
+    let turning = turn(segment.tangent(0.0), chords[0])
+        + chords.windows(2).map(|w| turn(w[0], w[1])).sum::<f64>()
+        + turn(chords[PROBES - 1], segment.tangent(1.0));
+    let by_turn = (turning / max_turn).ceil();
+    let by_length = (length / MIN_PIECE).floor().max(1.0);
+    let steps = by_turn.min(by_length).clamp(1.0, 64.0) as usize;
+    let mut piece = Piece { segment, options, max_turn, points, radii };
+    let mut t0 = 0.0;
+    let mut p0 = segment.point(0.0);
+    let mut d0 = segment.tangent(0.0);
+    for k in 1..=steps {
+        let t1 = k as f64 / steps as f64;
+        let (p1, d1) = (segment.point(t1), segment.tangent(t1));
+        piece.split(t0, p0, d0, t1, p1, d1, 0);
+        if k < steps {
+            piece.push(t1, p1);
+        }
+        (t0, p0, d0) = (t1, p1, d1);
+    }
 }
 
 /// Whether two points coincide up to rounding (relative to their magnitude).
@@ -226,9 +284,17 @@ struct Piece<'a> {
 }
 
 impl Piece<'_> {
+    /// Pushes a point, never making a zero-length piece (only conceivable through rounding).
+    fn push(&mut self, t: f64, p: DVec2) {
+        if !self.points.last().is_some_and(|last| same_point(*last, p)) {
+            self.points.push(p);
+            self.radii.push(self.segment.radius(t));
+        }
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn split(&mut self, t0: f64, p0: DVec2, d0: DVec2, t1: f64, p1: DVec2, d1: DVec2, depth: u32) {
-        if depth >= MAX_DEPTH || p0.distance(p1) < MIN_PIECE {
+        if depth >= MAX_DEPTH || p0.distance(p1) < 2.0 * MIN_PIECE {
             return;
         }
         let tm = 0.5 * (t0 + t1);
@@ -244,11 +310,7 @@ impl Piece<'_> {
         }
         let dm = self.segment.tangent(tm);
         self.split(t0, p0, d0, tm, pm, dm, depth + 1);
-        // Never a zero-length piece (only conceivable through rounding).
-        if !self.points.last().is_some_and(|last| same_point(*last, pm)) {
-            self.points.push(pm);
-            self.radii.push(self.segment.radius(tm));
-        }
+        self.push(tm, pm);
         self.split(tm, pm, dm, t1, p1, d1, depth + 1);
     }
 }

@@ -27,7 +27,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::centreline::{Centreline, smooth_centreline};
+use crate::centreline::{Centreline, fit_centreline, polyline_distance, smooth_centreline};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -185,11 +185,13 @@ fn perp(v: DVec2) -> DVec2 {
     DVec2::new(v.y, -v.x)
 }
 
-/// Merges consecutive samples at the same position; returns centres and radii.
-fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
+/// Merges consecutive samples at the same position; returns centres, radii and, for each
+/// centre, the index in `samples` of the first sample merged into it.
+fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>, Vec<usize>) {
     let mut centres: Vec<DVec2> = Vec::with_capacity(samples.len());
     let mut radii: Vec<f64> = Vec::with_capacity(samples.len());
-    for s in samples {
+    let mut firsts: Vec<usize> = Vec::with_capacity(samples.len());
+    for (sample_idx, s) in samples.iter().enumerate() {
         let pos = s.pos();
         let radius = brush.radius(s.p);
         if let (Some(last), Some(last_radius)) = (centres.last(), radii.last_mut()) {
@@ -201,8 +203,52 @@ fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
         }
         centres.push(pos);
         radii.push(radius);
+        firsts.push(sample_idx);
     }
-    (centres, radii)
+    (centres, radii, firsts)
+}
+
+/// Why [`fitted_outline`] refused its retained indices.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KeptError {
+    #[error("retained index {index} (entry {entry}) is past the {n_samples} raw samples")]
+    OutOfRange { entry: usize, index: usize, n_samples: usize },
+    #[error("retained indices must increase: entry {entry} is {index} after {previous}")]
+    NotIncreasing { entry: usize, index: usize, previous: usize },
+}
+
+/// The outline of the simplification `kept` (increasing indices into `raw`), with the smooth
+/// centreline checked against the raw samples: a segment that would leave a raw sample it
+/// spans further than the bound from the centreline is flattened until none is (at worst to
+/// the chord, which ACUTS guarantees). So every raw sample lies within the bound of the
+/// centreline when `kept` is a simplification within that bound. With a straight centreline
+/// this is [`outline`] of the retained samples.
+pub fn fitted_outline(
+    raw: &[Sample],
+    kept: &[usize],
+    brush: &Brush,
+    options: &OutlineOptions,
+) -> Result<Outline, KeptError> {
+    for (entry, &index) in kept.iter().enumerate() {
+        if index >= raw.len() {
+            return Err(KeptError::OutOfRange { entry, index, n_samples: raw.len() });
+        }
+        if let Some(&previous) = entry.checked_sub(1).and_then(|e| kept.get(e)) {
+            if index <= previous {
+                return Err(KeptError::NotIncreasing { entry, index, previous });
+            }
+        }
+    }
+    let samples: Vec<Sample> = kept.iter().map(|&i| raw[i]).collect();
+    let (mut centres, mut radii, firsts) = merged_centres(&samples, brush);
+    if let Centreline::Smooth(smooth) = &options.centreline {
+        let bound = smooth.bound;
+        (centres, radii) = fit_centreline(&centres, &radii, smooth, &mut |segment, points| {
+            let (from, to) = (kept[firsts[segment]], kept[firsts[segment + 1]]);
+            raw[from..=to].iter().all(|q| polyline_distance(q.pos(), points) <= bound)
+        });
+    }
+    Ok(offset_outline(centres, radii, options))
 }
 
 /// Builds the outline of a simplified stroke (LRPDP steps 1–4).
@@ -210,10 +256,15 @@ fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
 /// Never panics; an empty stroke gives an empty outline, and a stroke whose samples all coincide
 /// gives a dot (a full circle of cap points around the one centre).
 pub fn outline(samples: &[Sample], brush: &Brush, options: &OutlineOptions) -> Outline {
-    let (mut centres, mut radii) = merged_centres(samples, brush);
+    let (mut centres, mut radii, _) = merged_centres(samples, brush);
     if let Centreline::Smooth(smooth) = &options.centreline {
         (centres, radii) = smooth_centreline(&centres, &radii, smooth);
     }
+    offset_outline(centres, radii, options)
+}
+
+/// LRPDP steps 2–4 on a centreline: offsets, normals and caps.
+fn offset_outline(centres: Vec<DVec2>, radii: Vec<f64>, options: &OutlineOptions) -> Outline {
     let n_samples = centres.len();
     if n_samples == 0 {
         return Outline::default();

@@ -700,12 +700,11 @@ pub struct CentrelineRow {
 fn centreline_table(data_set: &DataSet, kept: &[Vec<usize>], bound: f64) -> Vec<CentrelineRow> {
     use penmesh::centreline::{directed_distance, polyline_distance, polyline_turns};
     let brush = Brush::default();
+    let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
     let kinds = [
-        ("straight (paper)", penmesh::Centreline::Straight),
-        (
-            "smooth (default)",
-            penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound)),
-        ),
+        ("straight (paper)", penmesh::Centreline::Straight, false),
+        ("smooth, retained samples only", smooth, false),
+        ("smooth, checked against the raw samples", smooth, true),
     ];
     let raws: Vec<Vec<_>> =
         data_set.strokes().map(|s| s.iter().map(Sample::pos).collect()).collect();
@@ -722,7 +721,7 @@ fn centreline_table(data_set: &DataSet, kept: &[Vec<usize>], bound: f64) -> Vec<
     let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
     kinds
         .into_iter()
-        .map(|(name, kind)| {
+        .map(|(name, kind, fitted)| {
             let options = OutlineOptions::default().centreline(kind);
             let mut row = CentrelineRow {
                 centreline: name.to_owned(),
@@ -748,7 +747,12 @@ fn centreline_table(data_set: &DataSet, kept: &[Vec<usize>], bound: f64) -> Vec<
             {
                 let simplified = picked(samples, kept);
                 let started = Instant::now();
-                let outline = penmesh::outline(&simplified, &brush, &options);
+                let outline = if fitted {
+                    penmesh::fitted_outline(samples, kept, &brush, &options)
+                        .expect("the simplifiers keep increasing indices of the stroke")
+                } else {
+                    penmesh::outline(&simplified, &brush, &options)
+                };
                 let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
                 let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
                 row.time_ms += started.elapsed().as_secs_f64() * 1e3;
