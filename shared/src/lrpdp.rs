@@ -27,7 +27,9 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::centreline::{Centreline, fit_centreline, polyline_distance, smooth_centreline};
+use crate::centreline::{
+    Centreline, directed_distance, fit_centreline, polyline_distance, smooth_centreline,
+};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -218,11 +220,12 @@ pub enum KeptError {
 }
 
 /// The outline of the simplification `kept` (increasing indices into `raw`), with the smooth
-/// centreline checked against the raw samples: a segment that would leave a raw sample it
-/// spans further than the bound from the centreline is flattened until none is (at worst to
-/// the chord, which ACUTS guarantees). So every raw sample lies within the bound of the
-/// centreline when `kept` is a simplification within that bound. With a straight centreline
-/// this is [`outline`] of the retained samples.
+/// centreline checked against the raw samples in both directions: a segment that would leave a
+/// raw sample it spans further than the bound from the centreline, or put a tessellated point or
+/// the midpoint of a tessellated piece further than the bound from that stretch of the raw
+/// path, is flattened until neither happens (at worst to the chord, which satisfies both when
+/// every raw sample is within the bound of it, as ACUTS guarantees). With a straight
+/// centreline this is [`outline`] of the retained samples.
 pub fn fitted_outline(
     raw: &[Sample],
     kept: &[usize],
@@ -245,7 +248,9 @@ pub fn fitted_outline(
         let bound = smooth.bound;
         (centres, radii) = fit_centreline(&centres, &radii, smooth, &mut |segment, points| {
             let (from, to) = (kept[firsts[segment]], kept[firsts[segment + 1]]);
-            raw[from..=to].iter().all(|q| polyline_distance(q.pos(), points) <= bound)
+            let path: Vec<DVec2> = raw[from..=to].iter().map(Sample::pos).collect();
+            path.iter().all(|q| polyline_distance(*q, points) <= bound)
+                && directed_distance(points, &path, 2) <= bound
         });
     }
     Ok(offset_outline(centres, radii, options))
@@ -530,7 +535,8 @@ mod tests {
             Sample::new(10.0, 0.0, 1.0, 1.0),
             Sample::new(10.0, 10.0, 2.0, 1.0),
         ];
-        let options = OutlineOptions::default().miter(true);
+        // The straight centreline: the smooth one would round this corner of short chords.
+        let options = OutlineOptions::paper().miter(true);
         let out = outline(&samples, &Brush::default(), &options);
         let offset = out.upper[1].distance(out.centres[1]);
         assert!((offset - 4.0 * std::f64::consts::SQRT_2).abs() < 1e-9);
