@@ -143,8 +143,8 @@ pub struct MeshArgs {
     /// px, as `penmesh eval` does); tolerances and the brush stay in the scaled unit.
     #[arg(long)]
     pub px_per_unit: Option<f64>,
-    /// Print one JSON object (the centreline of each stroke as [x, y, r], sizes, parameters)
-    /// instead of the summary lines.
+    /// Print one JSON object instead of the summary lines: the centreline of each stroke as
+    /// [x, y, r], its raw samples as [x, y, p], sizes and parameters.
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]

@@ -32,7 +32,7 @@ use glam::DVec2;
 /// Default largest distance of the curve from a tessellated piece's chord, px.
 pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.25;
 /// Default largest turn of the tangent within one tessellated piece, degrees.
-pub const DEFAULT_MAX_TURN_DEG: f64 = 9.0;
+pub const DEFAULT_MAX_TURN_DEG: f64 = 10.0;
 /// A turn above this at a retained sample is always a corner (a hairpin is never rounded).
 pub const HARD_CORNER_DEG: f64 = 120.0;
 /// How much more than a smooth arc within the bound can turn a knot may turn and stay smooth.

@@ -1,5 +1,6 @@
 //! `penmesh mesh`: simplify with ACUTS, build the LRPDP solid, write binary glTF.
 
+use std::io::Write as _;
 use std::time::Instant;
 
 use penmesh::{
@@ -87,8 +88,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
             }),
             Centreline::Straight => serde_json::Value::Null,
         };
+        let raw: Vec<Vec<[f64; 3]>> =
+            strokes.iter().map(|s| s.iter().map(|q| [q.x, q.y, q.p]).collect()).collect();
         let report = json!({
             "out": args.out,
+            "raw": raw,
             "strokes": strokes.len(),
             "samples": n_input,
             "kept": n_kept,
@@ -112,7 +116,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 "quantize": args.quantize,
             },
         });
-        println!("{report}");
+        // Written, not printed: a closed pipe is an error to report, not a panic.
+        let mut out = std::io::stdout().lock();
+        serde_json::to_writer(&mut out, &report)?;
+        writeln!(out)?;
         return Ok(());
     }
     println!(
