@@ -63,8 +63,27 @@ pub struct MeshArgs {
     /// Pressure response chi in [0, 1].
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
     pub pressure_response: f64,
+    /// The centreline the outline is offset from: a smooth curve through the retained samples
+    /// (checked against the raw samples), or the paper's straight segments.
+    #[arg(long, value_enum, default_value_t = CentrelineKind::Smooth)]
+    pub centreline: CentrelineKind,
+    /// Multiply x and y by this on reading (for example 0.0378 for SVC2004 tablet units to
+    /// px, as `penmesh eval` does); tolerances and the brush stay in the scaled unit.
+    #[arg(long)]
+    pub px_per_unit: Option<f64>,
+    /// Print one JSON object instead of the summary lines: the centreline of each stroke as
+    /// [x, y, r], its raw samples as [x, y, p], sizes and parameters.
+    #[arg(long)]
+    pub json: bool,
     #[command(flatten)]
     pub acuts: crate::commands::args::AcutsArgs,
+}
+
+/// `penmesh mesh --centreline`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CentrelineKind {
+    Smooth,
+    Straight,
 }
 
 #[derive(Debug, Args)]

@@ -117,7 +117,15 @@ pub async fn reconstruct(
     let metrics = penmesh::simplification_metrics(&stroke.drawn, &kept)
         .with_context(|| format!("stroke {id}: measuring the simplification"))?;
 
-    let outline = penmesh::outline(&simplified.samples, &options.brush, &OutlineOptions::default());
+    // The smooth centreline (the default), checked against what was drawn when the proxy's
+    // stroke is exactly the drawn samples it kept.
+    let outline_options = OutlineOptions::default();
+    let outline = if exact {
+        penmesh::fitted_outline(&stroke.drawn, &kept, &options.brush, &outline_options)
+            .with_context(|| format!("stroke {id}: outlining"))?
+    } else {
+        penmesh::outline(&simplified.samples, &options.brush, &outline_options)
+    };
     let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
     let meta = GlbMeta { stroke: id, author: options.name.clone(), brush: options.brush };
     let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());

@@ -6,6 +6,7 @@
 
 mod acuts;
 pub mod baselines;
+pub mod centreline;
 mod formats;
 mod generator;
 mod glb;
@@ -27,6 +28,7 @@ pub use crate::model::{
     validate_samples,
 };
 
+pub use crate::centreline::{Centreline, SmoothOptions, fit_centreline, smooth_centreline};
 pub use crate::formats::{
     FormatError, HWR_PERIOD_MS, SVC2004_GAP_MS, StrokeFormat, TABLET_PRESSURE_LEVELS, read_csv,
     read_hwr, read_json, read_strokes, read_svc2004, write_csv, write_json,
@@ -40,7 +42,8 @@ pub use crate::glb::{
 };
 pub use crate::lrpdp::{
     CloudOptions, DEFAULT_CAP_DENSITY, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS,
-    MIN_CAP_POINTS, Outline, OutlineOptions, PointCloud, outline, point_cloud, point_cloud_ply,
+    KeptError, MIN_CAP_POINTS, Outline, OutlineOptions, PointCloud, fitted_outline, outline,
+    point_cloud, point_cloud_ply,
 };
 pub use crate::mesh::{
     DEFAULT_THICKNESS, MIN_THICKNESS, MeshDefect, MeshStats, SolidOptions, StrokeMesh, is_closed,

@@ -13,6 +13,12 @@
 //! `T_c` runs `T_f, T_u, T_e, reverse(T_v)`: the spec lists the end cap last, but a loop must
 //! pass the end cap between the two sides, so that is the order built here.
 //!
+//! By default the offsets are taken along a smooth centreline through the samples
+//! ([`crate::centreline`]: centripetal Catmull–Rom, real corners kept, adaptively tessellated,
+//! radius interpolated along it), so the outline's `centres` are the tessellated points, a
+//! superset of the samples. [`Centreline::Straight`] (or [`OutlineOptions::paper`]) offsets
+//! straight through the samples, as the paper does.
+//!
 //! Limits: samples are expected to be validated (finite). Consecutive samples at the same
 //! position are merged (the larger radius wins), so repeated points never make a zero-length
 //! tangent. A stroke whose samples all coincide is a dot: its outline is a full circle. Where a
@@ -21,6 +27,9 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::centreline::{
+    Centreline, directed_distance, fit_centreline, polyline_distance, smooth_centreline,
+};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -45,6 +54,8 @@ pub struct OutlineOptions {
     pub miter: bool,
     /// Cap density `I`: each end cap has `max(3, ceil(I * r))` points.
     pub cap_density: f64,
+    /// The centreline the sides are offset from: smooth by default.
+    pub centreline: Centreline,
 }
 
 impl OutlineOptions {
@@ -58,6 +69,16 @@ impl OutlineOptions {
         self
     }
 
+    pub fn centreline(mut self, centreline: Centreline) -> OutlineOptions {
+        self.centreline = centreline;
+        self
+    }
+
+    /// The paper's outline: offsets straight through the samples.
+    pub fn paper() -> OutlineOptions {
+        OutlineOptions::default().centreline(Centreline::Straight)
+    }
+
     /// Number of points on an end cap of radius `radius`.
     pub fn cap_points(&self, radius: f64) -> usize {
         let wanted = (self.cap_density * radius).ceil();
@@ -69,18 +90,23 @@ impl OutlineOptions {
 
 impl Default for OutlineOptions {
     fn default() -> OutlineOptions {
-        OutlineOptions { miter: false, cap_density: DEFAULT_CAP_DENSITY }
+        OutlineOptions {
+            miter: false,
+            cap_density: DEFAULT_CAP_DENSITY,
+            centreline: Centreline::default(),
+        }
     }
 }
 
 /// The outline of one stroke: centre line, offset sides and end caps.
 ///
-/// All vectors indexed by sample (`centres`, `radii`, `normals`, `upper`, `lower`) have the same
-/// length, the number of samples left after merging repeated points. An empty stroke gives an
-/// empty outline.
+/// All vectors indexed by centre point (`centres`, `radii`, `normals`, `upper`, `lower`) have
+/// the same length: the tessellated centreline's points (the samples left after merging
+/// repeated points, with a straight centreline). An empty stroke gives an empty outline.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Outline {
-    /// The stroke's samples, repeated positions merged.
+    /// The centreline's points: the stroke's samples (repeated positions merged) and, with a
+    /// smooth centreline, the tessellated points between them.
     pub centres: Vec<DVec2>,
     /// Radius `r_k` at each centre.
     pub radii: Vec<f64>,
@@ -102,7 +128,7 @@ pub struct Outline {
 }
 
 impl Outline {
-    /// Number of (merged) samples.
+    /// Number of centreline points (the merged samples, with a straight centreline).
     pub fn n_samples(&self) -> usize {
         self.centres.len()
     }
@@ -161,11 +187,13 @@ fn perp(v: DVec2) -> DVec2 {
     DVec2::new(v.y, -v.x)
 }
 
-/// Merges consecutive samples at the same position; returns centres and radii.
-fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
+/// Merges consecutive samples at the same position; returns centres, radii and, for each
+/// centre, the index in `samples` of the first sample merged into it.
+fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>, Vec<usize>) {
     let mut centres: Vec<DVec2> = Vec::with_capacity(samples.len());
     let mut radii: Vec<f64> = Vec::with_capacity(samples.len());
-    for s in samples {
+    let mut firsts: Vec<usize> = Vec::with_capacity(samples.len());
+    for (sample_idx, s) in samples.iter().enumerate() {
         let pos = s.pos();
         let radius = brush.radius(s.p);
         if let (Some(last), Some(last_radius)) = (centres.last(), radii.last_mut()) {
@@ -177,8 +205,55 @@ fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
         }
         centres.push(pos);
         radii.push(radius);
+        firsts.push(sample_idx);
     }
-    (centres, radii)
+    (centres, radii, firsts)
+}
+
+/// Why [`fitted_outline`] refused its retained indices.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KeptError {
+    #[error("retained index {index} (entry {entry}) is past the {n_samples} raw samples")]
+    OutOfRange { entry: usize, index: usize, n_samples: usize },
+    #[error("retained indices must increase: entry {entry} is {index} after {previous}")]
+    NotIncreasing { entry: usize, index: usize, previous: usize },
+}
+
+/// The outline of the simplification `kept` (increasing indices into `raw`), with the smooth
+/// centreline checked against the raw samples in both directions: a segment that would leave a
+/// raw sample it spans further than the bound from the centreline, or put a tessellated point or
+/// the midpoint of a tessellated piece further than the bound from that stretch of the raw
+/// path, is flattened until neither happens (at worst to the chord, which satisfies both when
+/// every raw sample is within the bound of it, as ACUTS guarantees). With a straight
+/// centreline this is [`outline`] of the retained samples.
+pub fn fitted_outline(
+    raw: &[Sample],
+    kept: &[usize],
+    brush: &Brush,
+    options: &OutlineOptions,
+) -> Result<Outline, KeptError> {
+    for (entry, &index) in kept.iter().enumerate() {
+        if index >= raw.len() {
+            return Err(KeptError::OutOfRange { entry, index, n_samples: raw.len() });
+        }
+        if let Some(&previous) = entry.checked_sub(1).and_then(|e| kept.get(e)) {
+            if index <= previous {
+                return Err(KeptError::NotIncreasing { entry, index, previous });
+            }
+        }
+    }
+    let samples: Vec<Sample> = kept.iter().map(|&i| raw[i]).collect();
+    let (mut centres, mut radii, firsts) = merged_centres(&samples, brush);
+    if let Centreline::Smooth(smooth) = &options.centreline {
+        let bound = smooth.bound;
+        (centres, radii) = fit_centreline(&centres, &radii, smooth, &mut |segment, points| {
+            let (from, to) = (kept[firsts[segment]], kept[firsts[segment + 1]]);
+            let path: Vec<DVec2> = raw[from..=to].iter().map(Sample::pos).collect();
+            path.iter().all(|q| polyline_distance(*q, points) <= bound)
+                && directed_distance(points, &path, 2) <= bound
+        });
+    }
+    Ok(offset_outline(centres, radii, options))
 }
 
 /// Builds the outline of a simplified stroke (LRPDP steps 1–4).
@@ -186,13 +261,22 @@ fn merged_centres(samples: &[Sample], brush: &Brush) -> (Vec<DVec2>, Vec<f64>) {
 /// Never panics; an empty stroke gives an empty outline, and a stroke whose samples all coincide
 /// gives a dot (a full circle of cap points around the one centre).
 pub fn outline(samples: &[Sample], brush: &Brush, options: &OutlineOptions) -> Outline {
-    let (centres, radii) = merged_centres(samples, brush);
+    let (mut centres, mut radii, _) = merged_centres(samples, brush);
+    if let Centreline::Smooth(smooth) = &options.centreline {
+        (centres, radii) = smooth_centreline(&centres, &radii, smooth);
+    }
+    offset_outline(centres, radii, options)
+}
+
+/// LRPDP steps 2–4 on a centreline: offsets, normals and caps.
+fn offset_outline(centres: Vec<DVec2>, radii: Vec<f64>, options: &OutlineOptions) -> Outline {
     let n_samples = centres.len();
     if n_samples == 0 {
         return Outline::default();
     }
 
-    // Unit direction of each segment; merging guarantees none has zero length.
+    // Unit direction of each segment; merging (and the tessellation) guarantee none has zero
+    // length.
     let directions: Vec<DVec2> = centres.windows(2).map(|w| (w[1] - w[0]).normalize()).collect();
     let mut normals = Vec::with_capacity(n_samples);
     let mut upper = Vec::with_capacity(n_samples);
@@ -451,7 +535,8 @@ mod tests {
             Sample::new(10.0, 0.0, 1.0, 1.0),
             Sample::new(10.0, 10.0, 2.0, 1.0),
         ];
-        let options = OutlineOptions::default().miter(true);
+        // The straight centreline: the smooth one would round this corner of short chords.
+        let options = OutlineOptions::paper().miter(true);
         let out = outline(&samples, &Brush::default(), &options);
         let offset = out.upper[1].distance(out.centres[1]);
         assert!((offset - 4.0 * std::f64::consts::SQRT_2).abs() < 1e-9);

@@ -254,6 +254,8 @@ pub struct DataSetReport {
     pub overlay_file: Option<String>,
     pub rows: Vec<Row>,
     pub mesh: Vec<MeshRow>,
+    /// The straight and the smooth centreline of ACUTS's simplification, against the raw path.
+    pub centreline: Vec<CentrelineRow>,
     pub sweep: Vec<SweepPoint>,
 }
 
@@ -509,6 +511,10 @@ fn evaluate(
         kept_by_algo.push(kept);
     }
     let mesh = mesh_table(data_set, algos, &kept_by_algo, progress);
+    let centreline = match algos.iter().position(|a| a.name == "acuts") {
+        Some(i) => centreline_table(data_set, &kept_by_algo[i], bound),
+        None => Vec::new(),
+    };
 
     let mut points = Vec::new();
     if sweep {
@@ -535,6 +541,7 @@ fn evaluate(
         overlay_file: data_set.files.first().map(|f| f.name.clone()),
         rows,
         mesh,
+        centreline,
         sweep: points,
     })
 }
@@ -612,6 +619,144 @@ fn mesh_table(
     rows
 }
 
+/// Where the pen's path counts as smooth for the centreline table: it turns by less than
+/// `SMOOTH_TURN_DEG` between the chords `SMOOTH_REACH_PX` back and ahead along it.
+const SMOOTH_REACH_PX: f64 = 3.0;
+const SMOOTH_TURN_DEG: f64 = 30.0;
+
+/// How one centreline (straight or smooth) of ACUTS's simplification looks and how faithful it
+/// is, over every stroke of a data set.
+#[derive(Debug, Clone, Serialize)]
+pub struct CentrelineRow {
+    pub centreline: String,
+    /// Tessellated centreline points (the retained samples, for the straight one).
+    pub points: usize,
+    /// Interior centreline points where the pen's path is smooth.
+    pub smooth_points: usize,
+    /// Of those, the share that turn by more than 10° and by more than 20°, %.
+    pub over_10_deg: f64,
+    pub over_20_deg: f64,
+    /// Median and largest turn at those points, degrees.
+    pub median_turn_deg: f64,
+    pub max_turn_deg: f64,
+    /// Largest distance of a raw sample to the centreline, px.
+    pub raw_to_centreline: f64,
+    /// Strokes with a raw sample further than the bound from the centreline.
+    pub strokes_over_bound: usize,
+    /// Largest distance of a point of the centreline to the raw path, px.
+    pub centreline_to_raw: f64,
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Sum of the one-stroke GLB files, bytes.
+    pub bytes: usize,
+    /// The largest one-stroke GLB, bytes, and its raw sample count.
+    pub max_stroke_bytes: usize,
+    pub max_stroke_samples: usize,
+    /// Outline + mesh + GLB, all strokes, ms.
+    pub time_ms: f64,
+}
+
+/// Builds each stroke's outline from ACUTS's retained samples with the straight and the smooth
+/// centreline, and measures them against the raw path.
+fn centreline_table(data_set: &DataSet, kept: &[Vec<usize>], bound: f64) -> Vec<CentrelineRow> {
+    use penmesh::centreline::{directed_distance, polyline_distance, polyline_turns};
+    let brush = Brush::default();
+    let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
+    let kinds = [
+        ("straight (paper)", penmesh::Centreline::Straight, false),
+        ("smooth, retained samples only", smooth, false),
+        ("smooth, checked against the raw samples", smooth, true),
+    ];
+    let raws: Vec<Vec<_>> =
+        data_set.strokes().map(|s| s.iter().map(Sample::pos).collect()).collect();
+    let smooth_flags: Vec<Vec<bool>> = raws
+        .iter()
+        .map(|raw| {
+            penmesh::centreline::smooth_at_samples(
+                raw,
+                SMOOTH_REACH_PX,
+                SMOOTH_TURN_DEG.to_radians(),
+            )
+        })
+        .collect();
+    let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
+    kinds
+        .into_iter()
+        .map(|(name, kind, fitted)| {
+            let options = OutlineOptions::default().centreline(kind);
+            let mut row = CentrelineRow {
+                centreline: name.to_owned(),
+                points: 0,
+                smooth_points: 0,
+                over_10_deg: 0.0,
+                over_20_deg: 0.0,
+                median_turn_deg: 0.0,
+                max_turn_deg: 0.0,
+                raw_to_centreline: 0.0,
+                strokes_over_bound: 0,
+                centreline_to_raw: 0.0,
+                vertices: 0,
+                triangles: 0,
+                bytes: 0,
+                max_stroke_bytes: 0,
+                max_stroke_samples: 0,
+                time_ms: 0.0,
+            };
+            let mut turns_deg = Vec::new();
+            for (((samples, kept), raw), smooth) in
+                data_set.strokes().zip(kept).zip(&raws).zip(&smooth_flags)
+            {
+                let simplified = picked(samples, kept);
+                let started = Instant::now();
+                let outline = if fitted {
+                    penmesh::fitted_outline(samples, kept, &brush, &options)
+                        .expect("the simplifiers keep increasing indices of the stroke")
+                } else {
+                    penmesh::outline(&simplified, &brush, &options)
+                };
+                let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
+                let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
+                row.time_ms += started.elapsed().as_secs_f64() * 1e3;
+                let centres = &outline.centres;
+                row.points += centres.len();
+                row.vertices += mesh.stats().vertices;
+                row.triangles += mesh.stats().triangles;
+                row.bytes += glb.len();
+                if glb.len() > row.max_stroke_bytes {
+                    (row.max_stroke_bytes, row.max_stroke_samples) = (glb.len(), samples.len());
+                }
+                let to_centreline =
+                    raw.iter().map(|q| polyline_distance(*q, centres)).fold(0.0, f64::max);
+                row.raw_to_centreline = row.raw_to_centreline.max(to_centreline);
+                row.strokes_over_bound += usize::from(to_centreline > bound + 1e-9);
+                row.centreline_to_raw =
+                    row.centreline_to_raw.max(directed_distance(centres, raw, 4));
+                // The turn at each interior centreline point whose nearest raw sample is smooth.
+                for (k, t) in polyline_turns(centres).into_iter().enumerate() {
+                    let at = centres[k + 1];
+                    let nearest = (0..raw.len()).min_by(|&a, &b| {
+                        raw[a].distance_squared(at).total_cmp(&raw[b].distance_squared(at))
+                    });
+                    if nearest.is_some_and(|i| smooth[i]) {
+                        turns_deg.push(t.to_degrees());
+                    }
+                }
+            }
+            turns_deg.sort_by(f64::total_cmp);
+            let share = |limit: f64| {
+                let over = turns_deg.iter().filter(|&&t| t > limit).count();
+                over as f64 / turns_deg.len().max(1) as f64 * 100.0
+            };
+            row.smooth_points = turns_deg.len();
+            row.over_10_deg = share(10.0);
+            row.over_20_deg = share(20.0);
+            row.median_turn_deg = turns_deg.get(turns_deg.len() / 2).copied().unwrap_or(0.0);
+            row.max_turn_deg = turns_deg.last().copied().unwrap_or(0.0);
+            row
+        })
+        .collect()
+}
+
 /// The Markdown tables of the whole report.
 pub fn markdown(report: &EvalReport) -> String {
     let mut md = String::new();
@@ -683,6 +828,44 @@ pub fn markdown(report: &EvalReport) -> String {
                 r.eta_bytes,
                 r.eta_time
             );
+        }
+        if !d.centreline.is_empty() {
+            let _ = writeln!(
+                md,
+                "\nCentreline of ACUTS's strokes (turns at centreline points where the pen's path \
+                 turns < {SMOOTH_TURN_DEG}° within {SMOOTH_REACH_PX} px either side; distances \
+                 against the raw samples; one GLB per stroke):\n"
+            );
+            let _ = writeln!(
+                md,
+                "| centreline | points | smooth-path points | > 10° % | > 20° % | median turn ° | max turn ° | raw → centreline px | strokes over B | centreline → raw px | vertices | triangles | GLB bytes | largest GLB (raw samples) | T ms |"
+            );
+            let _ = writeln!(
+                md,
+                "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            );
+            for r in &d.centreline {
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {:.3} | {} | {} | {} | {} ({}) | {:.2} |",
+                    r.centreline,
+                    r.points,
+                    r.smooth_points,
+                    r.over_10_deg,
+                    r.over_20_deg,
+                    r.median_turn_deg,
+                    r.max_turn_deg,
+                    r.raw_to_centreline,
+                    r.strokes_over_bound,
+                    r.centreline_to_raw,
+                    r.vertices,
+                    r.triangles,
+                    r.bytes,
+                    r.max_stroke_bytes,
+                    r.max_stroke_samples,
+                    r.time_ms
+                );
+            }
         }
         if !d.sweep.is_empty() {
             let algos: Vec<&str> =

@@ -1,12 +1,15 @@
 //! `penmesh mesh`: simplify with ACUTS, build the LRPDP solid, write binary glTF.
 
+use std::io::Write as _;
 use std::time::Instant;
 
 use penmesh::{
-    Brush, CloudOptions, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, SolidOptions, StrokeMesh,
+    Brush, Centreline, CloudOptions, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample,
+    SmoothOptions, SolidOptions, StrokeMesh,
 };
+use serde_json::json;
 
-use crate::cli::MeshArgs;
+use crate::cli::{CentrelineKind, MeshArgs};
 use crate::io;
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
@@ -17,25 +20,38 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         ..Brush::default()
     };
     brush.validate().map_err(|e| anyhow::anyhow!("bad brush: {e}"))?;
-    let strokes = io::read_strokes(&args.input)?;
+    let mut strokes: Vec<Vec<Sample>> =
+        io::read_strokes(&args.input)?.iter().map(|s| s.samples().to_vec()).collect();
+    if let Some(scale) = args.px_per_unit {
+        anyhow::ensure!(scale.is_finite() && scale > 0.0, "--px-per-unit must be > 0");
+        for sample in strokes.iter_mut().flatten() {
+            (sample.x, sample.y) = (sample.x * scale, sample.y * scale);
+        }
+    }
+    // The smooth centreline tells corners by, and is checked against, ACUTS's guaranteed bound.
+    let bound = params.tolerance + args.acuts.resample;
+    let centreline = match args.centreline {
+        CentrelineKind::Smooth => Centreline::Smooth(SmoothOptions::default().bound(bound)),
+        CentrelineKind::Straight => Centreline::Straight,
+    };
+    let outline_options = OutlineOptions::default().centreline(centreline);
+    let solid_options = SolidOptions::default();
 
     let started = Instant::now();
-    let simplified: Vec<Vec<penmesh::Sample>> = strokes
+    let kept: Vec<Vec<usize>> = strokes
         .iter()
-        .map(|stroke| {
-            let kept = penmesh::acuts(stroke.samples(), args.acuts.resample, &params).kept;
-            kept.iter().map(|&i| stroke.samples()[i]).collect()
-        })
+        .map(|stroke| penmesh::acuts(stroke, args.acuts.resample, &params).kept)
         .collect();
     let simplify_time = started.elapsed();
 
     let started = Instant::now();
-    let outlines: Vec<_> = simplified
+    let outlines = strokes
         .iter()
-        .map(|samples| penmesh::outline(samples, &brush, &OutlineOptions::default()))
-        .collect();
+        .zip(&kept)
+        .map(|(stroke, kept)| penmesh::fitted_outline(stroke, kept, &brush, &outline_options))
+        .collect::<Result<Vec<_>, _>>()?;
     let meshes: Vec<StrokeMesh> =
-        outlines.iter().map(|o| penmesh::solid_mesh(o, &SolidOptions::default())).collect();
+        outlines.iter().map(|o| penmesh::solid_mesh(o, &solid_options)).collect();
     let metas: Vec<GlbMeta> = (0..meshes.len())
         .map(|_| GlbMeta { stroke: uuid::Uuid::new_v4(), author: "penmesh mesh".into(), brush })
         .collect();
@@ -57,8 +73,55 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
 
     let vertices: usize = meshes.iter().map(|m| m.stats().vertices).sum();
     let triangles: usize = meshes.iter().map(|m| m.stats().triangles).sum();
-    let n_input: usize = strokes.iter().map(|s| s.len()).sum();
-    let n_kept: usize = simplified.iter().map(|s| s.len()).sum();
+    let n_input: usize = strokes.iter().map(Vec::len).sum();
+    let n_kept: usize = kept.iter().map(Vec::len).sum();
+    if args.json {
+        let centrelines: Vec<Vec<[f64; 3]>> = outlines
+            .iter()
+            .map(|o| o.centres.iter().zip(&o.radii).map(|(c, r)| [c.x, c.y, *r]).collect())
+            .collect();
+        let smooth = match centreline {
+            Centreline::Smooth(s) => json!({
+                "bound": s.bound,
+                "chord_tolerance": s.chord_tolerance,
+                "max_turn_deg": s.max_turn_deg,
+            }),
+            Centreline::Straight => serde_json::Value::Null,
+        };
+        let raw: Vec<Vec<[f64; 3]>> =
+            strokes.iter().map(|s| s.iter().map(|q| [q.x, q.y, q.p]).collect()).collect();
+        let report = json!({
+            "out": args.out,
+            "raw": raw,
+            "strokes": strokes.len(),
+            "samples": n_input,
+            "kept": n_kept,
+            "centreline": centrelines,
+            "vertices": vertices,
+            "triangles": triangles,
+            "bytes": glb.len(),
+            "parameters": {
+                "acuts": params,
+                "resample": args.acuts.resample,
+                "brush": brush,
+                "px_per_unit": args.px_per_unit,
+                "centreline": match args.centreline {
+                    CentrelineKind::Smooth => "smooth",
+                    CentrelineKind::Straight => "straight",
+                },
+                "smooth": smooth,
+                "cap_density": outline_options.cap_density,
+                "miter": outline_options.miter,
+                "thickness": solid_options.thickness,
+                "quantize": args.quantize,
+            },
+        });
+        // Written, not printed: a closed pipe is an error to report, not a panic.
+        let mut out = std::io::stdout().lock();
+        serde_json::to_writer(&mut out, &report)?;
+        writeln!(out)?;
+        return Ok(());
+    }
     println!(
         "{}: {} strokes, {n_input} samples -> {n_kept} kept; {vertices} vertices, {triangles} triangles, {} bytes{}",
         args.out.display(),
