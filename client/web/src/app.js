@@ -149,6 +149,7 @@ async function loadMesh(id, participant) {
       s.line = null;
     }
     state.meshes += 1;
+    if (state.synced) $("status").textContent = `${state.strokes.size} strokes, ${state.meshes} meshes`;
     if (s.ink) {
       s.ink = null;
       redrawInk();
@@ -354,9 +355,10 @@ function addSample(e) {
 function flush(force) {
   const p = state.pending;
   const now = performance.now();
-  if (!p || (!force && now - lastFlush < FLUSH_MS)) return;
+  if (!p) return;
+  savePending(); // every sample survives a reload, sent or not
+  if (!force && now - lastFlush < FLUSH_MS) return;
   lastFlush = now;
-  savePending();
   if (p.sent < p.samples.length) {
     send({ points: { stroke: p.stroke, seq: p.sent, points: p.samples.slice(p.sent) } });
     p.sent = p.samples.length;
