@@ -15,7 +15,10 @@ fn main() {
     let lock = web.join("package-lock.json");
     let installed = web.join("node_modules/.package-lock.json");
     if !installed.exists() || modified(&lock) > modified(&installed) {
-        run(Command::new("npm").args(["ci", "--no-audit", "--no-fund"]).current_dir(&web), "npm ci");
+        run(
+            Command::new("npm").args(["ci", "--no-audit", "--no-fund"]).current_dir(&web),
+            "npm ci",
+        );
     }
     run(Command::new("node").arg("build.mjs").arg(&out).current_dir(&web), "node build.mjs");
 }

@@ -28,8 +28,8 @@ pub use crate::glb::{MeshCounts, inspect as inspect_glb};
 pub use crate::http::{
     AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
 };
-pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
+pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::openapi::ApiDoc;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;

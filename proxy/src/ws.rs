@@ -103,8 +103,7 @@ pub async fn ws_handler(
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);
     let tracked = state.tracker.token();
-    let upgrade =
-        upgrade.read_buffer_size(READ_BUFFER_BYTES).protocols([crate::web::SUBPROTOCOL]);
+    let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES).protocols([crate::web::SUBPROTOCOL]);
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
         let _tracked = tracked;
         let (sink, stream) = split(socket);
