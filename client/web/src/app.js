@@ -25,6 +25,7 @@ const state = {
   errors: [],
   pending: null, // own stroke in progress or not yet done: {stroke, samples, ended, acked}
   timings: [], // own strokes: ms from pen-up to the mesh on screen
+  wsBytes: 0, // received on the WebSocket (docs/performance.md)
 };
 window.penmesh = state; // for the browser tests and the curious
 
@@ -216,7 +217,10 @@ function connect() {
       },
     });
   };
-  ws.onmessage = (e) => onMessage(JSON.parse(e.data));
+  ws.onmessage = (e) => {
+    state.wsBytes += e.data.length;
+    onMessage(JSON.parse(e.data));
+  };
   ws.onclose = (e) => {
     $("status").textContent = `disconnected (${e.code}${e.reason ? ": " + e.reason : ""}); reconnecting…`;
     state.ws = null;
@@ -315,7 +319,11 @@ async function ownStrokeDone(id) {
   try {
     await api(`/v1/strokes/${id}/mesh/build`, { method: "POST" });
     await loadMesh(id, state.me);
-    if (s.penUp !== undefined) state.timings.push(performance.now() - s.penUp);
+    // On screen: the frame after the mesh joined the scene has been drawn.
+    if (s.penUp !== undefined) {
+      await new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
+      state.timings.push(performance.now() - s.penUp);
+    }
   } catch (err) {
     fail(`cannot build the mesh of stroke ${id}: ${err.message}`);
   }

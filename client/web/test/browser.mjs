@@ -3,83 +3,31 @@
 // scripts/test.sh as `node client/web/test/browser.mjs` with PENMESH_BIN set to the built
 // `penmesh` binary. Screenshots go to target/web-test/. Any failure exits non-zero; a missing
 // Chromium is a failure, never a skip.
-import { chromium } from "playwright-core";
-import { spawn } from "node:child_process";
-import { existsSync, mkdirSync, mkdtempSync, writeFileSync } from "node:fs";
-import { createServer } from "node:net";
-import { tmpdir } from "node:os";
-import { dirname, join, resolve } from "node:path";
-import { fileURLToPath } from "node:url";
+import { mkdirSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
 import assert from "node:assert/strict";
+import { drawStroke, launch, log, newSession, requireTools, root, runPenmesh, startProxy, until } from "./harness.mjs";
 
-const here = dirname(fileURLToPath(import.meta.url));
-const root = resolve(here, "../../..");
-const CHROMIUM = process.env.PENMESH_CHROMIUM || "/usr/bin/chromium";
-const BIN = process.env.PENMESH_BIN || join(root, "target/debug/penmesh");
 const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
 // The page sends JSON (exact values); the native client's binary frames are on this grid.
 const POSITION_STEP = 1 / 16;
 const BACKGROUND = [0xf4, 0xf3, 0xef];
 
-const started = Date.now();
-const log = (...a) => console.log(`[${((Date.now() - started) / 1000).toFixed(1)}s]`, ...a);
-
-if (!existsSync(CHROMIUM)) {
-  console.error(`FAIL: no Chromium at ${CHROMIUM}; install Debian's (apt-get install -y chromium) or set PENMESH_CHROMIUM`);
-  process.exit(1);
-}
-if (!existsSync(BIN)) {
-  console.error(`FAIL: no penmesh binary at ${BIN}; build it (cargo build --bin penmesh) or set PENMESH_BIN`);
-  process.exit(1);
-}
+requireTools();
 mkdirSync(ARTIFACTS, { recursive: true });
-
-function freePort() {
-  return new Promise((ok, err) => {
-    const s = createServer();
-    s.listen(0, "127.0.0.1", () => {
-      const { port } = s.address();
-      s.close(() => ok(port));
-    });
-    s.on("error", err);
-  });
-}
-
-async function until(what, fn, timeoutMs = 20000) {
-  const end = Date.now() + timeoutMs;
-  let last;
-  while (Date.now() < end) {
-    try {
-      last = await fn();
-      if (last) return last;
-    } catch (e) {
-      last = e;
-    }
-    await new Promise((r) => setTimeout(r, 100));
-  }
-  throw new Error(`timed out waiting for ${what} (last: ${last instanceof Error ? last.message : JSON.stringify(last)})`);
-}
-
-// --- the proxy ---------------------------------------------------------------------------------
-const dir = mkdtempSync(join(tmpdir(), "penmesh-web-test-"));
-const port = await freePort();
-const base = `http://127.0.0.1:${port}`;
-const proxy = spawn(BIN, ["serve-proxy", "--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${dir}/t.db`], {
-  stdio: ["ignore", "ignore", "pipe"],
-});
-let proxyLog = "";
-proxy.stderr.on("data", (d) => (proxyLog += d));
-const children = [proxy];
+const children = [];
 let browser;
+let proxyLog = () => "";
 async function cleanup() {
   for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
   if (browser) await browser.close().catch(() => {});
 }
 
 async function main() {
-  await until("the proxy", async () => (await fetch(`${base}/healthz`)).ok);
-  const created = await (await fetch(`${base}/v1/sessions`, { method: "POST" })).json();
-  const { session, token } = created;
+  const proxy = await startProxy(children);
+  proxyLog = () => proxy.log;
+  const { base } = proxy;
+  const { session, token } = await newSession(base);
   const auth = { authorization: `Bearer ${token}` };
   const getJson = async (path) => {
     const res = await fetch(`${base}${path}`, { headers: auth });
@@ -91,18 +39,7 @@ async function main() {
   // The token must not be in the page's URL path or query, nor in the WebSocket's URL.
   assert.ok(!new URL(pageUrl).pathname.includes(token) && !new URL(pageUrl).search.includes(token));
 
-  browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: [
-      "--no-sandbox",
-      "--use-angle=swiftshader",
-      "--enable-unsafe-swiftshader",
-      "--disable-background-networking",
-      "--disable-component-update",
-      "--disable-sync",
-      "--no-first-run",
-    ],
-  });
+  browser = await launch();
   const context = await browser.newContext({ viewport: { width: 1000, height: 700 }, deviceScaleFactor: 1 });
   const wsUrls = [];
   async function openPage(name) {
@@ -112,25 +49,6 @@ async function main() {
     await page.goto(pageUrl);
     await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
     return page;
-  }
-
-  // A pen stroke through CDP: down, moves, up; pressure rises then falls. Returns what was sent.
-  async function drawStroke(page, cdp, { x0, y0, dx, dy, n, lift = true }) {
-    const sent = [];
-    const ev = (type, x, y, force) =>
-      cdp.send("Input.dispatchMouseEvent", {
-        type, x, y, force, button: "left", buttons: type === "mouseReleased" ? 0 : 1,
-        clickCount: 1, pointerType: "pen",
-      });
-    for (let i = 0; i <= n; i++) {
-      const x = x0 + dx * i + 20 * Math.sin(i / 6);
-      const y = y0 + dy * i;
-      const force = Math.round((0.1 + 0.8 * Math.sin((Math.PI * i) / n)) * 1000) / 1000;
-      await ev(i === 0 ? "mousePressed" : "mouseMoved", x, y, force);
-      sent.push([x, y, force]);
-    }
-    if (lift) await ev("mouseReleased", x0 + dx * n + 20 * Math.sin(n / 6), y0 + dy * n, 0);
-    return sent;
   }
 
   function assertSamples(label, stored, sent) {
@@ -178,7 +96,7 @@ async function main() {
     { x0: 700, y0: 120, dx: 0.5, dy: 5, n: 90 },
   ];
   for (const plan of plans) {
-    drawn.push(await drawStroke(a, cdpA, plan));
+    drawn.push(await drawStroke(cdpA, plan));
     const want = drawn.length;
     await until(`page A to show mesh ${want}`, () => a.evaluate((w) => window.penmesh.meshes >= w && !window.penmesh.pending, want));
   }
@@ -211,17 +129,11 @@ async function main() {
   // --- 2. a later page sees the history, and a native client drawing live ------------------
   const b = await openPage("B");
   await until("page B to show the history", () => b.evaluate(() => window.penmesh.meshes >= 3));
-  const native = spawn(BIN, ["draw", "--server", base, "--session", session, "--token", token, "--synth", "leaf", "--realtime", "--name", "native"], {
-    stdio: ["ignore", "pipe", "pipe"],
-  });
-  children.push(native);
-  let nativeOut = "";
-  native.stdout.on("data", (d) => (nativeOut += d));
-  native.stderr.on("data", (d) => (nativeOut += d));
+  const native = runPenmesh(["draw", "--server", base, "--session", session, "--token", token, "--synth", "leaf", "--realtime", "--name", "native"], children);
+  native.catch(() => {}); // awaited below; this only keeps an early failure from going unhandled
   // Live: the native stroke's retained points reach page B before its mesh does.
   await until("page B to see the native stroke grow", () => b.evaluate(() => [...window.penmesh.strokes.values()].some((s) => s.line && !s.mesh)), 20000);
-  const code = await new Promise((ok) => native.on("exit", ok));
-  assert.equal(code, 0, `penmesh draw failed:\n${nativeOut}`);
+  await native;
   await until("page B to show the native mesh", () => b.evaluate(() => window.penmesh.meshes >= 4));
   assert.equal((await getJson(`/v1/sessions/${session}/strokes`)).strokes.length, 4);
   await b.screenshot({ path: join(ARTIFACTS, "page-b.png") });
@@ -229,7 +141,7 @@ async function main() {
   log("page B: history and the native stroke live");
 
   // --- 3. reload in the middle of a stroke --------------------------------------------------
-  const half = await drawStroke(a, cdpA, { x0: 600, y0: 500, dx: 4, dy: -1, n: 40, lift: false });
+  const half = await drawStroke(cdpA, { x0: 600, y0: 500, dx: 4, dy: -1, n: 40, lift: false });
   await a.reload();
   await a.waitForFunction(() => window.penmesh && window.penmesh.synced);
   await until("the resumed stroke to be done with a mesh", () => a.evaluate(() => !window.penmesh.pending && window.penmesh.meshes >= 5));
@@ -244,7 +156,7 @@ async function main() {
 
   for (const url of wsUrls) assert.ok(!url.includes(token), `the token is in a WebSocket URL: ${url}`);
   assert.ok(wsUrls.length >= 3);
-  writeFileSync(join(ARTIFACTS, "result.json"), JSON.stringify({ ok: true, seconds: (Date.now() - started) / 1000 }));
+  writeFileSync(join(ARTIFACTS, "result.json"), JSON.stringify({ ok: true }));
 }
 
 try {
@@ -253,7 +165,7 @@ try {
   log(`PASS (screenshots in ${ARTIFACTS})`);
 } catch (err) {
   console.error("FAIL:", err.stack || err);
-  console.error("--- proxy log (tail) ---\n" + proxyLog.split("\n").slice(-30).join("\n"));
+  console.error("--- proxy log (tail) ---\n" + proxyLog().split("\n").slice(-30).join("\n"));
   await cleanup();
   process.exit(1);
 }
