@@ -126,6 +126,20 @@ function addRetained(id, participant, points) {
   world.add(s.line);
 }
 
+// One material per person: Lambert shading, cheap enough for software WebGL with 1,000 strokes.
+const materials = new Map();
+function materialOf(participant) {
+  let m = materials.get(participant);
+  if (!m) {
+    m = new THREE.MeshLambertMaterial({
+      color: colour(participant),
+      side: THREE.DoubleSide, // the group's y flip turns the winding around
+    });
+    materials.set(participant, m);
+  }
+  return m;
+}
+
 const loader = new GLTFLoader();
 async function loadMesh(id, participant) {
   const s = strokeOf(id, participant);
@@ -134,11 +148,7 @@ async function loadMesh(id, participant) {
   try {
     const res = await api(`/v1/strokes/${id}/mesh`);
     const gltf = await loader.parseAsync(await res.arrayBuffer(), "");
-    const material = new THREE.MeshStandardMaterial({
-      color: colour(participant),
-      roughness: 0.6,
-      side: THREE.DoubleSide, // the group's y flip turns the winding around
-    });
+    const material = materialOf(participant);
     gltf.scene.traverse((o) => {
       if (o.isMesh) o.material = material;
     });
