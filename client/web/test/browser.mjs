@@ -154,6 +154,19 @@ async function main() {
   await a.screenshot({ path: join(ARTIFACTS, "page-a-after-reload.png") });
   log("reload mid-stroke: resumed, every sample once");
 
+  // --- 4. palm rejection: a touch while the pen is down draws nothing ----------------------
+  const meshesBefore = await a.evaluate(() => window.penmesh.meshes);
+  const pen = drawStroke(cdpA, { x0: 300, y0: 600, dx: 5, dy: 0, n: 30 });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchStart", touchPoints: [{ x: 900, y: 300 }] });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchMove", touchPoints: [{ x: 850, y: 320 }] });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchEnd", touchPoints: [] });
+  await pen;
+  await until("the pen stroke's mesh", () => a.evaluate((n) => !window.penmesh.pending && window.penmesh.meshes > n, meshesBefore));
+  const last = (await getJson(`/v1/sessions/${session}/strokes`)).strokes;
+  assert.equal(last.length, 6, "one stroke more: the pen's, not the palm's");
+  assert.deepEqual(last.filter((s) => s.device !== "web:pen" && s.device !== null && !s.device.startsWith("synth")), [], "a touch stroke was stored");
+  log("palm rejection: the touch drew nothing");
+
   for (const url of wsUrls) assert.ok(!url.includes(token), `the token is in a WebSocket URL: ${url}`);
   assert.ok(wsUrls.length >= 3);
   writeFileSync(join(ARTIFACTS, "result.json"), JSON.stringify({ ok: true }));
