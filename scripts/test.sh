@@ -1,12 +1,27 @@
 #!/usr/bin/env bash
 # The test command of the README: every test of the workspace on the embedded default (SQLite),
-# then, when PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
+# then the browser test of the page (client/web/test/browser.mjs, Debian's Chromium through
+# playwright-core; installed here when missing, and a failure when it cannot be had), then, when
+# PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
 # database per test; a Postgres test that cannot run fails, it never skips).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 pg_url=${PENMESH_TEST_POSTGRES_URL:-}
 
+# The page's dependencies from its lock file (proxy/build.rs would run this too).
+(cd client/web && npm ci --no-audit --no-fund)
+
 env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets
+
+echo "== browser test"
+chromium=${PENMESH_CHROMIUM:-/usr/bin/chromium}
+if [ ! -x "$chromium" ] && command -v apt-get >/dev/null 2>&1; then
+  apt-get install -y chromium || { apt-get update && apt-get install -y chromium; } ||
+    echo "could not install chromium with apt-get" >&2
+fi
+cargo build --bin penmesh
+# Fails (never skips) when Chromium is still missing.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
 
 if [ -n "$pg_url" ]; then
   echo "== end-to-end suite on PostgreSQL"

@@ -106,7 +106,7 @@ pub async fn authorize_session(
 }
 
 /// The stroke `id` of the token's session.
-async fn authorized_stroke(
+pub(crate) async fn authorized_stroke(
     state: &AppState,
     headers: &HeaderMap,
     id: &str,
@@ -336,8 +336,21 @@ pub async fn put_mesh(
         .get("x-penmesh-uploader")
         .and_then(|v| v.to_str().ok())
         .map(|s| s.chars().take(200).collect::<String>());
+    store_mesh(&state, &row, body.to_vec(), counts, uploader).await.map(Json)
+}
+
+/// Stores a done stroke's checked GLB and tells the session's peers (`PeerMesh`): the one path
+/// of an uploaded mesh and of one the proxy built (`crate::mesh_build`).
+pub(crate) async fn store_mesh(
+    state: &AppState,
+    row: &StrokeRow,
+    glb: Vec<u8>,
+    counts: crate::glb::MeshCounts,
+    uploader: Option<String>,
+) -> Result<MeshInfo, AppError> {
+    let bytes = glb.len() as u64;
     let mesh = MeshRow {
-        glb: body.to_vec(),
+        glb,
         vertices: counts.vertices,
         triangles: counts.triangles,
         uploader: uploader.clone(),
@@ -360,13 +373,13 @@ pub async fn put_mesh(
         state.writer.write_with(Vec::new(), vec![event]).await.map_err(anyhow::Error::from)?;
     }
     metrics::counter!("penmesh_meshes_total").increment(1);
-    Ok(Json(MeshInfo {
+    Ok(MeshInfo {
         stroke: row.id,
-        bytes: body.len() as u64,
+        bytes,
         vertices: counts.vertices,
         triangles: counts.triangles,
         uploader,
-    }))
+    })
 }
 
 /// The stroke's mesh as `model/gltf-binary`.

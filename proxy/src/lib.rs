@@ -10,11 +10,13 @@ mod fanout;
 mod glb;
 mod http;
 mod ingest;
+mod mesh_build;
 mod metrics;
 mod openapi;
 mod startup;
 mod state;
 mod store;
+mod web;
 mod ws;
 
 pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, lock_key};
@@ -27,6 +29,7 @@ pub use crate::http::{
     AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
 };
 pub use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
+pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::openapi::ApiDoc;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;

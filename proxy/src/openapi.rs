@@ -3,13 +3,14 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::http;
+use crate::{http, mesh_build};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
 #[openapi(
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
-        The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token or ?token=)."),
+        The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, ?token=, or for browsers the `penmesh.token.TOKEN` \
+        WebSocket subprotocol)."),
     paths(
         http::create_session,
         http::list_strokes,
@@ -17,6 +18,7 @@ use crate::http;
         http::raw,
         http::put_mesh,
         http::get_mesh,
+        mesh_build::build_mesh,
         http::healthz,
         http::readyz,
         http::metrics,

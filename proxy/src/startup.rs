@@ -26,7 +26,7 @@ use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::state::AppState;
 use crate::store::{Backend, Store, WriterTask, redact, start_checkpointer};
-use crate::{http, metrics, ws};
+use crate::{http, mesh_build, metrics, web, ws};
 
 /// A bound, ready-to-run proxy.
 #[derive(Debug)]
@@ -194,7 +194,9 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/strokes/{id}/simplified", get(http::simplified))
         .route("/v1/strokes/{id}/raw", get(http::raw))
         .route("/v1/strokes/{id}/mesh", put(http::put_mesh).get(http::get_mesh))
+        .route("/v1/strokes/{id}/mesh/build", post(mesh_build::build_mesh))
         .route("/v1/openapi.json", get(openapi_json))
+        .merge(web::routes())
         .route("/healthz", get(http::healthz))
         .route("/readyz", get(http::readyz))
         .route("/metrics", get(http::metrics))

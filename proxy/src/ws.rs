@@ -93,7 +93,9 @@ pub async fn ws_handler(
     if state.shutdown.is_cancelled() {
         return Err(AppError::ShuttingDown);
     }
-    let session = authorize_session(&state, &headers, query.token.as_deref(), &session).await?;
+    // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol.
+    let token = query.token.as_deref().or_else(|| crate::web::subprotocol_token(&headers));
+    let session = authorize_session(&state, &headers, token, &session).await?;
     let upgrade = match upgrade {
         Ok(upgrade) => upgrade,
         Err(rejection) => return Ok(rejection.into_response()),
@@ -101,7 +103,7 @@ pub async fn ws_handler(
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);
     let tracked = state.tracker.token();
-    let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES);
+    let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES).protocols([crate::web::SUBPROTOCOL]);
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
         let _tracked = tracked;
         let (sink, stream) = split(socket);

@@ -47,6 +47,10 @@ pub fn plan(k: usize) -> (String, Vec<GeneratorParams>) {
 #[derive(Debug, Serialize)]
 struct DemoSummary<'a> {
     proxy: &'a str,
+    /// The browser page of the session (its token in the fragment), like the token only with
+    /// `--keep-serving`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    page: Option<&'a str>,
     session: uuid::Uuid,
     #[serde(skip_serializing_if = "Option::is_none")]
     token: Option<&'a str>,
@@ -90,12 +94,22 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         config.database_url = format!("sqlite://{}", db.display());
         config.shutdown_grace_secs = 5;
         let app = Application::build(config).await.context("starting the proxy")?;
-        let base = format!("http://{}:{}", args.host, app.port());
+        let port = app.port();
+        let base = format!("http://{}:{port}", args.host);
         let shutdown = app.shutdown_handle();
         let server = tokio::spawn(app.run_until_stopped());
 
         let session = create_session(&base).await?;
         let endpoint = Endpoint::new(&base, session.session, session.token.clone())?;
+        let page = page_url(&args.host, port, &session);
+        if args.live.json {
+            eprintln!("watch and draw: {page}");
+        } else {
+            println!("watch and draw: {page}");
+            if !args.keep_serving {
+                println!("  (the proxy stops when the drawing ends; add --keep-serving to keep the page live)");
+            }
+        }
         let reports = if args.people > 0 {
             draw_together(args, &endpoint, &out_dir).await
         } else {
@@ -112,6 +126,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 
         let summary = DemoSummary {
             proxy: &base,
+            page: args.keep_serving.then_some(page.as_str()),
             session: session.session,
             token: args.keep_serving.then_some(session.token.as_str()),
             database: &db,
@@ -205,6 +220,15 @@ async fn create_session(base: &str) -> anyhow::Result<NewSession> {
         response.status()
     );
     response.json().await.context("reading the new session")
+}
+
+/// The session's page. The token rides in the fragment, which the browser never sends.
+fn page_url(host: &str, port: u16, session: &NewSession) -> String {
+    let host = match host {
+        "0.0.0.0" | "::" | "[::]" => "127.0.0.1",
+        host => host,
+    };
+    format!("http://{host}:{port}/s/{}#token={}", session.session, session.token)
 }
 
 fn absolute(path: &Path) -> PathBuf {

@@ -20,6 +20,15 @@ async fn demo_stores_every_stroke_and_mesh_it_reports() {
 
     // Assert
     let summary = json_of(&out);
+    // The page of the session is printed first (on stderr with --json), its token in the fragment.
+    let page = format!(
+        "watch and draw: {}/s/{}#token=",
+        summary["proxy"].as_str().unwrap(),
+        summary["session"].as_str().unwrap()
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains(&page), "no `{page}` in stderr: {stderr}");
+    assert!(summary.get("page").is_none(), "the page (with its token) only with --keep-serving");
     let reported = summary["strokes"].as_array().unwrap();
     assert_eq!(reported.len(), 3 * penmesh::Shape::ALL.len());
     assert_eq!(summary["totals"]["strokes"], reported.len());

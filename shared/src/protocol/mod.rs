@@ -7,6 +7,13 @@
 //!   samples of a `Points` batch are quantised and delta-encoded there ([`PointBatch`]).
 //!
 //! **Only this module knows the wire encoding.** Everything else passes typed messages.
+//!
+//! Authentication is outside the messages: the session's token as `Authorization: Bearer` on
+//! the upgrade (or `?token=`), or, for a browser, which cannot set headers on a WebSocket and
+//! must keep the token out of URLs, as the offered subprotocol `penmesh.token.TOKEN` next to
+//! `penmesh`, which the proxy selects (`docs/web.md`). A client that cannot run LRPDP (the
+//! browser) asks the proxy to build a done stroke's mesh: `POST /v1/strokes/{id}/mesh/build`,
+//! announced with `PeerMesh` like an upload. Neither changes the binary layout.
 
 mod codec;
 

@@ -8,5 +8,6 @@ mod http;
 mod limits;
 mod resume;
 mod shutdown;
+mod web;
 mod ws_binary;
 mod ws_json;

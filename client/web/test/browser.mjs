@@ -1,0 +1,184 @@
+// The browser test of the page (docs/web.md): a real proxy (`penmesh serve-proxy`), Debian's
+// Chromium driven by playwright-core, a pen through the DevTools protocol. Run by
+// scripts/test.sh as `node client/web/test/browser.mjs` with PENMESH_BIN set to the built
+// `penmesh` binary. Screenshots go to target/web-test/. Any failure exits non-zero; a missing
+// Chromium is a failure, never a skip.
+import { mkdirSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
+import assert from "node:assert/strict";
+import { drawStroke, launch, log, newSession, requireTools, root, runPenmesh, startProxy, until } from "./harness.mjs";
+
+const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
+// The page sends JSON (exact values); the native client's binary frames are on this grid.
+const POSITION_STEP = 1 / 16;
+const BACKGROUND = [0xf4, 0xf3, 0xef];
+
+requireTools();
+mkdirSync(ARTIFACTS, { recursive: true });
+const children = [];
+let browser;
+let proxyLog = () => "";
+async function cleanup() {
+  for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
+  if (browser) await browser.close().catch(() => {});
+}
+
+async function main() {
+  const proxy = await startProxy(children);
+  proxyLog = () => proxy.log;
+  const { base } = proxy;
+  const { session, token } = await newSession(base);
+  const auth = { authorization: `Bearer ${token}` };
+  const getJson = async (path) => {
+    const res = await fetch(`${base}${path}`, { headers: auth });
+    assert.ok(res.ok, `GET ${path}: HTTP ${res.status}`);
+    return res.json();
+  };
+  const pageUrl = `${base}/s/${session}#token=${token}`;
+
+  // The token must not be in the page's URL path or query, nor in the WebSocket's URL.
+  assert.ok(!new URL(pageUrl).pathname.includes(token) && !new URL(pageUrl).search.includes(token));
+
+  browser = await launch();
+  const context = await browser.newContext({ viewport: { width: 1000, height: 700 }, deviceScaleFactor: 1 });
+  const wsUrls = [];
+  async function openPage(name) {
+    const page = await context.newPage();
+    page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
+    page.on("websocket", (ws) => wsUrls.push(ws.url()));
+    await page.goto(pageUrl);
+    await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+    return page;
+  }
+
+  function assertSamples(label, stored, sent) {
+    assert.equal(stored.length, sent.length, `${label}: ${stored.length} samples stored, ${sent.length} drawn`);
+    stored.forEach(([x, y, , p], i) => {
+      const [sx, sy, sp] = sent[i];
+      assert.ok(Math.abs(x - sx) <= POSITION_STEP && Math.abs(y - sy) <= POSITION_STEP, `${label} sample ${i}: stored (${x}, ${y}), drawn (${sx}, ${sy})`);
+      assert.ok(Math.abs(p - sp) < 1e-6, `${label} sample ${i}: stored pressure ${p}, drawn ${sp}`);
+    });
+  }
+
+  // The WebGL canvas, read back from a screenshot (decoded by the browser itself).
+  async function pixelsAt(page, points, file) {
+    const png = await page.locator("#gl").screenshot({ path: join(ARTIFACTS, file) });
+    return page.evaluate(
+      async ({ data, points }) => {
+        const img = new Image();
+        img.src = `data:image/png;base64,${data}`;
+        await img.decode();
+        const c = document.createElement("canvas");
+        c.width = img.width;
+        c.height = img.height;
+        const g = c.getContext("2d");
+        g.drawImage(img, 0, 0);
+        // Darkest pixel of a 5x5 neighbourhood: the mesh is a few px wide.
+        return points.map(([x, y]) => {
+          const d = g.getImageData(Math.round(x) - 2, Math.round(y) - 2, 5, 5).data;
+          let best = [255, 255, 255];
+          for (let i = 0; i < d.length; i += 4) if (d[i] + d[i + 1] + d[i + 2] < best[0] + best[1] + best[2]) best = [d[i], d[i + 1], d[i + 2]];
+          return best;
+        });
+      },
+      { data: png.toString("base64"), points },
+    );
+  }
+  const isBackground = ([r, g, b]) => Math.abs(r - BACKGROUND[0]) + Math.abs(g - BACKGROUND[1]) + Math.abs(b - BACKGROUND[2]) < 24;
+
+  // --- 1. three pen strokes in page A ------------------------------------------------------
+  const a = await openPage("A");
+  const cdpA = await context.newCDPSession(a);
+  const drawn = [];
+  const plans = [
+    { x0: 150, y0: 150, dx: 5, dy: 2, n: 80 },
+    { x0: 200, y0: 400, dx: 6, dy: -1, n: 70 },
+    { x0: 700, y0: 120, dx: 0.5, dy: 5, n: 90 },
+  ];
+  for (const plan of plans) {
+    drawn.push(await drawStroke(cdpA, plan));
+    const want = drawn.length;
+    await until(`page A to show mesh ${want}`, () => a.evaluate((w) => window.penmesh.meshes >= w && !window.penmesh.pending, want));
+  }
+  log("three strokes drawn");
+  const errorsA = await a.evaluate(() => window.penmesh.errors);
+  assert.deepEqual(errorsA, [], "page A reported errors");
+
+  const list = (await getJson(`/v1/sessions/${session}/strokes`)).strokes;
+  assert.equal(list.length, 3, "three strokes stored");
+  for (const [i, s] of list.entries()) {
+    assert.equal(s.status, "done", `stroke ${i} is done`);
+    assert.ok(s.has_mesh, `stroke ${i} has a mesh`);
+    assert.equal(s.device, "web:pen");
+    const raw = await getJson(`/v1/strokes/${s.id}/raw`);
+    assertSamples(`stroke ${i}`, raw.samples, drawn[i]);
+    const mesh = await fetch(`${base}/v1/strokes/${s.id}/mesh`, { headers: auth });
+    assert.equal(mesh.status, 200);
+    assert.ok((await mesh.arrayBuffer()).byteLength > 100, "a real GLB");
+  }
+  log("stored samples and meshes checked");
+
+  // The meshes are on screen where the strokes were drawn, and the rest is background.
+  const onStroke = drawn.flatMap((s) => [s[10], s[Math.floor(s.length / 2)], s[s.length - 10]]);
+  const onPixels = await pixelsAt(a, onStroke, "page-a.png");
+  onPixels.forEach((px, i) => assert.ok(!isBackground(px), `no mesh on screen at drawn point ${i} (${onStroke[i]}): ${px}`));
+  const empty = [[950, 650], [500, 650], [950, 400]];
+  (await pixelsAt(a, empty, "page-a.png")).forEach((px, i) => assert.ok(isBackground(px), `something drawn at empty point ${empty[i]}: ${px}`));
+  log("page A shows the three meshes");
+
+  // --- 2. a later page sees the history, and a native client drawing live ------------------
+  const b = await openPage("B");
+  await until("page B to show the history", () => b.evaluate(() => window.penmesh.meshes >= 3));
+  const native = runPenmesh(["draw", "--server", base, "--session", session, "--token", token, "--synth", "leaf", "--realtime", "--name", "native"], children);
+  native.catch(() => {}); // awaited below; this only keeps an early failure from going unhandled
+  // Live: the native stroke's retained points reach page B before its mesh does.
+  await until("page B to see the native stroke grow", () => b.evaluate(() => [...window.penmesh.strokes.values()].some((s) => s.line && !s.mesh)), 20000);
+  await native;
+  await until("page B to show the native mesh", () => b.evaluate(() => window.penmesh.meshes >= 4));
+  assert.equal((await getJson(`/v1/sessions/${session}/strokes`)).strokes.length, 4);
+  await b.screenshot({ path: join(ARTIFACTS, "page-b.png") });
+  assert.ok(await b.evaluate(() => [...window.penmesh.people.values()].length >= 2), "page B lists who is here");
+  log("page B: history and the native stroke live");
+
+  // --- 3. reload in the middle of a stroke --------------------------------------------------
+  const half = await drawStroke(cdpA, { x0: 600, y0: 500, dx: 4, dy: -1, n: 40, lift: false });
+  await a.reload();
+  await a.waitForFunction(() => window.penmesh && window.penmesh.synced);
+  await until("the resumed stroke to be done with a mesh", () => a.evaluate(() => !window.penmesh.pending && window.penmesh.meshes >= 5));
+  const after = (await getJson(`/v1/sessions/${session}/strokes`)).strokes;
+  assert.equal(after.length, 5);
+  const resumed = after.find((s) => s.device === "web:pen" && !list.some((l) => l.id === s.id));
+  assert.equal(resumed.status, "done");
+  assert.ok(resumed.has_mesh);
+  assertSamples("resumed stroke", (await getJson(`/v1/strokes/${resumed.id}/raw`)).samples, half);
+  await a.screenshot({ path: join(ARTIFACTS, "page-a-after-reload.png") });
+  log("reload mid-stroke: resumed, every sample once");
+
+  // --- 4. palm rejection: a touch while the pen is down draws nothing ----------------------
+  const meshesBefore = await a.evaluate(() => window.penmesh.meshes);
+  const pen = drawStroke(cdpA, { x0: 300, y0: 600, dx: 5, dy: 0, n: 30 });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchStart", touchPoints: [{ x: 900, y: 300 }] });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchMove", touchPoints: [{ x: 850, y: 320 }] });
+  await cdpA.send("Input.dispatchTouchEvent", { type: "touchEnd", touchPoints: [] });
+  await pen;
+  await until("the pen stroke's mesh", () => a.evaluate((n) => !window.penmesh.pending && window.penmesh.meshes > n, meshesBefore));
+  const last = (await getJson(`/v1/sessions/${session}/strokes`)).strokes;
+  assert.equal(last.length, 6, "one stroke more: the pen's, not the palm's");
+  assert.deepEqual(last.filter((s) => s.device !== "web:pen" && s.device !== null && !s.device.startsWith("synth")), [], "a touch stroke was stored");
+  log("palm rejection: the touch drew nothing");
+
+  for (const url of wsUrls) assert.ok(!url.includes(token), `the token is in a WebSocket URL: ${url}`);
+  assert.ok(wsUrls.length >= 3);
+  writeFileSync(join(ARTIFACTS, "result.json"), JSON.stringify({ ok: true }));
+}
+
+try {
+  await main();
+  await cleanup();
+  log(`PASS (screenshots in ${ARTIFACTS})`);
+} catch (err) {
+  console.error("FAIL:", err.stack || err);
+  console.error("--- proxy log (tail) ---\n" + proxyLog().split("\n").slice(-30).join("\n"));
+  await cleanup();
+  process.exit(1);
+}

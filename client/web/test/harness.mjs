@@ -1,0 +1,123 @@
+// What the browser test and the measurements share: a real proxy (`penmesh serve-proxy` on a
+// fresh SQLite file), Debian's Chromium through playwright-core, and a pen through CDP.
+import { chromium } from "playwright-core";
+import { spawn } from "node:child_process";
+import { existsSync, mkdtempSync } from "node:fs";
+import { createServer } from "node:net";
+import { tmpdir } from "node:os";
+import { dirname, join, resolve } from "node:path";
+import { fileURLToPath } from "node:url";
+
+export const root = resolve(dirname(fileURLToPath(import.meta.url)), "../../..");
+export const CHROMIUM = process.env.PENMESH_CHROMIUM || "/usr/bin/chromium";
+export const BIN = process.env.PENMESH_BIN || join(root, "target/debug/penmesh");
+
+const started = Date.now();
+export const log = (...a) => console.log(`[${((Date.now() - started) / 1000).toFixed(1)}s]`, ...a);
+
+/// Fails (exit 1) with what to do when Chromium or the penmesh binary is missing: never a skip.
+export function requireTools() {
+  if (!existsSync(CHROMIUM)) {
+    console.error(`FAIL: no Chromium at ${CHROMIUM}; install Debian's (apt-get install -y chromium) or set PENMESH_CHROMIUM`);
+    process.exit(1);
+  }
+  if (!existsSync(BIN)) {
+    console.error(`FAIL: no penmesh binary at ${BIN}; build it (cargo build --bin penmesh) or set PENMESH_BIN`);
+    process.exit(1);
+  }
+}
+
+function freePort() {
+  return new Promise((ok, err) => {
+    const s = createServer();
+    s.listen(0, "127.0.0.1", () => {
+      const { port } = s.address();
+      s.close(() => ok(port));
+    });
+    s.on("error", err);
+  });
+}
+
+export async function until(what, fn, timeoutMs = 20000) {
+  const end = Date.now() + timeoutMs;
+  let last;
+  while (Date.now() < end) {
+    try {
+      last = await fn();
+      if (last) return last;
+    } catch (e) {
+      last = e;
+    }
+    await new Promise((r) => setTimeout(r, 100));
+  }
+  throw new Error(`timed out waiting for ${what} (last: ${last instanceof Error ? last.message : JSON.stringify(last)})`);
+}
+
+/// Starts the proxy; `children` collects every process to stop at the end.
+export async function startProxy(children) {
+  const dir = mkdtempSync(join(tmpdir(), "penmesh-web-test-"));
+  const port = await freePort();
+  const base = `http://127.0.0.1:${port}`;
+  const proxy = spawn(BIN, ["serve-proxy", "--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${dir}/t.db`], {
+    stdio: ["ignore", "ignore", "pipe"],
+  });
+  const out = { base, log: "" };
+  proxy.stderr.on("data", (d) => (out.log += d));
+  children.push(proxy);
+  await until("the proxy", async () => (await fetch(`${base}/healthz`)).ok);
+  return out;
+}
+
+export async function newSession(base) {
+  const res = await fetch(`${base}/v1/sessions`, { method: "POST" });
+  if (!res.ok) throw new Error(`POST /v1/sessions: HTTP ${res.status}`);
+  return res.json();
+}
+
+export function launch() {
+  return chromium.launch({
+    executablePath: CHROMIUM,
+    args: [
+      "--no-sandbox",
+      "--use-angle=swiftshader",
+      "--enable-unsafe-swiftshader",
+      "--disable-background-networking",
+      "--disable-component-update",
+      "--disable-sync",
+      "--no-first-run",
+    ],
+  });
+}
+
+/// Runs `penmesh ARGS…` to the end; rejects with its output when it fails.
+export function runPenmesh(args, children) {
+  const child = spawn(BIN, args, { stdio: ["ignore", "pipe", "pipe"] });
+  children.push(child);
+  let out = "";
+  child.stdout.on("data", (d) => (out += d));
+  child.stderr.on("data", (d) => (out += d));
+  return new Promise((ok, err) => child.on("exit", (code) => (code === 0 ? ok(out) : err(new Error(`penmesh ${args[0]} failed (${code}):\n${out}`)))));
+}
+
+/// A pen stroke through CDP: down, `n` moves, up (unless `lift` is false); the pressure rises
+/// then falls. Returns the `[x, y, pressure]` of each event sent.
+export async function drawStroke(cdp, { x0, y0, dx, dy, n, lift = true }) {
+  const sent = [];
+  const ev = (type, x, y, force) =>
+    cdp.send("Input.dispatchMouseEvent", {
+      type, x, y, force, button: "left", buttons: type === "mouseReleased" ? 0 : 1,
+      clickCount: 1, pointerType: "pen",
+    });
+  for (let i = 0; i <= n; i++) {
+    const x = x0 + dx * i + 20 * Math.sin(i / 6);
+    const y = y0 + dy * i;
+    const force = Math.round((0.1 + 0.8 * Math.sin((Math.PI * i) / n)) * 1000) / 1000;
+    await ev(i === 0 ? "mousePressed" : "mouseMoved", x, y, force);
+    sent.push([x, y, force]);
+  }
+  if (lift) {
+    const [x, y] = sent[sent.length - 1];
+    await ev("mouseReleased", x, y, 0);
+  }
+  return sent;
+}

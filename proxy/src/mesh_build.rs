@@ -1,0 +1,64 @@
+//! The mesh of a thin client's stroke, built by the proxy: a browser cannot run LRPDP (no
+//! WebAssembly build here, and no second LRPDP in JavaScript), so it asks the proxy, which runs
+//! the same `penmesh` calls as the native client (`client/src/reconstruct.rs`) and stores and
+//! announces the result exactly like an uploaded mesh (`http::store_mesh`).
+
+use axum::Json;
+use axum::extract::{Path, State};
+use axum::http::HeaderMap;
+use penmesh::{GlbMeta, GlbOptions, OutlineOptions, SolidOptions};
+
+use crate::http::{AppError, MeshInfo, authorized_stroke, store_mesh};
+use crate::state::AppState;
+
+/// What the proxy names as the uploader of the meshes it builds.
+pub const PROXY_UPLOADER: &str = "penmesh-proxy";
+
+/// Builds, stores and announces the mesh of a done stroke from its simplified samples. A stroke
+/// that already has a mesh keeps it (the call is idempotent, so a page that reloads may ask
+/// again).
+#[utoipa::path(post, path = "/v1/strokes/{id}/mesh/build", tag = "meshes",
+    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    responses((status = 200, body = MeshInfo), (status = 401, body = crate::http::ErrorBody),
+        (status = 404, body = crate::http::ErrorBody),
+        (status = 409, description = "stroke not done", body = crate::http::ErrorBody)))]
+pub async fn build_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Json<MeshInfo>, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    if row.has_mesh {
+        let mesh = state.store.mesh(row.id).await?;
+        if let Some(mesh) = mesh {
+            return Ok(Json(MeshInfo {
+                stroke: row.id,
+                bytes: mesh.glb.len() as u64,
+                vertices: mesh.vertices,
+                triangles: mesh.triangles,
+                uploader: mesh.uploader,
+            }));
+        }
+    }
+    let Some(simplified) = state.store.simplified(row.id).await? else {
+        return Err(AppError::Conflict(format!(
+            "stroke {} is {}: its mesh can be built once it is done",
+            row.id,
+            row.status.as_str()
+        )));
+    };
+    let meta = GlbMeta { stroke: row.id, author: PROXY_UPLOADER.into(), brush: row.brush };
+    // LRPDP is CPU work of a few milliseconds: keep it off the connection threads.
+    let glb = tokio::task::spawn_blocking(move || {
+        let outline =
+            penmesh::outline(&simplified.samples, &meta.brush, &OutlineOptions::default());
+        let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
+        penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default())
+    })
+    .await
+    .map_err(anyhow::Error::from)?;
+    let counts = crate::glb::inspect(&glb)
+        .map_err(|e| anyhow::anyhow!("the proxy built an invalid GLB for {}: {e}", row.id))?;
+    let info = store_mesh(&state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await?;
+    Ok(Json(info))
+}
