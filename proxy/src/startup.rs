@@ -62,9 +62,10 @@ impl Application {
             }
             Backend::Postgres => {
                 let stop = CancellationToken::new();
-                let task =
-                    start_listener(&config.database_url, fanout.clone(), stop.clone()).await?;
-                let locks = StrokeLocks::connect(&config.database_url).await?;
+                // Both need a session of their own: past a transaction pooler, the direct URL.
+                let direct = config.direct_database_url();
+                let task = start_listener(direct, fanout.clone(), stop.clone()).await?;
+                let locks = StrokeLocks::connect(direct).await?;
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
