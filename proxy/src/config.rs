@@ -42,10 +42,10 @@ pub struct Config {
     #[arg(long, env = "PENMESH_DATABASE_URL", default_value = "sqlite://penmesh.db")]
     pub database_url: String,
 
-    /// PostgreSQL only: the URL of the two connections that need a session of their own, the
-    /// session-event listener (`LISTEN`) and the stroke locks (session-level advisory locks).
-    /// Set it to the server itself when `database_url` goes through a pooler in transaction
-    /// mode (PgBouncer), which breaks both. Default: `database_url`.
+    /// PostgreSQL only: the URL of the connections that need a session of their own: the
+    /// session-event listener (`LISTEN`), the stroke locks and the migrations (session-level
+    /// advisory locks). Set it to the server itself when `database_url` goes through a pooler
+    /// in transaction mode (PgBouncer), which breaks all three. Default: `database_url`.
     #[arg(long, env = "PENMESH_DIRECT_DATABASE_URL")]
     pub direct_database_url: Option<String>,
 
@@ -215,7 +215,7 @@ impl Config {
         }
     }
 
-    /// Where the listener and the lock connection go (see `direct_database_url`).
+    /// Where the listener, the lock connection and the migrations go (`direct_database_url`).
     pub fn direct_database_url(&self) -> &str {
         self.direct_database_url.as_deref().unwrap_or(&self.database_url)
     }
