@@ -121,6 +121,10 @@ stroke=$(jq -r '.strokes[0].stroke' <<<"$drawn")
 n_resampled=$(jq -r '.strokes[0].n_resampled' <<<"$drawn")
 stop_proxy
 
+# Stopped the moment it is ready (a platform may do that): still a clean stop.
+start_proxy
+stop_proxy
+
 # A new start on the same data: the stroke is there, whole.
 start_proxy
 listed=$(curl -fsS -H "authorization: Bearer $token" "$base/v1/sessions/$session/strokes")
