@@ -6,12 +6,13 @@
 # is drawn through it with the client, SIGTERM stops it with exit status 0 within the shutdown
 # grace, and a second start finds the stroke stored.
 #
-# The differences from the real image, on purpose: the user is `nobody` (not 10001, which has
-# no entry here), the host's libraries instead of bookworm-slim's, /data is a temporary folder,
-# and PORT is a free port set as a platform sets it (8080 may be taken on a CI machine).
+# The root file system is read-only except /data, as in the Kubernetes manifests. The
+# differences from the real image, on purpose: the user is `nobody` (not 10001, which has no
+# entry here), the host's libraries and file system instead of bookworm-slim's, /data is a
+# temporary folder, and PORT is a free port set as a platform sets it (8080 may be taken).
 #
 # Usage: scripts/smoke-image.sh [DATABASE_URL]  (default: the image's own, SQLite under /data).
-# Needs root (to drop to nobody), curl and jq; builds the release binaries.
+# Needs root (a mount namespace, then nobody), curl and jq; builds the release binaries.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dockerfile=deploy/Dockerfile
@@ -79,9 +80,19 @@ for name in $(grep -ohE 'PENMESH_[A-Z_]+' deploy/Dockerfile deploy/compose.yaml 
   grep -q "\[env: $name=" <<<"$known" || fail "deploy/ sets $name, which penmesh-proxy does not know"
 done
 
+# As the Kubernetes manifests run it: the root file system read-only, only /data writable
+# (a mount namespace of its own: / and the usual scratch folders remounted read-only).
+read_only_root='data=$1; shift
+mount --bind "$data" "$data" && mount -o remount,bind,ro / || exit 1
+for dir in /tmp /var/tmp /dev/shm /run; do
+  if mountpoint -q "$dir"; then mount -o remount,bind,ro "$dir" || exit 1; fi
+done
+exec "$@"'
+
 log="$root/proxy.log"
 start_proxy() {
-  (cd "$data" && exec env -i "${image_env[@]}" /usr/bin/setpriv --reuid=nobody --regid=nogroup \
+  (cd "$data" && exec unshare --mount sh -c "$read_only_root" read-only-root "$data" \
+    env -i "${image_env[@]}" /usr/bin/setpriv --reuid=nobody --regid=nogroup \
     --clear-groups --no-new-privs "$root/bin/$binary_name") >>"$log" 2>&1 &
   proxy_pid=$!
   local until=$((SECONDS + 15))
