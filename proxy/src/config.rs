@@ -42,6 +42,13 @@ pub struct Config {
     #[arg(long, env = "PENMESH_DATABASE_URL", default_value = "sqlite://penmesh.db")]
     pub database_url: String,
 
+    /// PostgreSQL only: the URL of the connections that need a session of their own: the
+    /// session-event listener (`LISTEN`), the stroke locks and the migrations (session-level
+    /// advisory locks). Set it to the server itself when `database_url` goes through a pooler
+    /// in transaction mode (PgBouncer), which breaks all three. Default: `database_url`.
+    #[arg(long, env = "PENMESH_DIRECT_DATABASE_URL")]
+    pub direct_database_url: Option<String>,
+
     /// SQLite durability: `normal` (survives a killed process) or `full` (also a power cut).
     #[arg(long, env = "PENMESH_SQLITE_SYNCHRONOUS", value_enum, default_value_t = SqliteSync::Normal)]
     pub sqlite_synchronous: SqliteSync,
@@ -224,6 +231,11 @@ impl Config {
         }
     }
 
+    /// Where the listener, the lock connection and the migrations go (`direct_database_url`).
+    pub fn direct_database_url(&self) -> &str {
+        self.direct_database_url.as_deref().unwrap_or(&self.database_url)
+    }
+
     pub fn hard_message_limit(&self) -> usize {
         if self.hard_message_bytes == 0 {
             self.max_message_bytes.saturating_mul(4)
@@ -274,6 +286,24 @@ mod tests {
         let err =
             Config::load_from(["penmesh-proxy", "--config", path.to_str().unwrap()]).unwrap_err();
         assert!(err.to_string().contains("prot"), "{err}");
+    }
+
+    #[test]
+    fn direct_database_url_defaults_to_the_main_one() {
+        let main = "postgres://app@pooler:6432/penmesh";
+        let config = load_without_env(&["penmesh-proxy", "--database-url", main]).unwrap();
+        assert_eq!(config.direct_database_url(), main);
+        let direct = "postgres://app@db:5432/penmesh";
+        let config = load_without_env(&[
+            "penmesh-proxy",
+            "--database-url",
+            main,
+            "--direct-database-url",
+            direct,
+        ])
+        .unwrap();
+        assert_eq!(config.direct_database_url(), direct);
+        assert_eq!(config.database_url, main);
     }
 
     #[test]

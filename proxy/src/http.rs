@@ -411,18 +411,30 @@ pub async fn healthz() -> &'static str {
     "ok"
 }
 
-/// Readiness: the database answers.
+/// How long `/readyz` waits for the database. Probes come every few seconds: without a
+/// deadline a hung database would keep every probe (and a pool connection each) waiting for
+/// the pool's acquire timeout, and the orchestrator would learn nothing meanwhile.
+pub const READY_DB_DEADLINE: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// Readiness: the database answers within [`READY_DB_DEADLINE`].
 #[utoipa::path(get, path = "/readyz", tag = "operations",
-    responses((status = 200, description = "ready"), (status = 503, description = "database unreachable or shutting down")))]
+    responses((status = 200, description = "ready"), (status = 503, description = "database unreachable or slow, or shutting down")))]
 pub async fn readyz(State(state): State<AppState>) -> Response {
     if state.shutdown.is_cancelled() {
         return (StatusCode::SERVICE_UNAVAILABLE, "shutting down").into_response();
     }
-    match state.store.ping().await {
-        Ok(()) => "ready".into_response(),
-        Err(err) => {
+    match tokio::time::timeout(READY_DB_DEADLINE, state.store.ping()).await {
+        Ok(Ok(())) => "ready".into_response(),
+        Ok(Err(err)) => {
             tracing::warn!(error = %err, "readiness: database unreachable");
             (StatusCode::SERVICE_UNAVAILABLE, "database unreachable").into_response()
+        }
+        Err(_) => {
+            tracing::warn!(
+                deadline_ms = READY_DB_DEADLINE.as_millis() as u64,
+                "readiness: database too slow"
+            );
+            (StatusCode::SERVICE_UNAVAILABLE, "database did not answer in time").into_response()
         }
     }
 }

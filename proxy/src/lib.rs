@@ -26,7 +26,8 @@ pub use crate::fanout::{
 };
 pub use crate::glb::{MeshCounts, inspect as inspect_glb};
 pub use crate::http::{
-    AppError, ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
+    AppError, ErrorBody, MeshInfo, NewSession, READY_DB_DEADLINE, StrokeInfo, StrokeList,
+    StrokeSamples,
 };
 pub use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
 pub use crate::mesh_build::PROXY_UPLOADER;

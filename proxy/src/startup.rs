@@ -63,9 +63,10 @@ impl Application {
             }
             Backend::Postgres => {
                 let stop = CancellationToken::new();
-                let task =
-                    start_listener(&config.database_url, fanout.clone(), stop.clone()).await?;
-                let locks = StrokeLocks::connect(&config.database_url).await?;
+                // Both need a session of their own: past a transaction pooler, the direct URL.
+                let direct = config.direct_database_url();
+                let task = start_listener(direct, fanout.clone(), stop.clone()).await?;
+                let locks = StrokeLocks::connect(direct).await?;
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
@@ -114,7 +115,13 @@ impl Application {
     pub async fn run_until_stopped(self) -> anyhow::Result<()> {
         let Application { listener, state, writer, listener_task, .. } = self;
         let shutdown = state.shutdown.clone();
-        let signals = tokio::spawn(cancel_on_signal(shutdown.clone()));
+        // SIGTERM is caught from here on, before the first request is served: a platform may
+        // stop an instance the moment it is ready.
+        #[cfg(unix)]
+        let term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate());
+        #[cfg(not(unix))]
+        let term = ();
+        let signals = tokio::spawn(cancel_on_signal(shutdown.clone(), term));
         let server = tokio::spawn(
             // Nagle's algorithm would hold small frames (Ack, StrokeDone) until the peer's
             // delayed ACK, adding tens of milliseconds to each answer.
@@ -160,27 +167,30 @@ impl Application {
     }
 }
 
-async fn cancel_on_signal(shutdown: CancellationToken) {
+#[cfg(unix)]
+async fn cancel_on_signal(
+    shutdown: CancellationToken,
+    term: std::io::Result<tokio::signal::unix::Signal>,
+) {
     let ctrl_c = tokio::signal::ctrl_c();
-    #[cfg(unix)]
-    {
-        let mut term =
-            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-                Ok(term) => term,
-                Err(err) => {
-                    tracing::warn!(error = %err, "cannot listen for SIGTERM");
-                    let _ = ctrl_c.await;
-                    shutdown.cancel();
-                    return;
-                }
-            };
-        tokio::select! {
-            _ = ctrl_c => {}
-            _ = term.recv() => {}
+    match term {
+        Ok(mut term) => {
+            tokio::select! {
+                _ = ctrl_c => {}
+                _ = term.recv() => {}
+            }
+        }
+        Err(err) => {
+            tracing::warn!(error = %err, "cannot listen for SIGTERM");
+            let _ = ctrl_c.await;
         }
     }
-    #[cfg(not(unix))]
-    let _ = ctrl_c.await;
+    shutdown.cancel();
+}
+
+#[cfg(not(unix))]
+async fn cancel_on_signal(shutdown: CancellationToken, _term: ()) {
+    let _ = tokio::signal::ctrl_c().await;
     shutdown.cancel();
 }
 

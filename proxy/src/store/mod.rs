@@ -169,11 +169,24 @@ impl Store {
             .connect_with(options.clone())
             .await
             .with_context(|| format!("connecting to {}", redact(&config.database_url)))?;
-        let migrator = match backend {
-            Backend::Sqlite => &SQLITE_MIGRATIONS,
-            Backend::Postgres => &POSTGRES_MIGRATIONS,
-        };
-        migrator.run(&pool).await.context("applying migrations")?;
+        match backend {
+            Backend::Sqlite => SQLITE_MIGRATIONS.run(&pool).await,
+            // The migrator holds a session-level advisory lock, which a transaction pooler
+            // would leave behind on a pooled server connection: the direct URL, as the locks.
+            Backend::Postgres => {
+                let direct = config.direct_database_url();
+                // One connection: the migrator's lock and its migrations share it.
+                let direct_pool = sqlx::postgres::PgPoolOptions::new()
+                    .max_connections(1)
+                    .connect(direct)
+                    .await
+                    .with_context(|| format!("connecting to {} to migrate", redact(direct)))?;
+                let applied = POSTGRES_MIGRATIONS.run(&direct_pool).await;
+                direct_pool.close().await;
+                applied
+            }
+        }
+        .context("applying migrations")?;
         Ok(Store { pool, backend, options, synchronous })
     }
 

@@ -4,6 +4,7 @@
 
 mod auth;
 mod bad_input;
+mod deploy;
 mod http;
 mod limits;
 mod resume;
