@@ -47,16 +47,20 @@ pub async fn build_mesh(
             row.status.as_str()
         )));
     };
+    // The samples the proxy received: the smooth centreline is checked against them, as the
+    // native client checks it against what it drew.
+    let raw = state.store.raw_samples(row.id).await?;
+    let kept: Vec<usize> = simplified.indices.iter().map(|&i| i as usize).collect();
     let meta = GlbMeta { stroke: row.id, author: PROXY_UPLOADER.into(), brush: row.brush };
     // LRPDP is CPU work of a few milliseconds: keep it off the connection threads.
     let glb = tokio::task::spawn_blocking(move || {
-        let outline =
-            penmesh::outline(&simplified.samples, &meta.brush, &OutlineOptions::default());
+        let outline = penmesh::fitted_outline(&raw, &kept, &meta.brush, &OutlineOptions::default())
+            .map_err(|e| anyhow::anyhow!("stored stroke {}: {e}", meta.stroke))?;
         let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
-        penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default())
+        anyhow::Ok(penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default()))
     })
     .await
-    .map_err(anyhow::Error::from)?;
+    .map_err(anyhow::Error::from)??;
     let counts = crate::glb::inspect(&glb)
         .map_err(|e| anyhow::anyhow!("the proxy built an invalid GLB for {}: {e}", row.id))?;
     let info = store_mesh(&state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await?;

@@ -98,10 +98,14 @@ async fn the_proxy_builds_stores_and_announces_a_thin_clients_mesh() {
     assert_eq!(info["uploader"], penmesh_proxy::PROXY_UPLOADER);
     assert!(info["triangles"].as_u64().unwrap() > 10, "{info}");
 
-    // The same mesh LRPDP makes on the native client from the simplified stroke.
+    // The same mesh LRPDP makes on the native client: the smooth centreline through the kept
+    // samples, checked against every sample drawn.
     let simplified = proxy.get_json(&format!("/v1/strokes/{stroke}/simplified"), &session).await;
-    let kept: Vec<penmesh::Sample> = serde_json::from_value(simplified["samples"].clone()).unwrap();
-    let outline = penmesh::outline(&kept, &penmesh::Brush::default(), &Default::default());
+    let kept: Vec<usize> = serde_json::from_value(simplified["indices"].clone()).unwrap();
+    let raw = proxy.raw_samples(&session, stroke).await;
+    let outline =
+        penmesh::fitted_outline(&raw, &kept, &penmesh::Brush::default(), &Default::default())
+            .unwrap();
     let mesh = penmesh::solid_mesh(&outline, &Default::default());
     let stored = proxy.get(&format!("/v1/strokes/{stroke}/mesh"), &session).send().await.unwrap();
     assert_eq!(stored.headers()["x-penmesh-triangles"], mesh.triangles().count().to_string());
