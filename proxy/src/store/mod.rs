@@ -17,7 +17,7 @@ use sqlx::{AnyConnection, AnyPool, Connection, Executor, Row};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-pub use writer::{WriteError, WriteOp, Writer, WriterTask};
+pub use writer::{CommitFaults, Fault, WriteError, WriteOp, Writer, WriterTask};
 
 use crate::config::{Config, SqliteSync};
 use crate::fanout::{EventKind, SessionEvent};
@@ -67,6 +67,15 @@ pub struct StrokeRow {
 pub struct Simplified {
     pub indices: Vec<u64>,
     pub samples: Vec<Sample>,
+}
+
+/// What a newcomer to a session is owed ([`Store::session_history`]).
+#[derive(Debug, Clone, Default)]
+pub struct SessionHistory {
+    /// The session's events, in order, without the unreadable strokes.
+    pub events: Vec<SessionEvent>,
+    /// The strokes that could not be read (`None`: not even its id), and why.
+    pub unreadable: Vec<(Option<Uuid>, String)>,
 }
 
 /// A stored mesh.
@@ -375,8 +384,10 @@ impl Store {
     /// What a newcomer to `session` is owed: the participants present, then every stroke
     /// (finished ones with their simplified samples and mesh, open ones with the samples
     /// retained from what is committed so far, rebuilt by replaying it), as events in order.
-    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<Vec<SessionEvent>> {
-        let mut events = Vec::new();
+    /// A stroke that cannot be read is left out and named in `unreadable`; it does not hide
+    /// the others.
+    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
+        let mut history = SessionHistory::default();
         let present = sqlx::query(
             "SELECT id, name FROM participants WHERE session_id = $1 AND left_at IS NULL \
              ORDER BY joined_at, id",
@@ -385,7 +396,7 @@ impl Store {
         .fetch_all(&self.pool)
         .await?;
         for row in present {
-            events.push(SessionEvent::new(
+            history.events.push(SessionEvent::new(
                 session,
                 EventKind::Joined {
                     participant: parse_uuid(&row.try_get::<String, _>("id")?)?,
@@ -393,7 +404,12 @@ impl Store {
                 },
             ));
         }
-        let strokes = self.list_strokes(session).await?;
+        let strokes = sqlx::query(&format!(
+            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+        ))
+        .bind(session.to_string())
+        .fetch_all(&self.pool)
+        .await?;
         let meshes = sqlx::query(
             "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
              WHERE s.session_id = $1",
@@ -406,41 +422,60 @@ impl Store {
             let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
             mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
         }
-        for row in strokes {
-            let (participant, stroke) = (row.participant, row.id);
+        for row in &strokes {
+            match self.stroke_history(session, row, &mesh_at).await {
+                Ok(events) => history.events.extend(events),
+                Err(err) => {
+                    let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
+                    tracing::error!(error = %err, stroke = ?id, "a stroke of a session's history is unreadable");
+                    history.unreadable.push((id, format!("{err:#}")));
+                }
+            }
+        }
+        Ok(history)
+    }
+
+    /// One stroke's part of [`Store::session_history`].
+    async fn stroke_history(
+        &self,
+        session: Uuid,
+        row: &sqlx::any::AnyRow,
+        mesh_at: &std::collections::HashMap<Uuid, i64>,
+    ) -> anyhow::Result<Vec<SessionEvent>> {
+        let row = stroke_from_row(row)?;
+        let (participant, stroke) = (row.participant, row.id);
+        let mut events = vec![SessionEvent::new(
+            session,
+            EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+        )];
+        let done = row.status == StrokeStatus::Done;
+        let points: Vec<Sample> = if done {
+            self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
+        } else {
+            let raw = self.raw_samples(stroke).await?;
+            crate::ingest::StrokeState::replay(stroke, row.params, &raw)
+                .kept()
+                .iter()
+                .map(|k| k.sample)
+                .collect()
+        };
+        let n_retained = points.len() as u64;
+        if !points.is_empty() {
             events.push(SessionEvent::new(
                 session,
-                EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+                EventKind::Retained { participant, stroke, first: 0, points },
             ));
-            let done = row.status == StrokeStatus::Done;
-            let points = if done {
-                self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
-            } else {
-                let raw = self.raw_samples(stroke).await?;
-                crate::ingest::StrokeState::replay(stroke, row.params, &raw)
-                    .kept()
-                    .iter()
-                    .map(|k| k.sample)
-                    .collect()
-            };
-            let n_retained = points.len() as u64;
-            if !points.is_empty() {
+        }
+        if done {
+            events.push(SessionEvent::new(
+                session,
+                EventKind::StrokeDone { participant, stroke, n_retained },
+            ));
+            if let Some(&created_at) = mesh_at.get(&stroke) {
                 events.push(SessionEvent::new(
                     session,
-                    EventKind::Retained { participant, stroke, first: 0, points },
+                    EventKind::Mesh { participant, stroke, created_at },
                 ));
-            }
-            if done {
-                events.push(SessionEvent::new(
-                    session,
-                    EventKind::StrokeDone { participant, stroke, n_retained },
-                ));
-                if let Some(&created_at) = mesh_at.get(&stroke) {
-                    events.push(SessionEvent::new(
-                        session,
-                        EventKind::Mesh { participant, stroke, created_at },
-                    ));
-                }
             }
         }
         Ok(events)
