@@ -104,7 +104,7 @@ struct FaultRule {
 
 #[derive(Debug)]
 enum FaultTarget {
-    /// The `k`th transaction the writer begins (1-based).
+    /// The transaction the writer begins `k`th (1-based).
     Transaction(u64),
     /// Any transaction holding the append of `stroke` submitted at `seq`.
     Append { stroke: Uuid, seq: u64 },
@@ -115,16 +115,22 @@ impl CommitFaults {
         Arc::new(CommitFaults::default())
     }
 
-    /// The `k`th transaction (1-based, counting retries) gets `fault`.
+    /// The `k`th transaction from now (1: the next one; retries count) gets `fault`.
     pub fn fail_transaction(&self, k: u64, fault: Fault) {
-        let rule = FaultRule { target: FaultTarget::Transaction(k), fault, remaining: 1 };
-        self.state.lock().expect("faults lock").rules.push(rule);
+        let mut state = self.state.lock().expect("faults lock");
+        let target = FaultTarget::Transaction(state.transactions + k);
+        state.rules.push(FaultRule { target, fault, remaining: 1 });
     }
 
     /// The next `times` transactions that hold the append of `stroke` at `seq` get `fault`.
     pub fn fail_append(&self, stroke: Uuid, seq: u64, fault: Fault, times: u32) {
         let rule = FaultRule { target: FaultTarget::Append { stroke, seq }, fault, remaining: times };
         self.state.lock().expect("faults lock").rules.push(rule);
+    }
+
+    /// Removes every fault not yet spent.
+    pub fn clear(&self) {
+        self.state.lock().expect("faults lock").rules.clear();
     }
 
     /// Counts a transaction of `requests` and says which fault, if any, hits it.

@@ -10,3 +10,4 @@ mod resume;
 mod shutdown;
 mod ws_binary;
 mod ws_json;
+mod write_failures;
