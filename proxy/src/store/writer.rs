@@ -124,7 +124,8 @@ impl CommitFaults {
 
     /// The next `times` transactions that hold the append of `stroke` at `seq` get `fault`.
     pub fn fail_append(&self, stroke: Uuid, seq: u64, fault: Fault, times: u32) {
-        let rule = FaultRule { target: FaultTarget::Append { stroke, seq }, fault, remaining: times };
+        let rule =
+            FaultRule { target: FaultTarget::Append { stroke, seq }, fault, remaining: times };
         self.state.lock().expect("faults lock").rules.push(rule);
     }
 
@@ -452,9 +453,10 @@ impl WriterLoop {
                     req_planned.push(Planned::Other(op));
                     continue;
                 };
-                let known = req_ends.get(stroke).or_else(|| ends.get(stroke)).copied().or_else(
-                    || self.ends.get(stroke).copied().filter(|_| !forget.contains(stroke)),
-                );
+                let known =
+                    req_ends.get(stroke).or_else(|| ends.get(stroke)).copied().or_else(|| {
+                        self.ends.get(stroke).copied().filter(|_| !forget.contains(stroke))
+                    });
                 let end = match known {
                     Some(end) => end,
                     None => stored_end(&mut tx, *stroke).await?,

@@ -8,6 +8,6 @@ mod http;
 mod limits;
 mod resume;
 mod shutdown;
+mod write_failures;
 mod ws_binary;
 mod ws_json;
-mod write_failures;
