@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use penmesh::Sample;
-use penmesh::protocol::StrokeStatus;
+use penmesh::protocol::{StrokeStatus, decode_point_batch, encode_point_batch, quantize_sample};
 use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
 use sqlx::{AnyConnection, AnyPool, Connection, Executor, Row};
 use tokio_util::sync::CancellationToken;
@@ -102,29 +102,51 @@ pub fn hash_token(token: &str) -> String {
     hex::encode(sha2::Sha256::digest(token.as_bytes()))
 }
 
-pub(crate) fn encode_samples(samples: &[Sample]) -> Vec<u8> {
+/// How a row's sample blob is laid out (its `layout` column).
+const LAYOUT_F64: i64 = 0;
+/// [`penmesh::protocol::encode_point_batch`]: exact for samples on the codec's grid, which is
+/// every sample the proxy accepts since it puts them there on arrival (`ingest`).
+const LAYOUT_POINT_BATCH: i64 = 1;
+
+/// A sample blob and its layout: the compact point batch when that is exact (every sample on
+/// the grid, bit for bit), else `f64` quadruples (samples stored by an earlier version).
+pub(crate) fn encode_samples(samples: &[Sample]) -> (i64, Vec<u8>) {
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+    let on_grid = samples.iter().all(|s| {
+        let q = quantize_sample(s);
+        same(q.x, s.x) && same(q.y, s.y) && same(q.t, s.t) && same(q.p, s.p)
+    });
+    if on_grid {
+        return (LAYOUT_POINT_BATCH, encode_point_batch(samples));
+    }
     let mut out = Vec::with_capacity(samples.len() * 32);
     for s in samples {
         for v in [s.x, s.y, s.t, s.p] {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
-    out
+    (LAYOUT_F64, out)
 }
 
-pub(crate) fn decode_samples(bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
-    anyhow::ensure!(
-        bytes.len() % 32 == 0,
-        "sample blob of {} bytes is not a multiple of 32",
-        bytes.len()
-    );
-    Ok(bytes
-        .chunks_exact(32)
-        .map(|c| {
-            let f = |i: usize| f64::from_le_bytes(c[i * 8..i * 8 + 8].try_into().unwrap());
-            Sample::new(f(0), f(1), f(2), f(3))
-        })
-        .collect())
+pub(crate) fn decode_samples(layout: i64, bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
+    match layout {
+        LAYOUT_POINT_BATCH => Ok(decode_point_batch(bytes)?),
+        LAYOUT_F64 => {
+            anyhow::ensure!(
+                bytes.len() % 32 == 0,
+                "sample blob of {} bytes is not a multiple of 32",
+                bytes.len()
+            );
+            Ok(bytes
+                .chunks_exact(32)
+                .map(|c| {
+                    let f = |i: usize| f64::from_le_bytes(c[i * 8..i * 8 + 8].try_into().unwrap());
+                    Sample::new(f(0), f(1), f(2), f(3))
+                })
+                .collect())
+        }
+        other => anyhow::bail!("unknown sample layout {other}"),
+    }
 }
 
 pub(crate) fn encode_indices(indices: &[u64]) -> Vec<u8> {
@@ -298,7 +320,9 @@ impl Store {
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
         let rows =
-            sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+            sqlx::query(
+                "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq",
+            )
                 .bind(stroke.to_string())
                 .fetch_all(&self.pool)
                 .await?;
@@ -312,7 +336,9 @@ impl Store {
                 "stroke {stroke}: chunk at seq {seq} follows {} samples",
                 samples.len()
             );
-            let chunk = decode_samples(&data)?;
+            let layout: i64 = row.try_get("layout")?;
+            let chunk = decode_samples(layout, &data)
+                .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
             anyhow::ensure!(
                 chunk.len() as i64 == n,
                 "stroke {stroke}: chunk at seq {seq} has a bad length"
@@ -323,14 +349,16 @@ impl Store {
     }
 
     pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
-        let row = sqlx::query("SELECT indices, data FROM simplified WHERE stroke_id = $1")
+        let row = sqlx::query("SELECT indices, layout, data FROM simplified WHERE stroke_id = $1")
             .bind(stroke.to_string())
             .fetch_optional(&self.pool)
             .await?;
         let Some(row) = row else { return Ok(None) };
         let indices: Vec<u8> = row.try_get("indices")?;
         let data: Vec<u8> = row.try_get("data")?;
-        Ok(Some(Simplified { indices: decode_indices(&indices), samples: decode_samples(&data)? }))
+        let samples = decode_samples(row.try_get("layout")?, &data)
+            .with_context(|| format!("stroke {stroke}: simplified samples"))?;
+        Ok(Some(Simplified { indices: decode_indices(&indices), samples }))
     }
 
     /// Stores (or replaces) a stroke's mesh; with PostgreSQL `events` are notified in the same
@@ -607,9 +635,20 @@ mod tests {
 
     #[test]
     fn samples_round_trip_through_the_blob() {
+        // On the grid: the compact layout, at a few bytes a sample.
         let samples = vec![Sample::new(1.5, -2.0, 3.25, 0.5), Sample::new(0.0, 0.0, 4.0, 1.0)];
-        assert_eq!(decode_samples(&encode_samples(&samples)).unwrap(), samples);
-        assert!(decode_samples(&[0; 31]).is_err());
+        let (layout, bytes) = encode_samples(&samples);
+        assert_eq!(layout, LAYOUT_POINT_BATCH);
+        assert!(bytes.len() < 16, "{} bytes, not a quarter of the f64 form", bytes.len());
+        assert_eq!(decode_samples(layout, &bytes).unwrap(), samples);
+        // Off it (stored by an earlier version): f64, exact.
+        let old = vec![Sample::new(0.1, 0.2, 0.3, 0.4)];
+        let (layout, bytes) = encode_samples(&old);
+        assert_eq!(layout, LAYOUT_F64);
+        assert_eq!(decode_samples(layout, &bytes).unwrap(), old);
+        assert!(decode_samples(LAYOUT_F64, &[0; 31]).is_err());
+        assert!(decode_samples(LAYOUT_POINT_BATCH, &[]).is_err());
+        assert!(decode_samples(7, &bytes).unwrap_err().to_string().contains("layout 7"));
     }
 
     #[test]

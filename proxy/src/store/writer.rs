@@ -536,7 +536,7 @@ async fn stored_end(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<u6
 /// (with SQLite, to sqlx's worker thread), and when the cores are busy each round trip waits
 /// for the scheduler, twice: under 500 pens a commit of 14 statements took 13 ms while SQLite
 /// itself was busy a quarter of that. So a commit's appends go in as few statements as SQLite's
-/// parameter limit allows (4 parameters per row, at most 32,766 per statement).
+/// parameter limit allows (5 parameters per row, at most 32,766 per statement).
 const MAX_ROWS_PER_STATEMENT: usize = 1024;
 /// Statements of up to this many rows (and of exactly [`MAX_ROWS_PER_STATEMENT`]) stay in the
 /// connection's prepared-statement cache: the shapes of a lightly loaded proxy. Other sizes are
@@ -571,16 +571,24 @@ async fn append_all(
         }
     }
     for chunk in rows.chunks(MAX_ROWS_PER_STATEMENT) {
-        let mut sql = String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, data) VALUES ");
+        let mut sql = String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ");
         for k in 0..chunk.len() {
             let sep = if k == 0 { "" } else { ", " };
             match backend {
                 Backend::Sqlite => {
-                    let _ = write!(sql, "{sep}(?, ?, ?, ?)");
+                    let _ = write!(sql, "{sep}(?, ?, ?, ?, ?)");
                 }
                 Backend::Postgres => {
-                    let p = 4 * k;
-                    let _ = write!(sql, "{sep}(${}, ${}, ${}, ${})", p + 1, p + 2, p + 3, p + 4);
+                    let p = 5 * k;
+                    let _ = write!(
+                        sql,
+                        "{sep}(${}, ${}, ${}, ${}, ${})",
+                        p + 1,
+                        p + 2,
+                        p + 3,
+                        p + 4,
+                        p + 5
+                    );
                 }
             }
         }
@@ -589,11 +597,13 @@ async fn append_all(
         let cached = chunk.len() <= CACHED_ROWS || chunk.len() == MAX_ROWS_PER_STATEMENT;
         let mut query = sqlx::query(&sql).persistent(cached);
         for (stroke, seq, samples) in chunk {
+            let (layout, data) = encode_samples(samples);
             query = query
                 .bind(stroke.to_string())
                 .bind(*seq as i64)
                 .bind(samples.len() as i64)
-                .bind(encode_samples(samples));
+                .bind(layout)
+                .bind(data);
         }
         query.execute(&mut *conn).await?;
     }
@@ -622,13 +632,16 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
         WriteOp::Finish { stroke, kept } => {
             let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
             let samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
+            let (layout, data) = encode_samples(&samples);
             sqlx::query(
-                "INSERT INTO simplified (stroke_id, indices, data) VALUES ($1, $2, $3) \
-                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, data = excluded.data",
+                "INSERT INTO simplified (stroke_id, indices, layout, data) VALUES ($1, $2, $3, $4) \
+                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, \
+                 layout = excluded.layout, data = excluded.data",
             )
             .bind(stroke.to_string())
             .bind(encode_indices(&indices))
-            .bind(encode_samples(&samples))
+            .bind(layout)
+            .bind(data)
             .execute(&mut *conn)
             .await?;
             sqlx::query(
