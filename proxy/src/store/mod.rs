@@ -319,13 +319,12 @@ impl Store {
 
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
-        let rows =
-            sqlx::query(
-                "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq",
-            )
-                .bind(stroke.to_string())
-                .fetch_all(&self.pool)
-                .await?;
+        let rows = sqlx::query(
+            "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq",
+        )
+        .bind(stroke.to_string())
+        .fetch_all(&self.pool)
+        .await?;
         let mut samples = Vec::new();
         for row in rows {
             let seq: i64 = row.try_get("seq")?;

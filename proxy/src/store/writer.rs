@@ -571,7 +571,8 @@ async fn append_all(
         }
     }
     for chunk in rows.chunks(MAX_ROWS_PER_STATEMENT) {
-        let mut sql = String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ");
+        let mut sql =
+            String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ");
         for k in 0..chunk.len() {
             let sep = if k == 0 { "" } else { ", " };
             match backend {

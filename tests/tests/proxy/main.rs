@@ -6,6 +6,7 @@ mod auth;
 mod bad_input;
 mod http;
 mod limits;
+mod old_database;
 mod resume;
 mod shutdown;
 mod write_failures;
