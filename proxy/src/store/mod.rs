@@ -325,26 +325,7 @@ impl Store {
         .bind(stroke.to_string())
         .fetch_all(&self.pool)
         .await?;
-        let mut samples = Vec::new();
-        for row in rows {
-            let seq: i64 = row.try_get("seq")?;
-            let n: i64 = row.try_get("n")?;
-            let data: Vec<u8> = row.try_get("data")?;
-            anyhow::ensure!(
-                seq as usize == samples.len(),
-                "stroke {stroke}: chunk at seq {seq} follows {} samples",
-                samples.len()
-            );
-            let layout: i64 = row.try_get("layout")?;
-            let chunk = decode_samples(layout, &data)
-                .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
-            anyhow::ensure!(
-                chunk.len() as i64 == n,
-                "stroke {stroke}: chunk at seq {seq} has a bad length"
-            );
-            samples.extend(chunk);
-        }
-        Ok(samples)
+        samples_from_chunks(stroke, &rows)
     }
 
     pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
@@ -508,6 +489,38 @@ impl Store {
         Ok(events)
     }
 }
+
+/// A stroke's samples from its `stroke_chunks` rows (`seq, n, layout, data`, in `seq` order),
+/// checking they are contiguous from 0.
+pub(crate) fn samples_from_chunks(
+    stroke: Uuid,
+    rows: &[sqlx::any::AnyRow],
+) -> anyhow::Result<Vec<Sample>> {
+    let mut samples = Vec::new();
+    for row in rows {
+        let seq: i64 = row.try_get("seq")?;
+        let n: i64 = row.try_get("n")?;
+        let data: Vec<u8> = row.try_get("data")?;
+        anyhow::ensure!(
+            seq as usize == samples.len(),
+            "stroke {stroke}: chunk at seq {seq} follows {} samples",
+            samples.len()
+        );
+        let layout: i64 = row.try_get("layout")?;
+        let chunk = decode_samples(layout, &data)
+            .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
+        anyhow::ensure!(
+            chunk.len() as i64 == n,
+            "stroke {stroke}: chunk at seq {seq} has a bad length"
+        );
+        samples.extend(chunk);
+    }
+    Ok(samples)
+}
+
+/// The query of a stroke's chunks that [`samples_from_chunks`] reads.
+pub(crate) const CHUNKS_SELECT: &str =
+    "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq";
 
 /// How often the SQLite checkpointer copies the write-ahead log back into the database.
 const CHECKPOINT_INTERVAL: Duration = Duration::from_millis(100);
