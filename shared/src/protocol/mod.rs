@@ -221,6 +221,9 @@ pub enum ErrorCode {
     /// This connection fell too far behind the session's events; resync from history.
     Lagged,
     ShuttingDown,
+    /// The proxy failed (storing, or reading a stroke). With the id of a stroke this client
+    /// draws: resume it from the last ack. With another's (a stroke of the session's history
+    /// that cannot be read): that stroke is missing, the others are sent.
     Internal,
 }
 
