@@ -128,7 +128,9 @@ pub(crate) fn encode_samples(samples: &[Sample]) -> (i64, Vec<u8>) {
     (LAYOUT_F64, out)
 }
 
-pub(crate) fn decode_samples(layout: i64, bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
+/// The samples of a stored blob of the given `layout` (a row's `layout` column). Public for
+/// tests that read a database file directly.
+pub fn decode_samples(layout: i64, bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
     match layout {
         LAYOUT_POINT_BATCH => Ok(decode_point_batch(bytes)?),
         LAYOUT_F64 => {
