@@ -9,6 +9,11 @@
 //! fails, each request is retried in a transaction of its own, so one bad request cannot fail
 //! the others.
 //!
+//! An append is stored only where its stroke's stored samples end (`WriterLoop::ends`): one
+//! that would leave a hole (an earlier append of its stroke failed) is refused, samples already
+//! stored (a commit that succeeded but reported failure, retried) are not written again. So a
+//! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
+//!
 //! A request may carry session events ([`SessionEvent`]) that describe it. They are published
 //! only once the request is committed, in commit order: with PostgreSQL as notifications of
 //! the same transaction (so every replica's listener gets them, or none does), with SQLite
