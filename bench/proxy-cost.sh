@@ -3,6 +3,7 @@
 # per-thread CPU and write-amplification numbers of docs/performance.md and docs/storage.md.
 # Runs `penmesh load --spawn-proxy` (SQLite in a temporary folder) and samples the spawned
 # proxy's /proc/PID/task/*/stat and /proc/PID/io until it exits.
+# The SQLite file is kept until the end, to weigh what it holds per stored sample.
 # Usage: bench/proxy-cost.sh PENS [SECONDS] [-- PROXY_ARG...]
 #   e.g. bench/proxy-cost.sh 500 25 -- --commit-interval-ms=12
 set -euo pipefail
@@ -21,8 +22,9 @@ cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-clie
 penmesh="$CARGO_TARGET_DIR/release/penmesh"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
+# Our own SQLite file, to weigh what it holds per sample once the proxy has stopped.
 
-"$penmesh" load --spawn-proxy "${proxy_args[@]}" --clients "$pens" --rate 200 \
+"$penmesh" load --spawn-proxy --database-url "sqlite://$work/penmesh.db" "${proxy_args[@]}" --clients "$pens" --rate 200 \
     --duration "$seconds" --ramp 5 --label "proxy-cost-$pens" --json "$work/run.json" \
     > "$work/load.log" 2>&1 &
 load_pid=$!
@@ -69,4 +71,8 @@ for name, t in per_thread.most_common():
     print(f"  {name:<20} {us(t):6.2f} us CPU per sample")
 print(f"  {'all threads':<20} {us(sum(per_thread.values())):6.2f} us CPU per sample")
 print(f"written to storage: {int(io['write_bytes']) / stored:.0f} bytes per sample")
+import os
+held = sum(os.path.getsize(f"{work}/penmesh.db{s}") for s in ("", "-wal")
+           if os.path.exists(f"{work}/penmesh.db{s}"))
+print(f"database file (with its log): {held / stored:.1f} bytes per sample")
 PY

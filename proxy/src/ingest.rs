@@ -2,7 +2,7 @@
 //! [`Simplifier`], and the limits. No I/O: the connection loop turns the outcomes into
 //! database writes and messages.
 
-use penmesh::protocol::{ErrorCode, StrokeId};
+use penmesh::protocol::{ErrorCode, StrokeId, quantize_sample};
 use penmesh::{AcutsParams, Kept, Sample, Simplifier, validate_samples};
 
 /// A refusal: the code and a message naming what is wrong.
@@ -30,7 +30,7 @@ pub struct StrokeLimits {
 pub enum Accepted {
     /// Every sample of the batch was accepted before: nothing to store, ack again.
     Duplicate,
-    /// New samples `seq..seq + samples.len()` to store; `kept` are the newly retained ones,
+    /// New samples `seq..seq + samples.len()` to store (on the codec's grid); `kept` are the newly retained ones,
     /// the first of which has index `first_kept` in the simplified stroke.
     New { seq: u64, samples: Vec<Sample>, kept: Vec<Kept>, first_kept: u64 },
 }
@@ -130,18 +130,25 @@ impl StrokeState {
                 ),
             ));
         }
-        validate_samples(tail, self.last.as_ref(), self.next_seq as usize)
-            .map_err(|e| Refusal::new(ErrorCode::BadSample, e.to_string()))?;
+        // On the codec's grid from here on (a binary client's samples are there already, a
+        // JSON client's move by at most half a step), so that what ACUTS sees, what is stored
+        // compactly and what `/raw` returns are the same values. The values as sent are checked
+        // (a pressure of 1.0003 is refused, not rounded into range); the order across batches
+        // is checked on the grid, where `last` is.
+        let bad = |e: penmesh::SampleError| Refusal::new(ErrorCode::BadSample, e.to_string());
+        validate_samples(tail, None, self.next_seq as usize).map_err(bad)?;
+        let tail: Vec<Sample> = tail.iter().map(quantize_sample).collect();
+        validate_samples(&tail, self.last.as_ref(), self.next_seq as usize).map_err(bad)?;
         let first_kept = self.kept.len() as u64;
         let mut kept = Vec::new();
-        for s in tail {
+        for s in &tail {
             kept.extend(self.simplifier.push(*s));
         }
         self.kept.extend_from_slice(&kept);
         let seq = self.next_seq;
         self.next_seq = end;
         self.last = tail.last().copied();
-        Ok(Accepted::New { seq, samples: tail.to_vec(), kept, first_kept })
+        Ok(Accepted::New { seq, samples: tail, kept, first_kept })
     }
 
     /// Pen-up: checks the count and finishes the simplifier.
@@ -221,6 +228,24 @@ mod tests {
             ErrorCode::BatchTooLarge
         );
         assert_eq!(s.finish(4).unwrap_err().code, ErrorCode::CountMismatch);
+    }
+
+    #[test]
+    fn samples_are_put_on_the_grid_and_checked_as_sent() {
+        let mut s = state();
+        let sent = vec![Sample::new(1.03, 2.0, 10.07, 0.5001), Sample::new(2.0, 2.0, 10.08, 0.5)];
+        let Accepted::New { samples, .. } = s.push_points(0, &sent, &LIMITS).unwrap() else {
+            panic!("new samples")
+        };
+        let on_grid: Vec<Sample> = sent.iter().map(quantize_sample).collect();
+        assert_eq!(samples, on_grid);
+        assert_ne!(samples[0], sent[0]);
+        // 10.08 follows 10.07 as sent, though 10.07 is 10.125 on the grid: accepted.
+        let next = [Sample::new(3.0, 2.0, 10.09, 0.5)];
+        assert!(s.push_points(2, &next, &LIMITS).is_ok());
+        // A pressure just over 1 is refused, not rounded into range.
+        let err = s.push_points(3, &[Sample::new(4.0, 2.0, 11.0, 1.0003)], &LIMITS).unwrap_err();
+        assert_eq!(err.code, ErrorCode::BadSample);
     }
 
     #[test]

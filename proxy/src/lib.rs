@@ -34,7 +34,9 @@ pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::openapi::ApiDoc;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
-pub use crate::store::{Backend, Store, hash_token};
+pub use crate::store::{
+    Backend, CommitFaults, Fault, Store, decode_samples as decode_stored_samples, hash_token,
+};
 pub use crate::ws::{Frame, close_code, serve};
 
 /// Runs the proxy with `config` until it is stopped (SIGTERM, Ctrl-C), on a runtime of its own

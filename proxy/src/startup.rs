@@ -43,6 +43,15 @@ pub struct Application {
 impl Application {
     /// Connects to the database (migrating it), starts the writer and binds the listener.
     pub async fn build(config: Config) -> anyhow::Result<Application> {
+        Application::build_with_faults(config, None).await
+    }
+
+    /// [`Application::build`] with failures injected into the writer's transactions: for the
+    /// tests of the write path's failure handling only.
+    pub async fn build_with_faults(
+        config: Config,
+        faults: Option<std::sync::Arc<crate::store::CommitFaults>>,
+    ) -> anyhow::Result<Application> {
         config.check()?;
         let metrics = metrics::install();
         let store = Store::connect(&config).await?;
@@ -81,6 +90,7 @@ impl Application {
             config.commit_max_requests,
             config.writer_queue,
             fanout.clone(),
+            faults,
         )
         .await?;
         let tcp = TcpListener::bind((config.host.as_str(), config.port))

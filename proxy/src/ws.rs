@@ -570,8 +570,23 @@ impl Connection {
                 );
             }
         };
+        for (stroke, _why) in &history.unreadable {
+            // Said, not hidden: the client knows the stroke exists and is missing.
+            metrics::counter!("penmesh_errors_total", "code" => ErrorCode::Internal.as_str())
+                .increment(1);
+            let message = match stroke {
+                Some(id) => format!("stroke {id} cannot be read from storage; the others follow"),
+                None => "a stroke cannot be read from storage; the others follow".to_string(),
+            };
+            self.send_wait(ServerMessage::Error(ErrorMessage {
+                code: ErrorCode::Internal,
+                message,
+                stroke: *stroke,
+            }))
+            .await;
+        }
         let batch = self.state.config.max_batch_samples.max(1);
-        for event in history {
+        for event in history.events {
             if self.is_own(&event) {
                 continue;
             }
@@ -1160,7 +1175,7 @@ mod tests {
         config.database_url = format!("sqlite://{}", dir.path().join("t.db").display());
         let store = Store::connect(&config).await.unwrap();
         let (writer, writer_task) =
-            WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default())
+            WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default(), None)
                 .await
                 .unwrap();
         let session = Uuid::new_v4();

@@ -577,3 +577,27 @@ fn real_pen_data_costs_at_most_6_bytes_per_sample_at_live_batch_sizes() {
         }
     }
 }
+
+/// The bare point batch the proxy stores: exact for samples on the grid (raw channels
+/// included), and bytes that end early or go on after the batch are refused.
+#[test]
+fn bare_point_batches_round_trip_exactly_and_refuse_bad_bytes() {
+    let mut batch = samples(50);
+    batch.push(Sample::new(3.0e15, -7.25, 1.0e30, 1.0));
+    for b in [&batch[..0], &batch[..1], &batch[..2], &batch[..]] {
+        let bytes = encode_point_batch(b);
+        let back = decode_point_batch(&bytes).unwrap();
+        assert_eq!(back.len(), b.len());
+        for (x, y) in back.iter().zip(b) {
+            for (u, v) in [(x.x, y.x), (x.y, y.y), (x.t, y.t), (x.p, y.p)] {
+                assert_eq!(u.to_bits(), v.to_bits());
+            }
+        }
+    }
+    let bytes = encode_point_batch(&batch[..10]);
+    assert!(decode_point_batch(&bytes[..bytes.len() - 1]).is_err());
+    let mut longer = bytes.clone();
+    longer.push(0);
+    let err = decode_point_batch(&longer).unwrap_err();
+    assert!(err.to_string().contains("1 bytes after"), "{err}");
+}

@@ -162,9 +162,18 @@ pub async fn spawn_proxy_with(tweak: impl FnOnce(&mut Config)) -> TestProxy {
 
 /// Starts the proxy on `db` (for example again after a shutdown).
 pub async fn spawn_proxy_on(db: TestDatabase, tweak: impl FnOnce(&mut Config)) -> TestProxy {
+    spawn_faulty_proxy_on(db, None, tweak).await
+}
+
+/// Starts the proxy on `db` with `faults` injected into its writer's transactions.
+pub async fn spawn_faulty_proxy_on(
+    db: TestDatabase,
+    faults: Option<Arc<penmesh_proxy::CommitFaults>>,
+    tweak: impl FnOnce(&mut Config),
+) -> TestProxy {
     let mut config = test_config(&db);
     tweak(&mut config);
-    let app = Application::build(config).await.expect("the proxy starts");
+    let app = Application::build_with_faults(config, faults).await.expect("the proxy starts");
     let port = app.port();
     let shutdown = app.shutdown_handle();
     let state = app.state().clone();

@@ -383,6 +383,14 @@ impl Live {
                 self.last_progress = Instant::now();
                 self.finish_stroke(done.stroke);
             }
+            ServerMessage::Error(err)
+                if err.code == ErrorCode::Internal
+                    && err.stroke.is_some_and(|id| self.stroke_mut(id).is_none()) =>
+            {
+                // Another participant's stroke the proxy cannot read (in the session's
+                // history): nothing of ours to resume, and reconnecting would only repeat it.
+                tracing::warn!(message = %err.message, "the proxy cannot read a peer's stroke");
+            }
             ServerMessage::Error(err) => return Err(self.on_error(err)),
             ServerMessage::Welcome(_) => {
                 return Err(ErrorAction::Fail(anyhow::anyhow!("the proxy sent a second welcome")));

@@ -150,21 +150,23 @@ pub async fn stored_strokes(db: &Path) -> Vec<StoredStroke> {
     let mut strokes = Vec::new();
     for row in rows {
         let id: String = row.get("id");
-        let chunks =
-            sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = ? ORDER BY seq")
-                .bind(&id)
-                .fetch_all(&pool)
-                .await
-                .unwrap();
+        let chunks = sqlx::query(
+            "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = ? ORDER BY seq",
+        )
+        .bind(&id)
+        .fetch_all(&pool)
+        .await
+        .unwrap();
         let mut raw = Vec::new();
         let mut spans = Vec::new();
         for chunk in chunks {
             let data: Vec<u8> = chunk.get("data");
             spans.push((chunk.get::<i64, _>("seq") as u64, chunk.get::<i64, _>("n") as u64));
-            raw.extend(data.chunks_exact(32).map(|q| {
-                let f = |i: usize| f64::from_le_bytes(q[i * 8..i * 8 + 8].try_into().unwrap());
-                Sample::new(f(0), f(1), f(2), f(3))
-            }));
+            // The layout is the store's to know: decode through it.
+            let layout: i64 = chunk.get("layout");
+            raw.extend(
+                penmesh_proxy::decode_stored_samples(layout, &data).expect("a stored chunk"),
+            );
         }
         let mesh = sqlx::query("SELECT glb, vertices, triangles FROM meshes WHERE stroke_id = ?")
             .bind(&id)

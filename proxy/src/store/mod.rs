@@ -11,13 +11,13 @@ use std::time::Duration;
 
 use anyhow::Context;
 use penmesh::Sample;
-use penmesh::protocol::StrokeStatus;
+use penmesh::protocol::{StrokeStatus, decode_point_batch, encode_point_batch, quantize_sample};
 use sqlx::any::{AnyConnectOptions, AnyPoolOptions};
 use sqlx::{AnyConnection, AnyPool, Connection, Executor, Row};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-pub use writer::{WriteError, WriteOp, Writer, WriterTask};
+pub use writer::{CommitFaults, Fault, WriteError, WriteOp, Writer, WriterTask};
 
 use crate::config::{Config, SqliteSync};
 use crate::fanout::{EventKind, SessionEvent};
@@ -69,6 +69,15 @@ pub struct Simplified {
     pub samples: Vec<Sample>,
 }
 
+/// What a newcomer to a session is owed ([`Store::session_history`]).
+#[derive(Debug, Clone, Default)]
+pub struct SessionHistory {
+    /// The session's events, in order, without the unreadable strokes.
+    pub events: Vec<SessionEvent>,
+    /// The strokes that could not be read (`None`: not even its id), and why.
+    pub unreadable: Vec<(Option<Uuid>, String)>,
+}
+
 /// A stored mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshRow {
@@ -93,29 +102,53 @@ pub fn hash_token(token: &str) -> String {
     hex::encode(sha2::Sha256::digest(token.as_bytes()))
 }
 
-pub(crate) fn encode_samples(samples: &[Sample]) -> Vec<u8> {
+/// How a row's sample blob is laid out (its `layout` column).
+const LAYOUT_F64: i64 = 0;
+/// [`penmesh::protocol::encode_point_batch`]: exact for samples on the codec's grid, which is
+/// every sample the proxy accepts since it puts them there on arrival (`ingest`).
+const LAYOUT_POINT_BATCH: i64 = 1;
+
+/// A sample blob and its layout: the compact point batch when that is exact (every sample on
+/// the grid, bit for bit), else `f64` quadruples (samples stored by an earlier version).
+pub(crate) fn encode_samples(samples: &[Sample]) -> (i64, Vec<u8>) {
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+    let on_grid = samples.iter().all(|s| {
+        let q = quantize_sample(s);
+        same(q.x, s.x) && same(q.y, s.y) && same(q.t, s.t) && same(q.p, s.p)
+    });
+    if on_grid {
+        return (LAYOUT_POINT_BATCH, encode_point_batch(samples));
+    }
     let mut out = Vec::with_capacity(samples.len() * 32);
     for s in samples {
         for v in [s.x, s.y, s.t, s.p] {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
-    out
+    (LAYOUT_F64, out)
 }
 
-pub(crate) fn decode_samples(bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
-    anyhow::ensure!(
-        bytes.len() % 32 == 0,
-        "sample blob of {} bytes is not a multiple of 32",
-        bytes.len()
-    );
-    Ok(bytes
-        .chunks_exact(32)
-        .map(|c| {
-            let f = |i: usize| f64::from_le_bytes(c[i * 8..i * 8 + 8].try_into().unwrap());
-            Sample::new(f(0), f(1), f(2), f(3))
-        })
-        .collect())
+/// The samples of a stored blob of the given `layout` (a row's `layout` column). Public for
+/// tests that read a database file directly.
+pub fn decode_samples(layout: i64, bytes: &[u8]) -> anyhow::Result<Vec<Sample>> {
+    match layout {
+        LAYOUT_POINT_BATCH => Ok(decode_point_batch(bytes)?),
+        LAYOUT_F64 => {
+            anyhow::ensure!(
+                bytes.len() % 32 == 0,
+                "sample blob of {} bytes is not a multiple of 32",
+                bytes.len()
+            );
+            Ok(bytes
+                .chunks_exact(32)
+                .map(|c| {
+                    let f = |i: usize| f64::from_le_bytes(c[i * 8..i * 8 + 8].try_into().unwrap());
+                    Sample::new(f(0), f(1), f(2), f(3))
+                })
+                .collect())
+        }
+        other => anyhow::bail!("unknown sample layout {other}"),
+    }
 }
 
 pub(crate) fn encode_indices(indices: &[u64]) -> Vec<u8> {
@@ -301,40 +334,26 @@ impl Store {
 
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
-        let rows =
-            sqlx::query("SELECT seq, n, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
-                .bind(stroke.to_string())
-                .fetch_all(&self.pool)
-                .await?;
-        let mut samples = Vec::new();
-        for row in rows {
-            let seq: i64 = row.try_get("seq")?;
-            let n: i64 = row.try_get("n")?;
-            let data: Vec<u8> = row.try_get("data")?;
-            anyhow::ensure!(
-                seq as usize == samples.len(),
-                "stroke {stroke}: chunk at seq {seq} follows {} samples",
-                samples.len()
-            );
-            let chunk = decode_samples(&data)?;
-            anyhow::ensure!(
-                chunk.len() as i64 == n,
-                "stroke {stroke}: chunk at seq {seq} has a bad length"
-            );
-            samples.extend(chunk);
-        }
-        Ok(samples)
+        let rows = sqlx::query(
+            "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq",
+        )
+        .bind(stroke.to_string())
+        .fetch_all(&self.pool)
+        .await?;
+        samples_from_chunks(stroke, &rows)
     }
 
     pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
-        let row = sqlx::query("SELECT indices, data FROM simplified WHERE stroke_id = $1")
+        let row = sqlx::query("SELECT indices, layout, data FROM simplified WHERE stroke_id = $1")
             .bind(stroke.to_string())
             .fetch_optional(&self.pool)
             .await?;
         let Some(row) = row else { return Ok(None) };
         let indices: Vec<u8> = row.try_get("indices")?;
         let data: Vec<u8> = row.try_get("data")?;
-        Ok(Some(Simplified { indices: decode_indices(&indices), samples: decode_samples(&data)? }))
+        let samples = decode_samples(row.try_get("layout")?, &data)
+            .with_context(|| format!("stroke {stroke}: simplified samples"))?;
+        Ok(Some(Simplified { indices: decode_indices(&indices), samples }))
     }
 
     /// Stores (or replaces) a stroke's mesh; with PostgreSQL `events` are notified in the same
@@ -388,8 +407,10 @@ impl Store {
     /// What a newcomer to `session` is owed: the participants present, then every stroke
     /// (finished ones with their simplified samples and mesh, open ones with the samples
     /// retained from what is committed so far, rebuilt by replaying it), as events in order.
-    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<Vec<SessionEvent>> {
-        let mut events = Vec::new();
+    /// A stroke that cannot be read is left out and named in `unreadable`; it does not hide
+    /// the others.
+    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
+        let mut history = SessionHistory::default();
         let present = sqlx::query(
             "SELECT id, name FROM participants WHERE session_id = $1 AND left_at IS NULL \
              ORDER BY joined_at, id",
@@ -398,7 +419,7 @@ impl Store {
         .fetch_all(&self.pool)
         .await?;
         for row in present {
-            events.push(SessionEvent::new(
+            history.events.push(SessionEvent::new(
                 session,
                 EventKind::Joined {
                     participant: parse_uuid(&row.try_get::<String, _>("id")?)?,
@@ -406,7 +427,12 @@ impl Store {
                 },
             ));
         }
-        let strokes = self.list_strokes(session).await?;
+        let strokes = sqlx::query(&format!(
+            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+        ))
+        .bind(session.to_string())
+        .fetch_all(&self.pool)
+        .await?;
         let meshes = sqlx::query(
             "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
              WHERE s.session_id = $1",
@@ -419,46 +445,97 @@ impl Store {
             let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
             mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
         }
-        for row in strokes {
-            let (participant, stroke) = (row.participant, row.id);
+        for row in &strokes {
+            match self.stroke_history(session, row, &mesh_at).await {
+                Ok(events) => history.events.extend(events),
+                Err(err) => {
+                    let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
+                    tracing::error!(error = %err, stroke = ?id, "a stroke of a session's history is unreadable");
+                    history.unreadable.push((id, format!("{err:#}")));
+                }
+            }
+        }
+        Ok(history)
+    }
+
+    /// One stroke's part of [`Store::session_history`].
+    async fn stroke_history(
+        &self,
+        session: Uuid,
+        row: &sqlx::any::AnyRow,
+        mesh_at: &std::collections::HashMap<Uuid, i64>,
+    ) -> anyhow::Result<Vec<SessionEvent>> {
+        let row = stroke_from_row(row)?;
+        let (participant, stroke) = (row.participant, row.id);
+        let mut events = vec![SessionEvent::new(
+            session,
+            EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+        )];
+        let done = row.status == StrokeStatus::Done;
+        let points: Vec<Sample> = if done {
+            self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
+        } else {
+            let raw = self.raw_samples(stroke).await?;
+            crate::ingest::StrokeState::replay(stroke, row.params, &raw)
+                .kept()
+                .iter()
+                .map(|k| k.sample)
+                .collect()
+        };
+        let n_retained = points.len() as u64;
+        if !points.is_empty() {
             events.push(SessionEvent::new(
                 session,
-                EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+                EventKind::Retained { participant, stroke, first: 0, points },
             ));
-            let done = row.status == StrokeStatus::Done;
-            let points = if done {
-                self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
-            } else {
-                let raw = self.raw_samples(stroke).await?;
-                crate::ingest::StrokeState::replay(stroke, row.params, &raw)
-                    .kept()
-                    .iter()
-                    .map(|k| k.sample)
-                    .collect()
-            };
-            let n_retained = points.len() as u64;
-            if !points.is_empty() {
+        }
+        if done {
+            events.push(SessionEvent::new(
+                session,
+                EventKind::StrokeDone { participant, stroke, n_retained },
+            ));
+            if let Some(&created_at) = mesh_at.get(&stroke) {
                 events.push(SessionEvent::new(
                     session,
-                    EventKind::Retained { participant, stroke, first: 0, points },
+                    EventKind::Mesh { participant, stroke, created_at },
                 ));
-            }
-            if done {
-                events.push(SessionEvent::new(
-                    session,
-                    EventKind::StrokeDone { participant, stroke, n_retained },
-                ));
-                if let Some(&created_at) = mesh_at.get(&stroke) {
-                    events.push(SessionEvent::new(
-                        session,
-                        EventKind::Mesh { participant, stroke, created_at },
-                    ));
-                }
             }
         }
         Ok(events)
     }
 }
+
+/// A stroke's samples from its `stroke_chunks` rows (`seq, n, layout, data`, in `seq` order),
+/// checking they are contiguous from 0.
+pub(crate) fn samples_from_chunks(
+    stroke: Uuid,
+    rows: &[sqlx::any::AnyRow],
+) -> anyhow::Result<Vec<Sample>> {
+    let mut samples = Vec::new();
+    for row in rows {
+        let seq: i64 = row.try_get("seq")?;
+        let n: i64 = row.try_get("n")?;
+        let data: Vec<u8> = row.try_get("data")?;
+        anyhow::ensure!(
+            seq as usize == samples.len(),
+            "stroke {stroke}: chunk at seq {seq} follows {} samples",
+            samples.len()
+        );
+        let layout: i64 = row.try_get("layout")?;
+        let chunk = decode_samples(layout, &data)
+            .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
+        anyhow::ensure!(
+            chunk.len() as i64 == n,
+            "stroke {stroke}: chunk at seq {seq} has a bad length"
+        );
+        samples.extend(chunk);
+    }
+    Ok(samples)
+}
+
+/// The query of a stroke's chunks that [`samples_from_chunks`] reads.
+pub(crate) const CHUNKS_SELECT: &str =
+    "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq";
 
 /// How often the SQLite checkpointer copies the write-ahead log back into the database.
 const CHECKPOINT_INTERVAL: Duration = Duration::from_millis(100);
@@ -585,9 +662,20 @@ mod tests {
 
     #[test]
     fn samples_round_trip_through_the_blob() {
+        // On the grid: the compact layout, at a few bytes a sample.
         let samples = vec![Sample::new(1.5, -2.0, 3.25, 0.5), Sample::new(0.0, 0.0, 4.0, 1.0)];
-        assert_eq!(decode_samples(&encode_samples(&samples)).unwrap(), samples);
-        assert!(decode_samples(&[0; 31]).is_err());
+        let (layout, bytes) = encode_samples(&samples);
+        assert_eq!(layout, LAYOUT_POINT_BATCH);
+        assert!(bytes.len() < 16, "{} bytes, not a quarter of the f64 form", bytes.len());
+        assert_eq!(decode_samples(layout, &bytes).unwrap(), samples);
+        // Off it (stored by an earlier version): f64, exact.
+        let old = vec![Sample::new(0.1, 0.2, 0.3, 0.4)];
+        let (layout, bytes) = encode_samples(&old);
+        assert_eq!(layout, LAYOUT_F64);
+        assert_eq!(decode_samples(layout, &bytes).unwrap(), old);
+        assert!(decode_samples(LAYOUT_F64, &[0; 31]).is_err());
+        assert!(decode_samples(LAYOUT_POINT_BATCH, &[]).is_err());
+        assert!(decode_samples(7, &bytes).unwrap_err().to_string().contains("layout 7"));
     }
 
     #[test]

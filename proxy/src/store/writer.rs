@@ -9,11 +9,18 @@
 //! fails, each request is retried in a transaction of its own, so one bad request cannot fail
 //! the others.
 //!
+//! An append is stored only where its stroke's stored samples end (`WriterLoop::ends`): one
+//! that would leave a hole (an earlier append of its stroke failed) is refused, samples already
+//! stored (a commit that succeeded but reported failure, retried) are not written again. So a
+//! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
+//!
 //! A request may carry session events ([`SessionEvent`]) that describe it. They are published
 //! only once the request is committed, in commit order: with PostgreSQL as notifications of
 //! the same transaction (so every replica's listener gets them, or none does), with SQLite
 //! straight to the local [`Fanout`] after `COMMIT`, before the next transaction begins.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use penmesh::{AcutsParams, Brush, Kept, Sample};
@@ -22,7 +29,10 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use super::{Backend, Store, encode_indices, encode_samples, notify, now_ms};
+use super::{
+    Backend, CHUNKS_SELECT, Store, encode_indices, encode_samples, notify, now_ms,
+    samples_from_chunks,
+};
 use crate::fanout::{Fanout, SessionEvent};
 
 /// One change to the database.
@@ -66,6 +76,92 @@ pub enum WriteError {
     Closed,
     #[error("database write failed: {0}")]
     Database(String),
+}
+
+/// What an injected fault does to the transaction it hits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// The transaction fails before `COMMIT`: nothing of it is stored.
+    Fail,
+    /// `COMMIT` succeeds, then the writer is told it failed (the connection dropped while the
+    /// reply was on its way).
+    FailAfterCommit,
+}
+
+/// Failures injected into the writer's transactions, for the tests of its failure paths. The
+/// proxy never sets any outside tests ([`crate::Application::build_with_faults`]).
+#[derive(Debug, Default)]
+pub struct CommitFaults {
+    state: Mutex<FaultState>,
+}
+
+#[derive(Debug, Default)]
+struct FaultState {
+    /// Transactions begun so far (group commits and retries alike).
+    transactions: u64,
+    rules: Vec<FaultRule>,
+}
+
+#[derive(Debug)]
+struct FaultRule {
+    target: FaultTarget,
+    fault: Fault,
+    /// How many more transactions it hits.
+    remaining: u32,
+}
+
+#[derive(Debug)]
+enum FaultTarget {
+    /// The transaction the writer begins `k`th (1-based).
+    Transaction(u64),
+    /// Any transaction holding the append of `stroke` submitted at `seq`.
+    Append { stroke: Uuid, seq: u64 },
+}
+
+impl CommitFaults {
+    pub fn new() -> Arc<CommitFaults> {
+        Arc::new(CommitFaults::default())
+    }
+
+    /// The `k`th transaction from now (1: the next one; retries count) gets `fault`.
+    pub fn fail_transaction(&self, k: u64, fault: Fault) {
+        let mut state = self.state.lock().expect("faults lock");
+        let target = FaultTarget::Transaction(state.transactions + k);
+        state.rules.push(FaultRule { target, fault, remaining: 1 });
+    }
+
+    /// The next `times` transactions that hold the append of `stroke` at `seq` get `fault`.
+    pub fn fail_append(&self, stroke: Uuid, seq: u64, fault: Fault, times: u32) {
+        let rule =
+            FaultRule { target: FaultTarget::Append { stroke, seq }, fault, remaining: times };
+        self.state.lock().expect("faults lock").rules.push(rule);
+    }
+
+    /// Removes every fault not yet spent.
+    pub fn clear(&self) {
+        self.state.lock().expect("faults lock").rules.clear();
+    }
+
+    /// Counts a transaction of `requests` and says which fault, if any, hits it.
+    fn hit(&self, requests: &[&WriteRequest]) -> Option<Fault> {
+        let mut state = self.state.lock().expect("faults lock");
+        state.transactions += 1;
+        let k = state.transactions;
+        let holds = |stroke: &Uuid, seq: &u64| {
+            requests.iter().flat_map(|r| &r.ops).any(|op| {
+                matches!(op, WriteOp::Append { stroke: s, seq: q, .. } if s == stroke && q == seq)
+            })
+        };
+        let rule = state.rules.iter_mut().find(|r| {
+            r.remaining > 0
+                && match &r.target {
+                    FaultTarget::Transaction(n) => *n == k,
+                    FaultTarget::Append { stroke, seq } => holds(stroke, seq),
+                }
+        })?;
+        rule.remaining -= 1;
+        Some(rule.fault)
+    }
 }
 
 struct WriteRequest {
@@ -141,6 +237,7 @@ impl WriterTask {
         max_requests: usize,
         queue: usize,
         fanout: Fanout,
+        faults: Option<Arc<CommitFaults>>,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let (tx, rx) = mpsc::channel(queue.max(1));
         let stop = CancellationToken::new();
@@ -167,6 +264,8 @@ impl WriterTask {
                         max_requests: max_requests.max(1),
                         stop: loop_stop,
                         fanout,
+                        ends: HashMap::new(),
+                        faults,
                     };
                     state.run().await
                 })
@@ -197,6 +296,19 @@ struct WriterLoop {
     max_requests: usize,
     stop: CancellationToken,
     fanout: Fanout,
+    /// Where the stored samples of the strokes this writer appends to end, as committed. An
+    /// append must start there (or repeat what is stored): that is what keeps every stroke
+    /// contiguous from 0 whatever failed before. Only strokes open on this replica are here
+    /// (`Finish` and `SetStatus` forget one); after a failed transaction nothing is known and
+    /// each end is read again from the database, inside the transaction that needs it.
+    ends: HashMap<Uuid, u64>,
+    faults: Option<Arc<CommitFaults>>,
+}
+
+/// An op as it will be written: an append trimmed to what is not stored yet.
+enum Planned<'a> {
+    Append { stroke: Uuid, seq: u64, samples: &'a [Sample] },
+    Other(&'a WriteOp),
 }
 
 impl WriterLoop {
@@ -240,40 +352,51 @@ impl WriterLoop {
         }
         let started = Instant::now();
         let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
-        let result = self
-            .commit(batch.iter().flat_map(|r| &r.ops), batch.iter().flat_map(|r| &r.events))
-            .await;
+        let all: Vec<&WriteRequest> = batch.iter().collect();
+        let result = self.commit(&all).await;
         metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
         metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
         metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
         match result {
-            Ok(()) => {
-                for req in batch.drain(..) {
-                    self.publish(req.events);
-                    let _ = req.done.send(Ok(()));
+            Ok(refused) => {
+                for (req, refusal) in batch.drain(..).zip(refused) {
+                    self.answer(req, refusal.map_or(Ok(()), Err));
                 }
             }
             Err(err) if batch.len() == 1 => {
                 tracing::error!(error = %err, "write failed");
-                metrics::counter!("penmesh_commit_failures_total").increment(1);
                 let req = batch.pop().expect("one request");
-                let _ = req.done.send(Err(WriteError::Database(err.to_string())));
+                self.answer(req, Err(WriteError::Database(err.to_string())));
             }
             Err(err) => {
                 tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
+                // In order, each in its own transaction. The ends were forgotten with the
+                // failure, so each append is checked against what is really stored: a group
+                // that did commit after all makes its appends repeats (stored, nothing written),
+                // and an append after one that failed would leave a hole, so it is refused.
                 for req in batch.drain(..) {
-                    let result = self.commit(req.ops.iter(), req.events.iter()).await;
-                    match &result {
-                        Ok(()) => self.publish(req.events),
+                    let result = match self.commit(&[&req]).await {
+                        Ok(mut refused) => refused.pop().flatten().map_or(Ok(()), Err),
                         Err(err) => {
                             tracing::error!(error = %err, "write failed");
-                            metrics::counter!("penmesh_commit_failures_total").increment(1);
+                            Err(WriteError::Database(err.to_string()))
                         }
-                    }
-                    let _ = req.done.send(result.map_err(|e| WriteError::Database(e.to_string())));
+                    };
+                    self.answer(req, result);
                 }
             }
         }
+    }
+
+    /// Tells a requester how its request went, and publishes its events if it is committed.
+    fn answer(&self, req: WriteRequest, result: Result<(), WriteError>) {
+        match &result {
+            Ok(()) => self.publish(req.events),
+            Err(_) => {
+                metrics::counter!("penmesh_commit_failures_total").increment(1);
+            }
+        }
+        let _ = req.done.send(result);
     }
 
     /// With SQLite, hands committed events to the local fan-out (PostgreSQL notified them).
@@ -285,64 +408,143 @@ impl WriterLoop {
         }
     }
 
-    async fn commit<'a>(
+    /// Commits `requests` in one transaction. `Ok` holds, for each request, why it was refused
+    /// (an append that would leave a hole), or `None`: committed.
+    async fn commit(
         &mut self,
-        ops: impl Iterator<Item = &'a WriteOp>,
-        events: impl Iterator<Item = &'a SessionEvent>,
-    ) -> anyhow::Result<()> {
-        let result = self.try_commit(ops, events).await;
-        if result.is_err() && self.conn.ping().await.is_err() {
-            // The connection itself broke (a database restart): open a new one for what follows.
-            match self.store.open_write_connection().await {
-                Ok(conn) => {
-                    tracing::warn!("the write connection broke; reconnected");
-                    self.conn = conn;
-                }
-                Err(err) => {
-                    tracing::error!(error = %err, "the write connection broke; reconnecting failed")
+        requests: &[&WriteRequest],
+    ) -> anyhow::Result<Vec<Option<WriteError>>> {
+        let result = self.try_commit(requests).await;
+        if result.is_err() {
+            // Whether anything of it is stored is unknown: read the ends again when needed.
+            self.ends.clear();
+            if self.conn.ping().await.is_err() {
+                // The connection itself broke (a database restart): open a new one.
+                match self.store.open_write_connection().await {
+                    Ok(conn) => {
+                        tracing::warn!("the write connection broke; reconnected");
+                        self.conn = conn;
+                    }
+                    Err(err) => {
+                        tracing::error!(error = %err, "the write connection broke; reconnecting failed")
+                    }
                 }
             }
         }
         result
     }
 
-    async fn try_commit<'a>(
+    async fn try_commit(
         &mut self,
-        ops: impl Iterator<Item = &'a WriteOp>,
-        events: impl Iterator<Item = &'a SessionEvent>,
-    ) -> anyhow::Result<()> {
+        requests: &[&WriteRequest],
+    ) -> anyhow::Result<Vec<Option<WriteError>>> {
+        let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
         let backend = self.store.backend();
         let mut tx = self.conn.begin_with(self.begin).await?;
         let now = now_ms();
+        // The ends as this transaction leaves them, and the strokes to forget once it commits
+        // (they leave this replica's connections; a stroke taken over is read again).
+        let mut ends: HashMap<Uuid, u64> = HashMap::new();
+        let mut forget: Vec<Uuid> = Vec::new();
+        let mut planned: Vec<Planned> = Vec::new();
+        let mut refused = Vec::with_capacity(requests.len());
+        for req in requests {
+            // A request is written whole or refused whole.
+            let mut req_ends: HashMap<Uuid, u64> = HashMap::new();
+            let mut req_planned = Vec::new();
+            let mut refusal = None;
+            for op in &req.ops {
+                let WriteOp::Append { stroke, seq, samples } = op else {
+                    if let WriteOp::Finish { stroke, .. } | WriteOp::SetStatus { stroke, .. } = op {
+                        forget.push(*stroke);
+                    }
+                    req_planned.push(Planned::Other(op));
+                    continue;
+                };
+                let known =
+                    req_ends.get(stroke).or_else(|| ends.get(stroke)).copied().or_else(|| {
+                        self.ends.get(stroke).copied().filter(|_| !forget.contains(stroke))
+                    });
+                let end = match known {
+                    Some(end) => end,
+                    None => stored_end(&mut tx, *stroke).await?,
+                };
+                let upto = seq + samples.len() as u64;
+                if *seq > end {
+                    refusal = Some(WriteError::Database(format!(
+                        "samples {seq}..{upto} of stroke {stroke} would leave a hole: only \
+                         {end} are stored"
+                    )));
+                    break;
+                }
+                if upto > end {
+                    let samples = &samples[(end - seq) as usize..];
+                    req_planned.push(Planned::Append { stroke: *stroke, seq: end, samples });
+                }
+                req_ends.insert(*stroke, end.max(upto));
+            }
+            if refusal.is_none() {
+                planned.extend(req_planned);
+                ends.extend(req_ends);
+            }
+            refused.push(refusal);
+        }
         // Runs of consecutive appends go in as multi-row statements (see `append_all`); every
         // other op keeps its place in the order.
-        let mut appends: Vec<&WriteOp> = Vec::new();
-        for op in ops {
-            if matches!(op, WriteOp::Append { .. }) {
-                appends.push(op);
-                continue;
+        let mut appends: Vec<(Uuid, u64, &[Sample])> = Vec::new();
+        for op in &planned {
+            match op {
+                Planned::Append { stroke, seq, samples } => appends.push((*stroke, *seq, samples)),
+                Planned::Other(op) => {
+                    append_all(&mut tx, backend, &appends).await?;
+                    appends.clear();
+                    apply(&mut tx, op, now).await?;
+                }
             }
-            append_all(&mut tx, backend, &appends).await?;
-            appends.clear();
-            apply(&mut tx, backend, op, now).await?;
         }
         append_all(&mut tx, backend, &appends).await?;
         if backend == Backend::Postgres {
-            let events: Vec<SessionEvent> = events.cloned().collect();
+            let events: Vec<SessionEvent> = requests
+                .iter()
+                .zip(&refused)
+                .filter(|(_, r)| r.is_none())
+                .flat_map(|(req, _)| req.events.iter().cloned())
+                .collect();
             if !events.is_empty() {
                 notify(&mut tx, &events).await?;
             }
         }
+        if fault == Some(Fault::Fail) {
+            anyhow::bail!("injected failure before COMMIT");
+        }
         tx.commit().await?;
-        Ok(())
+        if fault == Some(Fault::FailAfterCommit) {
+            anyhow::bail!("injected failure after COMMIT");
+        }
+        self.ends.extend(ends);
+        for stroke in forget {
+            self.ends.remove(&stroke);
+        }
+        Ok(refused)
     }
+}
+
+/// Where the stored samples of `stroke` end (its chunks are contiguous from 0).
+async fn stored_end(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<u64> {
+    let end: Option<i64> = sqlx::query_scalar(
+        "SELECT seq + n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq DESC LIMIT 1",
+    )
+    .bind(stroke.to_string())
+    .fetch_optional(&mut *conn)
+    .await?;
+    Ok(end.unwrap_or(0) as u64)
 }
 
 /// Most rows per multi-row `INSERT`. A group commit is a chain of round trips to the database
 /// (with SQLite, to sqlx's worker thread), and when the cores are busy each round trip waits
 /// for the scheduler, twice: under 500 pens a commit of 14 statements took 13 ms while SQLite
 /// itself was busy a quarter of that. So a commit's appends go in as few statements as SQLite's
-/// parameter limit allows (4 parameters per row, at most 32,766 per statement).
+/// parameter limit allows (5 parameters per row, at most 32,766 per statement).
 const MAX_ROWS_PER_STATEMENT: usize = 1024;
 /// Statements of up to this many rows (and of exactly [`MAX_ROWS_PER_STATEMENT`]) stay in the
 /// connection's prepared-statement cache: the shapes of a lightly loaded proxy. Other sizes are
@@ -359,61 +561,65 @@ const CACHED_ROWS: usize = 16;
 async fn append_all(
     conn: &mut AnyConnection,
     backend: Backend,
-    ops: &[&WriteOp],
+    appends: &[(Uuid, u64, &[Sample])],
 ) -> anyhow::Result<()> {
     use std::fmt::Write;
     // (stroke, seq of the first sample, samples), and where each stroke's last row is.
     let mut rows: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
-    let mut last_row: std::collections::HashMap<Uuid, usize> = std::collections::HashMap::new();
-    for op in ops {
-        let WriteOp::Append { stroke, seq, samples } = op else {
-            unreachable!("append_all is given appends only")
-        };
-        match last_row.get(stroke) {
-            Some(&i) if rows[i].1 + rows[i].2.len() as u64 == *seq => {
+    let mut last_row: HashMap<Uuid, usize> = HashMap::new();
+    for &(stroke, seq, samples) in appends {
+        match last_row.get(&stroke) {
+            Some(&i) if rows[i].1 + rows[i].2.len() as u64 == seq => {
                 rows[i].2.extend_from_slice(samples)
             }
             _ => {
-                last_row.insert(*stroke, rows.len());
-                rows.push((*stroke, *seq, samples.clone()));
+                last_row.insert(stroke, rows.len());
+                rows.push((stroke, seq, samples.to_vec()));
             }
         }
     }
     for chunk in rows.chunks(MAX_ROWS_PER_STATEMENT) {
-        let mut sql = String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, data) VALUES ");
+        let mut sql =
+            String::from("INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ");
         for k in 0..chunk.len() {
             let sep = if k == 0 { "" } else { ", " };
             match backend {
                 Backend::Sqlite => {
-                    let _ = write!(sql, "{sep}(?, ?, ?, ?)");
+                    let _ = write!(sql, "{sep}(?, ?, ?, ?, ?)");
                 }
                 Backend::Postgres => {
-                    let p = 4 * k;
-                    let _ = write!(sql, "{sep}(${}, ${}, ${}, ${})", p + 1, p + 2, p + 3, p + 4);
+                    let p = 5 * k;
+                    let _ = write!(
+                        sql,
+                        "{sep}(${}, ${}, ${}, ${}, ${})",
+                        p + 1,
+                        p + 2,
+                        p + 3,
+                        p + 4,
+                        p + 5
+                    );
                 }
             }
         }
-        sql.push_str(" ON CONFLICT (stroke_id, seq) DO NOTHING");
+        // No `ON CONFLICT`: the writer only writes what is not stored (`WriterLoop::ends`), so
+        // a conflict is a wrong end, and failing makes the retry read the ends again.
         let cached = chunk.len() <= CACHED_ROWS || chunk.len() == MAX_ROWS_PER_STATEMENT;
         let mut query = sqlx::query(&sql).persistent(cached);
         for (stroke, seq, samples) in chunk {
+            let (layout, data) = encode_samples(samples);
             query = query
                 .bind(stroke.to_string())
                 .bind(*seq as i64)
                 .bind(samples.len() as i64)
-                .bind(encode_samples(samples));
+                .bind(layout)
+                .bind(data);
         }
         query.execute(&mut *conn).await?;
     }
     Ok(())
 }
 
-async fn apply(
-    conn: &mut AnyConnection,
-    backend: Backend,
-    op: &WriteOp,
-    now: i64,
-) -> anyhow::Result<()> {
+async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<()> {
     match op {
         WriteOp::BeginStroke { stroke, session, participant, brush, params, device } => {
             sqlx::query(
@@ -431,17 +637,43 @@ async fn apply(
             .execute(&mut *conn)
             .await?;
         }
-        WriteOp::Append { .. } => append_all(conn, backend, &[op]).await?,
+        WriteOp::Append { .. } => anyhow::bail!("an append must go through append_all"),
         WriteOp::Finish { stroke, kept } => {
+            // The stroke's batches become one row of one compact batch: a row per batch costs
+            // its key twice (table and index) for two or three samples, and a whole stroke
+            // codes in fewer bytes a sample than its pieces.
+            let rows =
+                sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
+            if rows.len() > 1 {
+                let samples = samples_from_chunks(*stroke, &rows)?;
+                sqlx::query("DELETE FROM stroke_chunks WHERE stroke_id = $1")
+                    .bind(stroke.to_string())
+                    .execute(&mut *conn)
+                    .await?;
+                let (layout, data) = encode_samples(&samples);
+                sqlx::query(
+                    "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) \
+                     VALUES ($1, 0, $2, $3, $4)",
+                )
+                .bind(stroke.to_string())
+                .bind(samples.len() as i64)
+                .bind(layout)
+                .bind(data)
+                .execute(&mut *conn)
+                .await?;
+            }
             let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
             let samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
+            let (layout, data) = encode_samples(&samples);
             sqlx::query(
-                "INSERT INTO simplified (stroke_id, indices, data) VALUES ($1, $2, $3) \
-                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, data = excluded.data",
+                "INSERT INTO simplified (stroke_id, indices, layout, data) VALUES ($1, $2, $3, $4) \
+                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, \
+                 layout = excluded.layout, data = excluded.data",
             )
             .bind(stroke.to_string())
             .bind(encode_indices(&indices))
-            .bind(encode_samples(&samples))
+            .bind(layout)
+            .bind(data)
             .execute(&mut *conn)
             .await?;
             sqlx::query(

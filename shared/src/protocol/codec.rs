@@ -458,6 +458,38 @@ fn encode_batch(samples: &[Sample]) -> Vec<u8> {
     w.finish()
 }
 
+/// The compact point batch of `samples` as bytes, outside any frame: what the proxy stores.
+/// Lossless for samples on the grid ([`quantize_sample`]'s output):
+/// `decode_point_batch(&encode_point_batch(b)) == b` bit for bit.
+pub fn encode_point_batch(samples: &[Sample]) -> Vec<u8> {
+    encode_batch(samples)
+}
+
+/// Reads bytes written by [`encode_point_batch`]; refuses bytes that end early or go on after
+/// the batch.
+pub fn decode_point_batch(bytes: &[u8]) -> Result<Vec<Sample>, CodecError> {
+    let mut source = SliceSource(bytes.iter());
+    let samples = decode_batch(&mut source)?;
+    match source.0.len() {
+        0 => Ok(samples),
+        n => Err(CodecError::Malformed(format!("{n} bytes after the point batch"))),
+    }
+}
+
+struct SliceSource<'a>(std::slice::Iter<'a, u8>);
+
+impl ByteSource for SliceSource<'_> {
+    type Error = CodecError;
+
+    fn next_byte(&mut self) -> Result<u8, CodecError> {
+        self.0.next().copied().ok_or_else(|| Self::malformed("cut short"))
+    }
+
+    fn malformed(message: &str) -> CodecError {
+        CodecError::Malformed(format!("point batch: {message}"))
+    }
+}
+
 /// Length of an Exp-Golomb code of order `k` for `u`.
 fn exp_golomb_bits(u: u64, k: u32) -> u64 {
     let len = 64 - (u + (1u64 << k)).leading_zeros();

@@ -25,9 +25,9 @@ use crate::model::{Brush, Sample};
 
 pub use codec::{
     CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, POSITION_STEP,
-    PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json, decode_server,
-    decode_server_json, encode_client, encode_client_json, encode_server, encode_server_json,
-    quantize_sample,
+    PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json,
+    decode_point_batch, decode_server, decode_server_json, encode_client, encode_client_json,
+    encode_point_batch, encode_server, encode_server_json, quantize_sample,
 };
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
@@ -230,6 +230,9 @@ pub enum ErrorCode {
     /// This connection fell too far behind the session's events; resync from history.
     Lagged,
     ShuttingDown,
+    /// The proxy failed (storing, or reading a stroke). With the id of a stroke this client
+    /// draws: resume it from the last ack. With another's (a stroke of the session's history
+    /// that cannot be read): that stroke is missing, the others are sent.
     Internal,
 }
 

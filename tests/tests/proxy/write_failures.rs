@@ -1,0 +1,252 @@
+//! The write path under injected failures (issue #13): whatever fails, every stroke's stored
+//! samples are contiguous from 0 with no overlap, every acknowledged sample is among them, and
+//! a stroke that cannot be read does not hide the others.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use penmesh::Sample;
+use penmesh::protocol::{ErrorCode, ServerMessage, StrokeId, StrokeStatus};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
+use penmesh_e2e::{
+    TestDatabase, TestProxy, TestSession, WsClient, spawn_faulty_proxy_on, stroke_samples,
+};
+use sqlx::Row;
+use uuid::Uuid;
+
+const BATCH: usize = 4;
+
+/// A proxy whose writer gets `faults`, committing every 40 ms so that the batches sent at once
+/// share transactions.
+async fn faulty_proxy(faults: &Arc<CommitFaults>) -> TestProxy {
+    spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |c| {
+        c.commit_interval_ms = 40
+    })
+    .await
+}
+
+/// Sends `samples[from..]` in batches of [`BATCH`] without waiting.
+async fn send_from(ws: &mut WsClient, stroke: StrokeId, samples: &[Sample], from: usize) {
+    for start in (from..samples.len()).step_by(BATCH) {
+        let end = (start + BATCH).min(samples.len());
+        ws.points(stroke, start as u64, &samples[start..end]).await;
+    }
+}
+
+/// What the proxy answered about `stroke` until it has been quiet for half a second: the
+/// highest acknowledged seq and the errors naming it.
+async fn answers(ws: &mut WsClient, stroke: StrokeId) -> (u64, Vec<ErrorCode>) {
+    let (mut acked, mut errors) = (0, Vec::new());
+    while let Ok(msg) = tokio::time::timeout(Duration::from_millis(500), ws.recv()).await {
+        match msg {
+            ServerMessage::Ack(ack) if ack.stroke == stroke => acked = acked.max(ack.upto_seq),
+            ServerMessage::Error(err) if err.stroke == Some(stroke) => errors.push(err.code),
+            _ => {}
+        }
+    }
+    (acked, errors)
+}
+
+/// The stored chunks `(seq, n)` of a stroke, read straight from the database.
+async fn chunks(db: &TestDatabase, stroke: StrokeId) -> Vec<(i64, i64)> {
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(&db.url).await.expect("the test reads the database");
+    let rows = sqlx::query("SELECT seq, n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+        .bind(stroke.to_string())
+        .fetch_all(&pool)
+        .await
+        .unwrap();
+    pool.close().await;
+    rows.iter().map(|r| (r.get::<i64, _>("seq"), r.get::<i64, _>("n"))).collect()
+}
+
+/// The invariant: the stored chunks are contiguous from 0 with no overlap, they hold every
+/// acknowledged sample, and they are exactly the samples sent. Returns where they end.
+async fn assert_stored_prefix(
+    proxy: &TestProxy,
+    session: &TestSession,
+    stroke: StrokeId,
+    sent: &[Sample],
+    acked: u64,
+) -> u64 {
+    let mut end = 0;
+    for (seq, n) in chunks(&proxy.db, stroke).await {
+        assert_eq!(seq, end, "stroke {stroke}: a chunk at seq {seq} after {end} stored samples");
+        assert!(n > 0, "stroke {stroke}: an empty chunk at seq {seq}");
+        end += n;
+    }
+    let end = end as u64;
+    assert!(acked <= end, "stroke {stroke}: acknowledged up to {acked}, stored up to {end}");
+    assert_eq!(proxy.raw_samples(session, stroke).await, sent[..end as usize].to_vec());
+    end
+}
+
+/// Resumes `stroke` on a new connection from where the proxy has it, sends the rest and ends
+/// it; checks every sample is stored once.
+async fn resume_and_finish(
+    proxy: &TestProxy,
+    session: &TestSession,
+    stroke: StrokeId,
+    samples: &[Sample],
+    stored: u64,
+) {
+    let mut ws = proxy.connect(session).await;
+    let welcome = ws.hello(vec![stroke]).await;
+    let state = &welcome.resume[0];
+    assert_eq!(state.next_seq, stored, "Welcome.resume says where the stored samples end");
+    assert_ne!(state.status, StrokeStatus::Done);
+    ws.begin(stroke).await;
+    ws.wait_ack(stroke, stored).await;
+    send_from(&mut ws, stroke, samples, stored as usize).await;
+    ws.end(stroke, samples.len() as u64).await;
+    let (done, _) = ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    assert!(matches!(done, ServerMessage::StrokeDone(_)));
+    assert_stored_prefix(proxy, session, stroke, samples, samples.len() as u64).await;
+}
+
+#[tokio::test]
+async fn an_append_queued_behind_a_failed_one_is_not_stored_nor_acknowledged() {
+    // Arrange: the append at seq 8 fails every time; the ones after it are already queued.
+    let faults = CommitFaults::new();
+    let proxy = faulty_proxy(&faults).await;
+    let session = proxy.create_session().await;
+    let (stroke, samples) = (Uuid::new_v4(), stroke_samples(40));
+    faults.fail_append(stroke, 8, Fault::Fail, u32::MAX);
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    ws.begin(stroke).await;
+    ws.wait_ack(stroke, 0).await;
+
+    // Act
+    send_from(&mut ws, stroke, &samples, 0).await;
+    let (acked, errors) = answers(&mut ws, stroke).await;
+
+    // Assert: nothing past the failure is stored or acknowledged, and the stroke resumes.
+    assert!(errors.contains(&ErrorCode::Internal), "{errors:?}");
+    let stored = assert_stored_prefix(&proxy, &session, stroke, &samples, acked).await;
+    assert_eq!(stored, 8, "stored up to the failed append, not past it");
+    assert!(acked <= 8, "acknowledged up to {acked}");
+    let info = proxy.stroke_info(&session, stroke).await;
+    assert_eq!(info["n_points"], 8);
+    drop(ws);
+    faults.clear();
+    resume_and_finish(&proxy, &session, stroke, &samples, stored).await;
+}
+
+#[tokio::test]
+async fn a_commit_that_succeeded_but_reported_failure_is_not_stored_twice() {
+    // Arrange: the transaction holding the append at seq 4 commits, then reports failure; the
+    // group merged the stroke's batches into one row, and the retry goes request by request.
+    let faults = CommitFaults::new();
+    let proxy = faulty_proxy(&faults).await;
+    let session = proxy.create_session().await;
+    let (stroke, samples) = (Uuid::new_v4(), stroke_samples(40));
+    faults.fail_append(stroke, 4, Fault::FailAfterCommit, 1);
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    ws.begin(stroke).await;
+    ws.wait_ack(stroke, 0).await;
+
+    // Act
+    send_from(&mut ws, stroke, &samples, 0).await;
+    let (acked, errors) = answers(&mut ws, stroke).await;
+
+    // Assert: every batch is acknowledged once stored, and stored once.
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(acked, 40);
+    assert_stored_prefix(&proxy, &session, stroke, &samples, acked).await;
+    ws.end(stroke, 40).await;
+    let (done, _) = ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    assert!(matches!(done, ServerMessage::StrokeDone(_)));
+}
+
+#[tokio::test]
+async fn many_failed_commits_and_dropped_connections_leave_every_stroke_contiguous() {
+    // Arrange: three pens begin a stroke each; then the next ten transactions fail, before
+    // or after COMMIT, and two pens drop their connection with appends still queued.
+    let faults = CommitFaults::new();
+    let proxy = faulty_proxy(&faults).await;
+    let session = proxy.create_session().await;
+    let samples = stroke_samples(120);
+    let strokes: Vec<StrokeId> = (0..3).map(|_| Uuid::new_v4()).collect();
+    let mut clients = Vec::new();
+    for &stroke in &strokes {
+        let mut ws = proxy.connect(&session).await;
+        ws.hello(vec![]).await;
+        ws.begin(stroke).await;
+        ws.wait_ack(stroke, 0).await;
+        clients.push(ws);
+    }
+    for k in 1..=10 {
+        let fault = if k % 3 == 0 { Fault::FailAfterCommit } else { Fault::Fail };
+        faults.fail_transaction(k, fault);
+    }
+
+    // Act: every pen sends its whole stroke at once; the last two hang up straight after.
+    for (ws, &stroke) in clients.iter_mut().zip(&strokes) {
+        send_from(ws, stroke, &samples, 0).await;
+    }
+    let mut first = clients.remove(0);
+    drop(clients);
+    let (acked, _) = answers(&mut first, strokes[0]).await;
+    drop(first);
+    tokio::time::sleep(Duration::from_millis(300)).await;
+
+    // Assert: each stroke is a stored prefix holding what was acknowledged, and resumes.
+    for (i, &stroke) in strokes.iter().enumerate() {
+        let acked = if i == 0 { acked } else { 0 };
+        let stored = assert_stored_prefix(&proxy, &session, stroke, &samples, acked).await;
+        resume_and_finish(&proxy, &session, stroke, &samples, stored).await;
+    }
+}
+
+#[tokio::test]
+async fn an_unreadable_stroke_is_reported_and_does_not_hide_the_others() {
+    // Arrange: two strokes in progress, then one's stored samples are damaged.
+    let proxy = spawn_faulty_proxy_on(TestDatabase::fresh().await, None, |_| {}).await;
+    let session = proxy.create_session().await;
+    let samples = stroke_samples(20);
+    let (good, bad) = (Uuid::new_v4(), Uuid::new_v4());
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    for stroke in [good, bad] {
+        ws.begin(stroke).await;
+        ws.points(stroke, 0, &samples).await;
+        ws.wait_ack(stroke, 20).await;
+    }
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(&proxy.db.url).await.unwrap();
+    sqlx::query("UPDATE stroke_chunks SET data = $1 WHERE stroke_id = $2")
+        .bind(vec![1u8, 2, 3])
+        .bind(bad.to_string())
+        .execute(&pool)
+        .await
+        .unwrap();
+    pool.close().await;
+
+    // Act: someone joins the session.
+    let mut peer = proxy.connect(&session).await;
+    peer.hello(vec![]).await;
+    let mut before = Vec::new();
+    let synced = loop {
+        match peer.recv_any().await {
+            ServerMessage::Synced(synced) => break synced,
+            other => before.push(other),
+        }
+    };
+
+    // Assert: the damaged stroke is named in an error, the other one arrives whole.
+    assert_eq!(synced.n_strokes, 1);
+    let reported: Vec<_> = before
+        .iter()
+        .filter_map(|m| match m {
+            ServerMessage::Error(e) => Some((e.code, e.stroke)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(reported, vec![(ErrorCode::Internal, Some(bad))]);
+    assert!(
+        before.iter().any(|m| matches!(m, ServerMessage::PeerRetained(r) if r.stroke == good)),
+        "{before:?}"
+    );
+}
