@@ -30,7 +30,7 @@
 use glam::DVec2;
 
 /// Default largest distance of the curve from a tessellated piece's chord, px.
-pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.25;
+pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.5;
 /// Default largest turn of the tangent within one tessellated piece, degrees.
 pub const DEFAULT_MAX_TURN_DEG: f64 = 10.0;
 /// A turn above this at a retained sample is always a corner (a hairpin is never rounded).
@@ -242,8 +242,20 @@ fn tessellate(
     points: &mut Vec<DVec2>,
     radii: &mut Vec<f64>,
 ) {
-    const PROBES: usize = 16;
+    const PROBES: usize = 8;
     let max_turn = options.max_turn_deg.to_radians().max(1e-3);
+    // Fast path for the common nearly straight segment: end tangents within half the turn limit
+    // of the chord, and the cubic's offset from the chord, at most 4/27 of the tangents' parts
+    // across it, within the chord tolerance. Then the segment is one flat piece.
+    let [_, _, m1, p1] = segment.pos;
+    let (m2, chord) = (segment.tangent(1.0), segment.point(1.0) - p1);
+    let across = |m: DVec2| chord.perp_dot(m).abs() / chord.length();
+    if turn(m1, chord) <= 0.5 * max_turn
+        && turn(chord, m2) <= 0.5 * max_turn
+        && 4.0 / 27.0 * (across(m1) + across(m2)) <= options.chord_tolerance
+    {
+        return;
+    }
     let probes: Vec<DVec2> =
         (0..=PROBES).map(|k| segment.point(k as f64 / PROBES as f64)).collect();
     let chords: Vec<DVec2> = probes.windows(2).map(|w| w[1] - w[0]).collect();
