@@ -15,10 +15,14 @@
 //!   it as a corner, leaving and entering along the chords (a phantom point mirrored across the
 //!   corner, the same as at the stroke's ends). So long chords with a sharp turn stay sharp and
 //!   short, densely retained bends are rounded.
-//! - **Tessellation** is adaptive: a piece is split in half until it deviates from its chord by
-//!   at most `chord_tolerance` and its tangent turns by at most `max_turn_deg` (and by at most
-//!   half of that against its own chord, which catches S-bends); at most [`MAX_DEPTH`] halvings
-//!   per segment, and no piece shorter than [`MIN_PIECE`] is split. Straight runs stay one piece.
+//! - **Tessellation** is adaptive: a nearly straight segment (end tangents within half of
+//!   `max_turn_deg` of the chord, offset from it bounded within `chord_tolerance`) stays one
+//!   piece; any other is cut into as many equal steps of its parameter as its estimated turning
+//!   divided by `max_turn_deg` (10° by default), and each step is halved until it deviates from
+//!   its chord by at most `chord_tolerance` (0.5 px) and its tangent turns by at most
+//!   `max_turn_deg` (and by at most half of that against its own chord, which catches
+//!   S-bends). So consecutive pieces turn by at most about `max_turn_deg`. At most
+//!   [`MAX_DEPTH`] halvings, and no piece is cut below [`MIN_PIECE`] (0.5 px).
 //! - **Radius** is interpolated by the same Hermite form over the same knots (no steps), then
 //!   kept within the two end radii of its segment, so it never overshoots (the radius is affine
 //!   in pressure above the brush's floor, so this is the pressure interpolated the same way).
@@ -250,8 +254,11 @@ fn tessellate(
     let [_, _, m1, p1] = segment.pos;
     let (m2, chord) = (segment.tangent(1.0), segment.point(1.0) - p1);
     let across = |m: DVec2| chord.perp_dot(m).abs() / chord.length();
-    if turn(m1, chord) <= 0.5 * max_turn
-        && turn(chord, m2) <= 0.5 * max_turn
+    // `turn(a, b) <= half` without the arc tangent: this path runs once per segment.
+    let cos_half = (0.5 * max_turn).cos();
+    let near = |a: DVec2, b: DVec2| a.dot(b) >= cos_half * a.length() * b.length();
+    if near(m1, chord)
+        && near(chord, m2)
         && 4.0 / 27.0 * (across(m1) + across(m2)) <= options.chord_tolerance
     {
         return;
