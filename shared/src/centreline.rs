@@ -15,10 +15,14 @@
 //!   it as a corner, leaving and entering along the chords (a phantom point mirrored across the
 //!   corner, the same as at the stroke's ends). So long chords with a sharp turn stay sharp and
 //!   short, densely retained bends are rounded.
-//! - **Tessellation** is adaptive: a piece is split in half until it deviates from its chord by
-//!   at most `chord_tolerance` and its tangent turns by at most `max_turn_deg` (and by at most
-//!   half of that against its own chord, which catches S-bends); at most [`MAX_DEPTH`] halvings
-//!   per segment, and no piece shorter than [`MIN_PIECE`] is split. Straight runs stay one piece.
+//! - **Tessellation** is adaptive: a nearly straight segment (end tangents within half of
+//!   `max_turn_deg` of the chord, offset from it bounded within `chord_tolerance`) stays one
+//!   piece; any other is cut into as many equal steps of its parameter as its estimated turning
+//!   divided by `max_turn_deg` (10° by default), and each step is halved until it deviates from
+//!   its chord by at most `chord_tolerance` (0.5 px) and its tangent turns by at most
+//!   `max_turn_deg` (and by at most half of that against its own chord, which catches
+//!   S-bends). So consecutive pieces turn by at most about `max_turn_deg`. At most
+//!   [`MAX_DEPTH`] halvings, and no piece is cut below [`MIN_PIECE`] (0.5 px).
 //! - **Radius** is interpolated by the same Hermite form over the same knots (no steps), then
 //!   kept within the two end radii of its segment, so it never overshoots (the radius is affine
 //!   in pressure above the brush's floor, so this is the pressure interpolated the same way).
@@ -30,7 +34,7 @@
 use glam::DVec2;
 
 /// Default largest distance of the curve from a tessellated piece's chord, px.
-pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.25;
+pub const DEFAULT_CHORD_TOLERANCE: f64 = 0.5;
 /// Default largest turn of the tangent within one tessellated piece, degrees.
 pub const DEFAULT_MAX_TURN_DEG: f64 = 10.0;
 /// A turn above this at a retained sample is always a corner (a hairpin is never rounded).
@@ -242,8 +246,23 @@ fn tessellate(
     points: &mut Vec<DVec2>,
     radii: &mut Vec<f64>,
 ) {
-    const PROBES: usize = 16;
+    const PROBES: usize = 8;
     let max_turn = options.max_turn_deg.to_radians().max(1e-3);
+    // Fast path for the common nearly straight segment: end tangents within half the turn limit
+    // of the chord, and the cubic's offset from the chord, at most 4/27 of the tangents' parts
+    // across it, within the chord tolerance. Then the segment is one flat piece.
+    let [_, _, m1, p1] = segment.pos;
+    let (m2, chord) = (segment.tangent(1.0), segment.point(1.0) - p1);
+    let across = |m: DVec2| chord.perp_dot(m).abs() / chord.length();
+    // `turn(a, b) <= half` without the arc tangent: this path runs once per segment.
+    let cos_half = (0.5 * max_turn).cos();
+    let near = |a: DVec2, b: DVec2| a.dot(b) >= cos_half * a.length() * b.length();
+    if near(m1, chord)
+        && near(chord, m2)
+        && 4.0 / 27.0 * (across(m1) + across(m2)) <= options.chord_tolerance
+    {
+        return;
+    }
     let probes: Vec<DVec2> =
         (0..=PROBES).map(|k| segment.point(k as f64 / PROBES as f64)).collect();
     let chords: Vec<DVec2> = probes.windows(2).map(|w| w[1] - w[0]).collect();
