@@ -8,7 +8,7 @@ use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 
-use penmesh::protocol::PROTOCOL_VERSION;
+use penmesh::protocol::{POSITION_STEP, PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP};
 
 use crate::state::AppState;
 
@@ -40,8 +40,12 @@ pub fn subprotocol_token(headers: &HeaderMap) -> Option<&str> {
 }
 
 async fn index() -> Response {
-    // The page speaks the protocol version of this binary: one place for that fact.
-    let html = INDEX_HTML.replace("__PENMESH_PROTOCOL__", &PROTOCOL_VERSION.to_string());
+    // The page speaks the protocol version and snaps to the grid of this binary: one place for
+    // those facts.
+    let grid = format!("{POSITION_STEP} {TIME_STEP} {PRESSURE_STEP}");
+    let html = INDEX_HTML
+        .replace("__PENMESH_PROTOCOL__", &PROTOCOL_VERSION.to_string())
+        .replace("__PENMESH_GRID__", &grid);
     (
         [
             (header::CONTENT_TYPE, "text/html; charset=utf-8"),

@@ -11,6 +11,14 @@ const CONSTANT_PRESSURE = 0.5;
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
 const FLUSH_MS = 16;
 const PROTOCOL = Number(document.querySelector('meta[name="penmesh-protocol"]').content);
+// The protocol's quantisation grid (position px, time ms, pressure), filled in by the proxy.
+// Samples are snapped to it before they are sent, as the native client does, so what the proxy
+// stores (it puts every sample on this grid on arrival) is exactly what was sent.
+const [POSITION_STEP, TIME_STEP, PRESSURE_STEP] = document
+  .querySelector('meta[name="penmesh-grid"]')
+  .content.split(" ")
+  .map(Number);
+const snap = (value, step) => Math.round(value / step) * step;
 
 const $ = (id) => document.getElementById(id);
 const state = {
@@ -365,8 +373,13 @@ function addSample(e) {
   if (!at) return;
   const prev = p.samples[p.samples.length - 1];
   // Coalesced events can share a timestamp; time must never go backwards.
-  const t = Math.max(prev ? prev[2] : 0, e.timeStamp - drawing.t0);
-  p.samples.push([at[0], at[1], t, pressureOf(e)]);
+  const t = Math.max(prev ? prev[2] : 0, snap(e.timeStamp - drawing.t0, TIME_STEP));
+  p.samples.push([
+    snap(at[0], POSITION_STEP),
+    snap(at[1], POSITION_STEP),
+    t,
+    snap(pressureOf(e), PRESSURE_STEP),
+  ]);
   drawing.inkPath.push([e.clientX, e.clientY, pressureOf(e)]);
 }
 
