@@ -6,18 +6,45 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use clap::Args;
 use indicatif::MultiProgress;
 use penmesh::{GeneratorParams, Shape};
 use penmesh_proxy::{Application, Config, NewSession};
 use serde::Serialize;
 
 use super::draw::{draw_options, init_tracing, progress_bar, runtime};
-use crate::cli::DemoArgs;
 use crate::endpoint::Endpoint;
 use crate::input::{Pacing, PenSource, ReplaySource};
 use crate::live;
 use crate::reconstruct::StrokeReport;
 use crate::report::{self, Totals};
+
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// The SQLite database file (created if missing). Default: a temporary one, removed on exit.
+    #[arg(long, value_name = "PATH")]
+    pub db: Option<PathBuf>,
+    /// Where to write the GLB files.
+    #[arg(long, value_name = "DIR", default_value = "penmesh-demo-out")]
+    pub out: PathBuf,
+    /// Draw as fast as possible instead of at the people's real pace.
+    #[arg(long)]
+    pub fast: bool,
+    /// Leave the proxy up after the drawing, until Ctrl-C, so other clients can join.
+    #[arg(long)]
+    pub keep_serving: bool,
+    /// How many simulated people draw at once (0 with --keep-serving: only serve).
+    #[arg(long, default_value_t = 4)]
+    pub people: usize,
+    /// Address of the proxy.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Port of the proxy (0 picks a free one).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    #[command(flatten)]
+    pub live: crate::commands::draw::LiveArgs,
+}
 
 const NAMES: [&str; 8] = ["ada", "grace", "alan", "edsger", "barbara", "donald", "frances", "ken"];
 

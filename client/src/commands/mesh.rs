@@ -1,16 +1,59 @@
 //! `penmesh mesh`: simplify with ACUTS, build the LRPDP solid, write binary glTF.
 
 use std::io::Write as _;
+use std::path::PathBuf;
 use std::time::Instant;
 
+use clap::Args;
 use penmesh::{
     Brush, Centreline, CloudOptions, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample,
     SmoothOptions, SolidOptions, StrokeMesh,
 };
 use serde_json::json;
 
-use crate::cli::{CentrelineKind, MeshArgs};
 use crate::io;
+
+#[derive(Debug, Args)]
+pub struct MeshArgs {
+    /// Input file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
+    pub input: PathBuf,
+    /// The GLB to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Quantise positions (16-bit) and normals (8-bit) with KHR_mesh_quantization.
+    #[arg(long)]
+    pub quantize: bool,
+    /// Also write the layered point cloud (the paper's Poisson input) as PLY.
+    #[arg(long, value_name = "PATH")]
+    pub ply: Option<PathBuf>,
+    /// Brush size E (px): the radius at full pressure with a pressure response of 1.
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
+    pub brush_size: f64,
+    /// Pressure response chi in [0, 1].
+    #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
+    pub pressure_response: f64,
+    /// The centreline the outline is offset from: a smooth curve through the retained samples
+    /// (checked against the raw samples), or the paper's straight segments.
+    #[arg(long, value_enum, default_value_t = CentrelineKind::Smooth)]
+    pub centreline: CentrelineKind,
+    /// Multiply x and y by this on reading (for example 0.0378 for SVC2004 tablet units to
+    /// px, as `penmesh eval` does); tolerances and the brush stay in the scaled unit.
+    #[arg(long)]
+    pub px_per_unit: Option<f64>,
+    /// Print one JSON object instead of the summary lines: the centreline of each stroke as
+    /// [x, y, r], its raw samples as [x, y, p], sizes and parameters.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub acuts: crate::commands::args::AcutsArgs,
+}
+
+/// `penmesh mesh --centreline`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CentrelineKind {
+    Smooth,
+    Straight,
+}
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let params = args.acuts.params()?;
