@@ -2,7 +2,7 @@
 //! [`Simplifier`], and the limits. No I/O: the connection loop turns the outcomes into
 //! database writes and messages.
 
-use penmesh::protocol::{ErrorCode, StrokeId, quantize_sample};
+use penmesh::protocol::{ErrorCode, quantize_sample};
 use penmesh::{AcutsParams, Kept, Sample, Simplifier, validate_samples};
 
 /// A refusal: the code and a message naming what is wrong.
@@ -47,7 +47,6 @@ pub struct Finished {
 /// One stroke being drawn on a connection.
 #[derive(Debug, Clone)]
 pub struct StrokeState {
-    pub id: StrokeId,
     /// Samples accepted (validated and queued for storage): the next seq expected.
     next_seq: u64,
     /// Every sample below this is committed.
@@ -58,9 +57,8 @@ pub struct StrokeState {
 }
 
 impl StrokeState {
-    pub fn new(id: StrokeId, params: AcutsParams) -> StrokeState {
+    pub fn new(params: AcutsParams) -> StrokeState {
         StrokeState {
-            id,
             next_seq: 0,
             committed_seq: 0,
             last: None,
@@ -71,8 +69,8 @@ impl StrokeState {
 
     /// Rebuilds the state of a resumed stroke by replaying its committed samples through a
     /// fresh simplifier: the result is the state the stroke had, with every retained sample.
-    pub fn replay(id: StrokeId, params: AcutsParams, samples: &[Sample]) -> StrokeState {
-        let mut state = StrokeState::new(id, params);
+    pub fn replay(params: AcutsParams, samples: &[Sample]) -> StrokeState {
+        let mut state = StrokeState::new(params);
         for s in samples {
             state.kept.extend(state.simplifier.push(*s));
         }
@@ -180,7 +178,7 @@ mod tests {
     }
 
     fn state() -> StrokeState {
-        StrokeState::new(uuid::Uuid::nil(), AcutsParams::default())
+        StrokeState::new(AcutsParams::default())
     }
 
     #[test]
@@ -253,8 +251,7 @@ mod tests {
         let samples = line(0, 40);
         let mut streamed = state();
         streamed.push_points(0, &samples, &LIMITS).unwrap();
-        let mut replayed =
-            StrokeState::replay(uuid::Uuid::nil(), AcutsParams::default(), &samples[..25]);
+        let mut replayed = StrokeState::replay(AcutsParams::default(), &samples[..25]);
         replayed.push_points(25, &samples[25..], &LIMITS).unwrap();
         assert_eq!(streamed.finish(40).unwrap().kept, replayed.finish(40).unwrap().kept);
     }

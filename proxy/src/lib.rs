@@ -19,25 +19,16 @@ mod store;
 mod web;
 mod ws;
 
-pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, lock_key};
+// The surface the binaries, the client's in-process demo and the end-to-end tests use; the
+// rest of the crate is private to it.
+pub use crate::cluster::LISTENER_APPLICATION;
 pub use crate::config::{Config, SqliteSync};
-pub use crate::fanout::{
-    Admit, EventKind, Fanout, Lag, PeerView, Published, SessionEvent, Subscription,
-};
-pub use crate::glb::{MeshCounts, inspect as inspect_glb};
-pub use crate::http::{
-    AppError, ErrorBody, MeshInfo, NewSession, READY_DB_DEADLINE, StrokeInfo, StrokeList,
-    StrokeSamples,
-};
-pub use crate::ingest::{Accepted, Finished, Refusal, StrokeLimits, StrokeState};
+pub use crate::http::{NewSession, READY_DB_DEADLINE};
 pub use crate::mesh_build::PROXY_UPLOADER;
-pub use crate::openapi::ApiDoc;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
-pub use crate::store::{
-    Backend, CommitFaults, Fault, Store, decode_samples as decode_stored_samples, hash_token,
-};
-pub use crate::ws::{Frame, close_code, serve};
+pub use crate::store::{CommitFaults, Fault, decode_samples as decode_stored_samples, hash_token};
+pub use crate::ws::{Frame, serve};
 
 /// Runs the proxy with `config` until it is stopped (SIGTERM, Ctrl-C), on a runtime of its own
 /// whose threads run [`Config::worker_nice`] steps below the priority of the calling thread,

@@ -806,7 +806,7 @@ impl Connection {
                 .write(vec![WriteOp::SetStatus { stroke, status: "open" }])
                 .await
                 .map_err(|e| internal(&e))?;
-            Ok(StrokeState::replay(stroke, params, &samples))
+            Ok(StrokeState::replay(params, &samples))
         }
         .await;
         if result.is_err() {
@@ -957,7 +957,7 @@ impl Connection {
                 self.owners.insert(stroke, participant);
                 self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
-                self.strokes.insert(stroke, StrokeState::new(stroke, params));
+                self.strokes.insert(stroke, StrokeState::new(params));
                 self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq: 0 });
             }
         }

@@ -476,7 +476,7 @@ impl Store {
             self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
         } else {
             let raw = self.raw_samples(stroke).await?;
-            crate::ingest::StrokeState::replay(stroke, row.params, &raw)
+            crate::ingest::StrokeState::replay(row.params, &raw)
                 .kept()
                 .iter()
                 .map(|k| k.sample)
