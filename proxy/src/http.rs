@@ -155,7 +155,8 @@ pub struct StrokeInfo {
     pub session: Uuid,
     pub participant: Uuid,
     /// `open`, `done` or `interrupted`.
-    pub status: String,
+    #[schema(value_type = String)]
+    pub status: penmesh::protocol::StrokeStatus,
     pub n_points: u64,
     pub n_retained: u64,
     #[schema(value_type = Object)]
@@ -175,7 +176,7 @@ impl From<StrokeRow> for StrokeInfo {
             id: row.id,
             session: row.session_id,
             participant: row.participant,
-            status: row.status.as_str().into(),
+            status: row.status,
             n_points: row.n_points,
             n_retained: row.n_retained,
             brush: row.brush,
@@ -235,7 +236,7 @@ fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
         ([(header::CONTENT_TYPE, "application/octet-stream")], encode_server(&msg)).into_response();
     let h = response.headers_mut();
     for (name, value) in [
-        ("x-penmesh-status", body.stroke.status.clone()),
+        ("x-penmesh-status", body.stroke.status.as_str().to_string()),
         ("x-penmesh-n-points", body.stroke.n_points.to_string()),
         ("x-penmesh-n-retained", body.stroke.n_retained.to_string()),
     ] {

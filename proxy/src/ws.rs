@@ -803,7 +803,7 @@ impl Connection {
             let samples = self.state.store.raw_samples(stroke).await.map_err(|e| internal(&e))?;
             self.state
                 .writer
-                .write(vec![WriteOp::SetStatus { stroke, status: "open" }])
+                .write(vec![WriteOp::SetStatus { stroke, status: StrokeStatus::Open }])
                 .await
                 .map_err(|e| internal(&e))?;
             Ok(StrokeState::replay(params, &samples))
@@ -1104,7 +1104,7 @@ impl Connection {
         if !open.is_empty() {
             let ops = open
                 .iter()
-                .map(|&stroke| WriteOp::SetStatus { stroke, status: "interrupted" })
+                .map(|&stroke| WriteOp::SetStatus { stroke, status: StrokeStatus::Interrupted })
                 .collect();
             if let Err(err) = self.state.writer.write(ops).await {
                 tracing::error!(error = %err, "marking strokes interrupted");

@@ -23,6 +23,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use penmesh::protocol::StrokeStatus;
 use penmesh::{AcutsParams, Brush, Kept, Sample};
 use sqlx::{AnyConnection, Connection};
 use tokio::sync::{mpsc, oneshot};
@@ -52,7 +53,7 @@ pub enum WriteOp {
     /// Stores the simplified stroke and marks it `done`.
     Finish { stroke: Uuid, kept: Vec<Kept> },
     /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
-    SetStatus { stroke: Uuid, status: &'static str },
+    SetStatus { stroke: Uuid, status: StrokeStatus },
     /// A participant said hello in a session.
     /// `replica` is the key of the lock the replica holds while it lives (PostgreSQL).
     Join { participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
@@ -709,7 +710,7 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             sqlx::query(
                 "UPDATE strokes SET status = $1, updated_at = $2 WHERE id = $3 AND status <> 'done'",
             )
-            .bind(*status)
+            .bind(status.as_str())
             .bind(now)
             .bind(stroke.to_string())
             .execute(&mut *conn)

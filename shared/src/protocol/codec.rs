@@ -78,6 +78,8 @@ use crate::model::Sample;
 /// 2: `AcutsParams` carries the pressure gate as an enum and the `angle_near_anchor` flag, so
 /// a version-1 peer would misread a session's parameters.
 pub const PROTOCOL_VERSION: u16 = 2;
+// Binary frames carry the version in one byte.
+const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
 /// Default largest frame a decoder accepts.
 pub const MAX_FRAME_BYTES_DEFAULT: usize = 256 * 1024;
 /// Quantisation step of x and y in the binary encoding (stroke units). A power of two.
@@ -663,7 +665,7 @@ fn config() -> impl bincode::config::Config {
 fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
     let body = bincode::serde::encode_to_vec(msg, config()).expect("messages always encode");
     let mut out = Vec::with_capacity(body.len() + 1);
-    out.push(PROTOCOL_VERSION as u8);
+    out.push(PROTOCOL_VERSION as u8); // lossless: asserted where the constant is declared
     out.extend_from_slice(&body);
     out
 }

@@ -41,7 +41,7 @@ struct SessionReply {
 
 #[derive(Debug, Deserialize)]
 struct StrokeRow {
-    status: String,
+    status: penmesh::protocol::StrokeStatus,
     n_points: u64,
 }
 
@@ -285,7 +285,7 @@ async fn count_stored(
         for rows in replies {
             for row in rows?.strokes {
                 points += row.n_points;
-                done += u64::from(row.status == "done");
+                done += u64::from(row.status == penmesh::protocol::StrokeStatus::Done);
             }
         }
     }
