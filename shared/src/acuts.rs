@@ -185,7 +185,7 @@ pub enum PressureGate {
 }
 
 /// Stage-2 parameters.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AcutsParams {
     /// Chord-height tolerance `d_d`.
     pub tolerance: f64,
@@ -209,64 +209,6 @@ impl Default for AcutsParams {
             angle_near_anchor: false,
             pressure: PressureGate::Interpolation(DEFAULT_PRESSURE_TOLERANCE),
         }
-    }
-}
-
-/// Stored and sent parameters: JSON also reads the form from before the pressure gate was a
-/// choice, `{"tolerance", "angle_deg", "pressure_variance"}`, as the paper's gate with the angle
-/// test near the anchor, which is what it meant. The binary encoding is the plain struct.
-impl<'de> Deserialize<'de> for AcutsParams {
-    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<AcutsParams, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(rename = "AcutsParams")]
-        struct Binary {
-            tolerance: f64,
-            angle_deg: f64,
-            angle_near_anchor: bool,
-            pressure: PressureGate,
-        }
-        #[derive(Deserialize)]
-        struct Json {
-            tolerance: f64,
-            angle_deg: f64,
-            #[serde(default)]
-            angle_near_anchor: Option<bool>,
-            #[serde(default)]
-            pressure: Option<PressureGate>,
-            #[serde(default)]
-            pressure_variance: Option<f64>,
-        }
-        if !deserializer.is_human_readable() {
-            let b = Binary::deserialize(deserializer)?;
-            return Ok(AcutsParams {
-                tolerance: b.tolerance,
-                angle_deg: b.angle_deg,
-                angle_near_anchor: b.angle_near_anchor,
-                pressure: b.pressure,
-            });
-        }
-        let j = Json::deserialize(deserializer)?;
-        let (pressure, old_form) = match (j.pressure, j.pressure_variance) {
-            (Some(gate), None) => (gate, false),
-            (None, Some(variance)) => (PressureGate::Variance(variance), true),
-            (Some(_), Some(_)) => {
-                return Err(serde::de::Error::custom(
-                    "give `pressure` or the older `pressure_variance`, not both",
-                ));
-            }
-            (None, None) => return Err(serde::de::Error::missing_field("pressure")),
-        };
-        let angle_near_anchor = match j.angle_near_anchor {
-            Some(near) => near,
-            None if old_form => true,
-            None => return Err(serde::de::Error::missing_field("angle_near_anchor")),
-        };
-        Ok(AcutsParams {
-            tolerance: j.tolerance,
-            angle_deg: j.angle_deg,
-            angle_near_anchor,
-            pressure,
-        })
     }
 }
 
@@ -1017,8 +959,7 @@ mod tests {
         check_simplify(&[(0.0, 0.0), (1.0, 0.5), (5.0, 0.0)], near, &[0, 1, 2]);
     }
 
-    // JSON of the parameters: the current form round-trips, and the form stored before the
-    // pressure gate was a choice reads as the paper's gate with the angle near the anchor.
+    // JSON of the parameters round-trips in one form (the store reads older rows itself).
     #[test]
     fn params_json() {
         let params = AcutsParams::default();
@@ -1028,14 +969,6 @@ mod tests {
             r#"{"tolerance":1.74,"angle_deg":45.0,"angle_near_anchor":false,"pressure":{"interpolation":0.2}}"#
         );
         assert_eq!(serde_json::from_str::<AcutsParams>(&json).unwrap(), params);
-        let old: AcutsParams = serde_json::from_str(
-            r#"{"tolerance":0.74,"angle_deg":15.0,"pressure_variance":0.0015}"#,
-        )
-        .unwrap();
-        assert_eq!(old, AcutsParams::paper());
-        let both =
-            r#"{"tolerance":1,"angle_deg":15,"pressure_variance":0.1,"pressure":{"variance":0.1}}"#;
-        assert!(serde_json::from_str::<AcutsParams>(both).is_err());
         let neither = r#"{"tolerance":1,"angle_deg":15,"angle_near_anchor":true}"#;
         assert!(serde_json::from_str::<AcutsParams>(neither).is_err());
     }

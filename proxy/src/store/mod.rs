@@ -596,6 +596,29 @@ const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, 
      ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
      (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = s.id) AS n_meshes FROM strokes s";
 
+/// A stroke's stored ACUTS parameters: the current JSON form, or the form written before the
+/// pressure gate was a choice, `{"tolerance", "angle_deg", "pressure_variance"}`, which meant the
+/// paper's variance gate with the angle test near the anchor.
+fn read_stored_params(json: &str) -> anyhow::Result<penmesh::AcutsParams> {
+    #[derive(serde::Deserialize)]
+    #[serde(untagged)]
+    enum Stored {
+        Current(penmesh::AcutsParams),
+        BeforeTheGateChoice { tolerance: f64, angle_deg: f64, pressure_variance: f64 },
+    }
+    Ok(match serde_json::from_str(json).with_context(|| format!("stored params {json}"))? {
+        Stored::Current(params) => params,
+        Stored::BeforeTheGateChoice { tolerance, angle_deg, pressure_variance } => {
+            penmesh::AcutsParams {
+                tolerance,
+                angle_deg,
+                angle_near_anchor: true,
+                pressure: penmesh::PressureGate::Variance(pressure_variance),
+            }
+        }
+    })
+}
+
 fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
     let status: String = row.try_get("status")?;
     let brush: String = row.try_get("brush")?;
@@ -605,7 +628,7 @@ fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
         session_id: parse_uuid(&row.try_get::<String, _>("session_id")?)?,
         participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
         brush: serde_json::from_str(&brush).context("stored brush")?,
-        params: serde_json::from_str(&params).context("stored params")?,
+        params: read_stored_params(&params)?,
         device: row.try_get("device")?,
         status: StrokeStatus::parse(&status)
             .with_context(|| format!("stored status {status:?}"))?,
@@ -659,6 +682,21 @@ pub fn redact(url: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Parameters stored before the pressure gate was a choice read as the paper's gate.
+    #[test]
+    fn parameters_of_older_rows_are_read() {
+        let old = r#"{"tolerance":0.74,"angle_deg":15.0,"pressure_variance":0.0015}"#;
+        assert_eq!(read_stored_params(old).unwrap(), penmesh::AcutsParams::paper());
+        let current = serde_json::to_string(&penmesh::AcutsParams::default()).unwrap();
+        assert_eq!(read_stored_params(&current).unwrap(), penmesh::AcutsParams::default());
+        assert!(
+            read_stored_params(r#"{"tolerance":1}"#)
+                .unwrap_err()
+                .to_string()
+                .contains("stored params")
+        );
+    }
 
     #[test]
     fn samples_round_trip_through_the_blob() {
