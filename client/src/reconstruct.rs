@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
+use penmesh::protocol::{ErrorBody, MeshInfo, StrokeSamples};
 use penmesh::{GlbMeta, GlbOptions, OutlineOptions, Sample, SolidOptions};
 use serde::{Deserialize, Serialize};
 use tokio::time::Instant;
@@ -56,21 +57,6 @@ pub struct StrokeReport {
     pub glb_path: Option<PathBuf>,
 }
 
-/// The JSON body of `GET /v1/strokes/{id}/simplified` this client reads.
-#[derive(Debug, Deserialize)]
-struct Simplified {
-    indices: Vec<u64>,
-    samples: Vec<Sample>,
-}
-
-/// The JSON body of `PUT /v1/strokes/{id}/mesh`.
-#[derive(Debug, Deserialize)]
-struct MeshInfo {
-    bytes: u64,
-    vertices: u64,
-    triangles: u64,
-}
-
 pub async fn reconstruct(
     http: &reqwest::Client,
     endpoint: &Endpoint,
@@ -83,7 +69,7 @@ pub async fn reconstruct(
     };
     since_pen_up("stroke done");
     let url = endpoint.url(&format!("/v1/strokes/{id}/simplified"));
-    let simplified: Simplified = with_retries(options.retry_for, || async {
+    let simplified: StrokeSamples = with_retries(options.retry_for, || async {
         let response = http.get(&url).bearer_auth(&endpoint.token).send().await?;
         Ok(response)
     })
@@ -93,14 +79,18 @@ pub async fn reconstruct(
     .await
     .with_context(|| format!("reading the simplified stroke {id}"))?;
 
+    let indices = simplified
+        .indices
+        .as_deref()
+        .with_context(|| format!("stroke {id}: the simplified stroke came without its indices"))?;
     anyhow::ensure!(
-        simplified.indices.len() == simplified.samples.len(),
+        indices.len() == simplified.samples.len(),
         "stroke {id}: the proxy sent {} indices for {} samples",
-        simplified.indices.len(),
+        indices.len(),
         simplified.samples.len()
     );
-    let mut kept = Vec::with_capacity(simplified.indices.len());
-    for &i in &simplified.indices {
+    let mut kept = Vec::with_capacity(indices.len());
+    for &i in indices {
         let drawn_idx = *stroke.resampled_from.get(i as usize).with_context(|| {
             format!(
                 "stroke {id}: retained index {i} is past the {} streamed samples",
@@ -215,10 +205,8 @@ where
             Ok(response) if response.status().is_client_error() => {
                 let status = response.status();
                 let body = response.text().await.unwrap_or_default();
-                let message = serde_json::from_str::<serde_json::Value>(&body)
-                    .ok()
-                    .and_then(|v| v.get("message").and_then(|m| m.as_str()).map(str::to_string))
-                    .unwrap_or(body);
+                let message =
+                    serde_json::from_str::<ErrorBody>(&body).map(|e| e.message).unwrap_or(body);
                 anyhow::bail!("HTTP {status}: {message}");
             }
             Ok(response) => anyhow::anyhow!("HTTP {}", response.status()),

@@ -8,11 +8,12 @@ use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use penmesh::protocol::{PointBatch, Retained, ServerMessage, encode_server};
-use penmesh::{AcutsParams, Brush, Sample};
 use rand::RngCore;
-use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 use uuid::Uuid;
+
+pub(crate) use penmesh::protocol::{
+    ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
+};
 
 use crate::fanout::{EventKind, SessionEvent};
 use crate::state::AppState;
@@ -35,15 +36,6 @@ pub enum AppError {
     ShuttingDown,
     #[error("internal error")]
     Internal(#[from] anyhow::Error),
-}
-
-/// The JSON body of every error.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct ErrorBody {
-    /// Machine-readable: `unauthorized`, `not_found`, `bad_request`, `conflict`,
-    /// `shutting_down`, `internal`.
-    pub error: String,
-    pub message: String,
 }
 
 impl IntoResponse for AppError {
@@ -125,14 +117,6 @@ fn wants_binary(headers: &HeaderMap) -> bool {
         .is_some_and(|v| v.contains("application/octet-stream"))
 }
 
-/// A new session.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct NewSession {
-    pub session: Uuid,
-    /// The bearer token: shown once, stored only as a hash.
-    pub token: String,
-}
-
 /// Creates a session and its token.
 #[utoipa::path(post, path = "/v1/sessions", tag = "sessions",
     responses((status = 201, description = "Session created", body = NewSession)))]
@@ -146,28 +130,6 @@ pub async fn create_session(
     state.store.create_session(session, &hash_token(&token)).await?;
     metrics::counter!("penmesh_sessions_total").increment(1);
     Ok((StatusCode::CREATED, Json(NewSession { session, token })))
-}
-
-/// A stroke's metadata.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct StrokeInfo {
-    pub id: Uuid,
-    pub session: Uuid,
-    pub participant: Uuid,
-    /// `open`, `done` or `interrupted`.
-    #[schema(value_type = String)]
-    pub status: penmesh::protocol::StrokeStatus,
-    pub n_points: u64,
-    pub n_retained: u64,
-    #[schema(value_type = Object)]
-    pub brush: Brush,
-    #[schema(value_type = Object)]
-    pub params: AcutsParams,
-    pub device: Option<String>,
-    pub has_mesh: bool,
-    /// Milliseconds since the Unix epoch.
-    pub created_at: i64,
-    pub updated_at: i64,
 }
 
 impl From<StrokeRow> for StrokeInfo {
@@ -189,11 +151,6 @@ impl From<StrokeRow> for StrokeInfo {
     }
 }
 
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct StrokeList {
-    pub strokes: Vec<StrokeInfo>,
-}
-
 /// The strokes of a session, oldest first.
 #[utoipa::path(get, path = "/v1/sessions/{session}/strokes", tag = "strokes",
     params(("session" = Uuid, Path)), security(("bearer" = [])),
@@ -206,19 +163,6 @@ pub async fn list_strokes(
     let session = authorize_session(&state, &headers, None, &session).await?;
     let rows = state.store.list_strokes(session).await?;
     Ok(Json(StrokeList { strokes: rows.into_iter().map(StrokeInfo::from).collect() }))
-}
-
-/// Samples of a stroke with its metadata.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct StrokeSamples {
-    #[serde(flatten)]
-    pub stroke: StrokeInfo,
-    /// For the simplified stroke: the index of each sample in the raw stroke.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub indices: Option<Vec<u64>>,
-    /// `[x, y, t, p]` each.
-    #[schema(value_type = Vec<[f64; 4]>)]
-    pub samples: Vec<Sample>,
 }
 
 fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
@@ -286,16 +230,6 @@ pub async fn raw(
     let row = authorized_stroke(&state, &headers, &id).await?;
     let samples = state.store.raw_samples(row.id).await?;
     Ok(samples_response(&headers, StrokeSamples { stroke: row.into(), indices: None, samples }))
-}
-
-/// What a stored mesh holds.
-#[derive(Debug, Serialize, Deserialize, ToSchema)]
-pub struct MeshInfo {
-    pub stroke: Uuid,
-    pub bytes: u64,
-    pub vertices: u64,
-    pub triangles: u64,
-    pub uploader: Option<String>,
 }
 
 /// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one.

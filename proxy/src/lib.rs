@@ -23,7 +23,7 @@ mod ws;
 // rest of the crate is private to it.
 pub use crate::cluster::LISTENER_APPLICATION;
 pub use crate::config::{Config, SqliteSync};
-pub use crate::http::{NewSession, READY_DB_DEADLINE};
+pub use crate::http::READY_DB_DEADLINE;
 pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 use indicatif::MultiProgress;
+use penmesh::protocol::NewSession;
 use penmesh::{GeneratorParams, Shape};
-use penmesh_proxy::{Application, Config, NewSession};
+use penmesh_proxy::{Application, Config};
 use serde::Serialize;
 
 use super::draw::{draw_options, init_tracing, progress_bar, runtime};

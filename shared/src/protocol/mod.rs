@@ -16,6 +16,7 @@
 //! announced with `PeerMesh` like an upload. Neither changes the binary layout.
 
 mod codec;
+mod http;
 
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
@@ -29,6 +30,7 @@ pub use codec::{
     decode_point_batch, decode_server, decode_server_json, encode_client, encode_client_json,
     encode_point_batch, encode_server, encode_server_json, quantize_sample,
 };
+pub use http::{ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples};
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
 pub type StrokeId = Uuid;

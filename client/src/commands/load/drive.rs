@@ -7,9 +7,9 @@ use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use penmesh::protocol::{NewSession, StrokeList};
 use serde::Deserialize;
 use tokio::time::Instant;
-use uuid::Uuid;
 
 use super::Plan;
 use super::pen::{Counters, PenResult, Shared, pen, stroke_pool};
@@ -30,24 +30,13 @@ struct WindowMark {
 /// How often the progress line and the `/proc` sampler look.
 const SAMPLE_EVERY: Duration = Duration::from_millis(250);
 
+/// `POST /v1/sessions`'s answer; the ceiling server adds that it stores nothing to count back.
 #[derive(Debug, Deserialize)]
 struct SessionReply {
-    session: Uuid,
-    token: String,
-    /// The ceiling server says so: it stores nothing to count back.
+    #[serde(flatten)]
+    new: NewSession,
     #[serde(default)]
     ceiling: bool,
-}
-
-#[derive(Debug, Deserialize)]
-struct StrokeRow {
-    status: penmesh::protocol::StrokeStatus,
-    n_points: u64,
-}
-
-#[derive(Debug, Deserialize)]
-struct StrokeRows {
-    strokes: Vec<StrokeRow>,
 }
 
 pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::Result<Summary> {
@@ -94,7 +83,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
     let mut pens = tokio::task::JoinSet::new();
     for pen_idx in 0..plan.clients {
         let session = &sessions[pen_idx % sessions.len()];
-        let (session_id, token) = (session.session, session.token.clone());
+        let (session_id, token) = (session.new.session, session.new.token.clone());
         let shared = shared.clone();
         pens.spawn(async move { pen(pen_idx, session_id, token, shared).await });
     }
@@ -268,10 +257,10 @@ async fn count_stored(
     let mut done = 0;
     for chunk in sessions.chunks(16) {
         let replies = futures_util::future::join_all(chunk.iter().map(|s| async move {
-            let url = format!("{base}/v1/sessions/{}/strokes", s.session);
-            let rows: StrokeRows = http
+            let url = format!("{base}/v1/sessions/{}/strokes", s.new.session);
+            let rows: StrokeList = http
                 .get(&url)
-                .bearer_auth(&s.token)
+                .bearer_auth(&s.new.token)
                 .send()
                 .await
                 .and_then(|r| r.error_for_status())

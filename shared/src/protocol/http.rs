@@ -1,0 +1,78 @@
+//! The bodies of the HTTP API (`docs/ARCHITECTURE.md`, `/v1/openapi.json`), beside the
+//! WebSocket messages: the proxy answers with them and the clients read them, one definition.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+use uuid::Uuid;
+
+use super::StrokeStatus;
+use crate::acuts::AcutsParams;
+use crate::model::{Brush, Sample};
+
+/// The JSON body of every error.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBody {
+    /// Machine-readable: `unauthorized`, `not_found`, `bad_request`, `conflict`,
+    /// `shutting_down`, `internal`.
+    pub error: String,
+    pub message: String,
+}
+
+/// A new session.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct NewSession {
+    pub session: Uuid,
+    /// The bearer token: shown once, stored only as a hash.
+    pub token: String,
+}
+
+/// A stroke's metadata.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeInfo {
+    pub id: Uuid,
+    pub session: Uuid,
+    pub participant: Uuid,
+    /// `open`, `done` or `interrupted`.
+    #[schema(value_type = String)]
+    pub status: StrokeStatus,
+    pub n_points: u64,
+    pub n_retained: u64,
+    #[schema(value_type = Object)]
+    pub brush: Brush,
+    #[schema(value_type = Object)]
+    pub params: AcutsParams,
+    pub device: Option<String>,
+    pub has_mesh: bool,
+    /// Milliseconds since the Unix epoch.
+    pub created_at: i64,
+    pub updated_at: i64,
+}
+
+/// The strokes of a session, oldest first.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeList {
+    pub strokes: Vec<StrokeInfo>,
+}
+
+/// Samples of a stroke with its metadata.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct StrokeSamples {
+    #[serde(flatten)]
+    pub stroke: StrokeInfo,
+    /// For the simplified stroke: the index of each sample in the raw stroke.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indices: Option<Vec<u64>>,
+    /// `[x, y, t, p]` each.
+    #[schema(value_type = Vec<[f64; 4]>)]
+    pub samples: Vec<Sample>,
+}
+
+/// What a stored mesh holds.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+pub struct MeshInfo {
+    pub stroke: Uuid,
+    pub bytes: u64,
+    pub vertices: u64,
+    pub triangles: u64,
+    pub uploader: Option<String>,
+}
