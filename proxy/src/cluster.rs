@@ -84,7 +84,13 @@ pub async fn start_listener(
                 Ok(Some(notification)) => {
                     match SessionEvent::from_payload(notification.payload()) {
                         Ok(event) => fanout.dispatch(event),
-                        Err(err) => tracing::warn!(error = %err, "session events: bad payload"),
+                        Err(err) => {
+                            // An event this replica cannot read is an event its clients miss:
+                            // resync them from the database rather than lose it in silence.
+                            tracing::warn!(error = %err, "session events: unreadable payload; resyncing");
+                            fanout.gap_all();
+                            metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+                        }
                     }
                 }
                 Ok(None) => {

@@ -25,6 +25,10 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::mpsc;
 use uuid::Uuid;
 
+/// Version of the `NOTIFY` payloads replicas exchange (a second protocol, between proxies):
+/// bump it when [`SessionEvent`]'s JSON changes.
+pub const NOTIFY_VERSION: u16 = 1;
+
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
 
@@ -80,7 +84,14 @@ impl SessionEvent {
     /// The `NOTIFY` payloads of this event: JSON, each under [`MAX_NOTIFY_BYTES`]. A
     /// `Retained` event too large for one is split into consecutive ones.
     pub fn notify_payloads(&self) -> Vec<String> {
-        let json = serde_json::to_string(self).expect("events serialise");
+        #[derive(Serialize)]
+        struct VersionedRef<'a> {
+            v: u16,
+            #[serde(flatten)]
+            event: &'a SessionEvent,
+        }
+        let versioned = VersionedRef { v: NOTIFY_VERSION, event: self };
+        let json = serde_json::to_string(&versioned).expect("events serialise");
         if json.len() <= MAX_NOTIFY_BYTES {
             return vec![json];
         }
@@ -107,7 +118,19 @@ impl SessionEvent {
         }
     }
 
+    /// Reads a `NOTIFY` payload; one of another version (a replica of another release, during
+    /// a rolling update) is refused, so the listener resyncs instead of misreading it.
     pub fn from_payload(payload: &str) -> anyhow::Result<SessionEvent> {
+        #[derive(Deserialize)]
+        struct Version {
+            v: Option<u16>,
+        }
+        let version = serde_json::from_str::<Version>(payload)?.v;
+        anyhow::ensure!(
+            version == Some(NOTIFY_VERSION),
+            "payload version {version:?}, this replica reads {NOTIFY_VERSION}"
+        );
+        // The version field is not part of the event; serde passes over it.
         Ok(serde_json::from_str(payload)?)
     }
 
@@ -442,6 +465,22 @@ impl PeerView {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // NOTIFY payloads carry their version; another version (or none) is refused, not misread.
+    #[test]
+    fn notify_payloads_are_versioned() {
+        let event = SessionEvent::new(
+            Uuid::nil(),
+            EventKind::StrokeDone { participant: Uuid::nil(), stroke: Uuid::nil(), n_retained: 3 },
+        );
+        let payload = event.notify_payloads().remove(0);
+        assert!(payload.contains(&format!("\"v\":{NOTIFY_VERSION}")), "{payload}");
+        assert_eq!(SessionEvent::from_payload(&payload).unwrap(), event);
+        let other = payload.replace(&format!("\"v\":{NOTIFY_VERSION}"), "\"v\":999");
+        assert!(SessionEvent::from_payload(&other).unwrap_err().to_string().contains("999"));
+        let unversioned = serde_json::to_string(&event).unwrap();
+        assert!(SessionEvent::from_payload(&unversioned).is_err());
+    }
 
     fn retained(stroke: Uuid, first: u64, n: usize) -> SessionEvent {
         let points = (0..n).map(|i| Sample::new(i as f64, 0.0, i as f64, 0.5)).collect();
