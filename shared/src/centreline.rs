@@ -369,6 +369,43 @@ pub fn directed_distance(from: &[DVec2], to: &[DVec2], samples_per_edge: usize) 
     worst
 }
 
+/// Whether `directed_distance(from, to, samples_per_edge) <= bound`, exactly, in about linear
+/// time when the two polylines run the same way (a centreline and the raw path it was fitted
+/// to): the nearest edge of `to` moves forward with the sample of `from`, so the edges near the
+/// last nearest one are tried first (a distance to some edges is at least the distance to all),
+/// and all of `to` only when those are not within `bound`.
+pub fn within_directed(from: &[DVec2], to: &[DVec2], samples_per_edge: usize, bound: f64) -> bool {
+    /// Edges tried on either side of the last nearest one.
+    const WINDOW: usize = 2;
+    if to.len() < 2 {
+        return directed_distance(from, to, samples_per_edge) <= bound;
+    }
+    let n_edges = to.len() - 1;
+    let mut near: usize = 0;
+    let nearest = |q: DVec2, edges: std::ops::RangeInclusive<usize>| {
+        edges
+            .map(|i| (point_segment_distance(q, to[i], to[i + 1]), i))
+            .fold((f64::INFINITY, 0), |best, d| if d.0 < best.0 { d } else { best })
+    };
+    let mut admits = |q: DVec2| {
+        let window = near.saturating_sub(WINDOW)..=(near + WINDOW).min(n_edges - 1);
+        let (mut distance, mut edge) = nearest(q, window);
+        if distance > bound {
+            (distance, edge) = nearest(q, 0..=n_edges - 1);
+        }
+        near = edge;
+        distance <= bound
+    };
+    let per_edge = samples_per_edge.max(1);
+    if let Some(first) = from.first()
+        && !admits(*first)
+    {
+        return false;
+    }
+    from.windows(2)
+        .all(|w| (1..=per_edge).all(|k| admits(w[0].lerp(w[1], k as f64 / per_edge as f64))))
+}
+
 /// The turn (radians) at each interior vertex of a polyline.
 pub fn polyline_turns(path: &[DVec2]) -> Vec<f64> {
     path.windows(3).map(|w| turn(w[1] - w[0], w[2] - w[1])).collect()

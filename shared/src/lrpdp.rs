@@ -27,9 +27,7 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::centreline::{
-    Centreline, directed_distance, fit_centreline, polyline_distance, smooth_centreline,
-};
+use crate::centreline::{Centreline, fit_centreline, smooth_centreline, within_directed};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -249,8 +247,7 @@ pub fn fitted_outline(
         (centres, radii) = fit_centreline(&centres, &radii, smooth, &mut |segment, points| {
             let (from, to) = (kept[firsts[segment]], kept[firsts[segment + 1]]);
             let path: Vec<DVec2> = raw[from..=to].iter().map(Sample::pos).collect();
-            path.iter().all(|q| polyline_distance(*q, points) <= bound)
-                && directed_distance(points, &path, 2) <= bound
+            within_directed(&path, points, 1, bound) && within_directed(points, &path, 2, bound)
         });
     }
     Ok(offset_outline(centres, radii, options))

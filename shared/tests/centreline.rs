@@ -3,7 +3,7 @@
 //! straight line, a circle and a hairpin coming out as they should.
 
 use glam::DVec2;
-use penmesh::centreline::{directed_distance, polyline_distance, polyline_turns};
+use penmesh::centreline::{directed_distance, polyline_distance, polyline_turns, within_directed};
 use penmesh::{
     AcutsParams, Brush, Centreline, DEFAULT_RESAMPLE_DISTANCE, DEFAULT_TOLERANCE, KeptError,
     OutlineOptions, Sample, SmoothOptions, acuts, fitted_outline, outline, smooth_centreline,
@@ -47,7 +47,14 @@ fn assert_clean(points: &[DVec2], radii: &[f64], what: &str) {
     }
 }
 
+/// A polyline of up to 30 points in a 40 px box.
+fn polyline() -> impl Strategy<Value = Vec<DVec2>> {
+    prop::collection::vec((0.0..40.0f64, 0.0..40.0f64), 0..30)
+        .prop_map(|points| points.into_iter().map(|(x, y)| DVec2::new(x, y)).collect())
+}
+
 proptest! {
+
     #![proptest_config(ProptestConfig::with_cases(96))]
 
     #[test]
@@ -191,4 +198,21 @@ fn bad_retained_indices_are_refused() {
         fitted_outline(&raw, &[0, 3, 3], &brush, &options),
         Err(KeptError::NotIncreasing { entry: 2, index: 3, previous: 3 })
     );
+}
+
+proptest! {
+    // The windowed check answers exactly what the directed Hausdorff distance says, on any
+    // pair of polylines (aligned or not) and any bound.
+    #[test]
+    fn within_directed_is_exact(
+        from in polyline(),
+        to in polyline(),
+        per_edge in 1..4usize,
+        bound in 0.0..20.0f64,
+    ) {
+        prop_assert_eq!(
+            within_directed(&from, &to, per_edge, bound),
+            directed_distance(&from, &to, per_edge) <= bound
+        );
+    }
 }
