@@ -2,6 +2,15 @@
 
 use super::*;
 
+/// A Markdown table's header and its alignment row: the first `n_left` columns left, the rest
+/// right (numbers).
+fn table_head(md: &mut String, columns: &[&str], n_left: usize) {
+    let _ = writeln!(md, "| {} |", columns.join(" | "));
+    let align: Vec<&str> =
+        (0..columns.len()).map(|k| if k < n_left { "---" } else { "---:" }).collect();
+    let _ = writeln!(md, "|{}|", align.join("|"));
+}
+
 /// The Markdown tables of the whole report.
 pub fn markdown(report: &EvalReport) -> String {
     let mut md = String::new();
@@ -28,11 +37,25 @@ pub fn markdown(report: &EvalReport) -> String {
             d.n_strokes,
             d.rows.first().map_or(0, |r| r.n)
         );
-        let _ = writeln!(
-            md,
-            "| algorithm | online | N | C | CR % | SED px | E_max px | mean E_max px | E_l % | P_max | time ms | C / opt at B | C / opt at reached E_max |"
+        table_head(
+            &mut md,
+            &[
+                "algorithm",
+                "online",
+                "N",
+                "C",
+                "CR %",
+                "SED px",
+                "E_max px",
+                "mean E_max px",
+                "E_l %",
+                "P_max",
+                "time ms",
+                "C / opt at B",
+                "C / opt at reached E_max",
+            ],
+            2,
         );
-        let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
         for r in &d.rows {
             let _ = writeln!(
                 md,
@@ -53,11 +76,22 @@ pub fn markdown(report: &EvalReport) -> String {
             );
         }
         let _ = writeln!(md, "\nMeshes (LRPDP solid, default brush, one GLB per file):\n");
-        let _ = writeln!(
-            md,
-            "| from | samples | N' vertices | F triangles | S bytes | T ms | eta N' % | eta F % | eta S % | eta T % |"
+        table_head(
+            &mut md,
+            &[
+                "from",
+                "samples",
+                "N' vertices",
+                "F triangles",
+                "S bytes",
+                "T ms",
+                "eta N' %",
+                "eta F %",
+                "eta S %",
+                "eta T %",
+            ],
+            1,
         );
-        let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
         for r in &d.mesh {
             let _ = writeln!(
                 md,
@@ -81,13 +115,26 @@ pub fn markdown(report: &EvalReport) -> String {
                  turns < {SMOOTH_TURN_DEG}° within {SMOOTH_REACH_PX} px either side; distances \
                  against the raw samples; one GLB per stroke):\n"
             );
-            let _ = writeln!(
-                md,
-                "| centreline | points | smooth-path points | > 10° % | > 20° % | median turn ° | max turn ° | raw → centreline px | strokes over B | centreline → raw px | vertices | triangles | GLB bytes | largest GLB (raw samples) | T ms |"
-            );
-            let _ = writeln!(
-                md,
-                "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            table_head(
+                &mut md,
+                &[
+                    "centreline",
+                    "points",
+                    "smooth-path points",
+                    "> 10° %",
+                    "> 20° %",
+                    "median turn °",
+                    "max turn °",
+                    "raw → centreline px",
+                    "strokes over B",
+                    "centreline → raw px",
+                    "vertices",
+                    "triangles",
+                    "GLB bytes",
+                    "largest GLB (raw samples)",
+                    "T ms",
+                ],
+                1,
             );
             for r in &d.centreline {
                 let _ = writeln!(
@@ -121,12 +168,8 @@ pub fn markdown(report: &EvalReport) -> String {
                     v
                 });
             let _ = writeln!(md, "\nSweep: points kept / optimal min-# at each bound B:\n");
-            let _ = write!(md, "| B px |");
-            for a in &algos {
-                let _ = write!(md, " {a} |");
-            }
-            let _ = writeln!(md);
-            let _ = writeln!(md, "|---:|{}", "---:|".repeat(algos.len()));
+            let columns: Vec<&str> = std::iter::once("B px").chain(algos.iter().copied()).collect();
+            table_head(&mut md, &columns, 0);
             for &b in &SWEEP_BOUNDS {
                 let _ = write!(md, "| {b} |");
                 for a in &algos {
