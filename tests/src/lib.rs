@@ -241,6 +241,15 @@ impl TestProxy {
         self.try_connect(session).await.expect("WebSocket connects")
     }
 
+    /// A connection that has said hello and begun `stroke` (its begin acknowledged).
+    pub async fn drawing(&self, session: &TestSession, stroke: StrokeId) -> WsClient {
+        let mut ws = self.connect(session).await;
+        ws.hello(vec![]).await;
+        ws.begin(stroke).await;
+        ws.wait_ack(stroke, 0).await;
+        ws
+    }
+
     pub async fn try_connect(
         &self,
         session: &TestSession,

@@ -121,11 +121,8 @@ async fn the_migrations_the_listener_and_the_locks_use_the_direct_database_url()
     // Act
     let proxy = spawn_proxy_on(db, |c| c.direct_database_url = Some(direct)).await;
     let session = proxy.create_session().await;
-    let mut ws = proxy.connect(&session).await;
-    ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
-    ws.begin(stroke).await;
-    ws.wait_ack(stroke, 0).await;
+    let _ws = proxy.drawing(&session, stroke).await;
 
     // Assert: exactly the migrations, the listener and the lock connection went through it;
     // the pool and the writer did not.

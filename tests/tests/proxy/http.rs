@@ -131,11 +131,8 @@ async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
 async fn a_mesh_needs_a_done_stroke() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let mut ws = proxy.connect(&session).await;
-    ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
-    ws.begin(stroke).await;
-    ws.wait_ack(stroke, 0).await;
+    let _ws = proxy.drawing(&session, stroke).await;
     let response = proxy
         .http
         .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))

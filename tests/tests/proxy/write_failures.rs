@@ -112,10 +112,7 @@ async fn an_append_queued_behind_a_failed_one_is_not_stored_nor_acknowledged() {
     let session = proxy.create_session().await;
     let (stroke, samples) = (Uuid::new_v4(), stroke_samples(40));
     faults.fail_append(stroke, 8, Fault::Fail, u32::MAX);
-    let mut ws = proxy.connect(&session).await;
-    ws.hello(vec![]).await;
-    ws.begin(stroke).await;
-    ws.wait_ack(stroke, 0).await;
+    let mut ws = proxy.drawing(&session, stroke).await;
 
     // Act
     send_from(&mut ws, stroke, &samples, 0).await;
@@ -142,10 +139,7 @@ async fn a_commit_that_succeeded_but_reported_failure_is_not_stored_twice() {
     let session = proxy.create_session().await;
     let (stroke, samples) = (Uuid::new_v4(), stroke_samples(40));
     faults.fail_append(stroke, 4, Fault::FailAfterCommit, 1);
-    let mut ws = proxy.connect(&session).await;
-    ws.hello(vec![]).await;
-    ws.begin(stroke).await;
-    ws.wait_ack(stroke, 0).await;
+    let mut ws = proxy.drawing(&session, stroke).await;
 
     // Act
     send_from(&mut ws, stroke, &samples, 0).await;
@@ -171,10 +165,7 @@ async fn many_failed_commits_and_dropped_connections_leave_every_stroke_contiguo
     let strokes: Vec<StrokeId> = (0..3).map(|_| Uuid::new_v4()).collect();
     let mut clients = Vec::new();
     for &stroke in &strokes {
-        let mut ws = proxy.connect(&session).await;
-        ws.hello(vec![]).await;
-        ws.begin(stroke).await;
-        ws.wait_ack(stroke, 0).await;
+        let ws = proxy.drawing(&session, stroke).await;
         clients.push(ws);
     }
     for k in 1..=10 {
