@@ -105,6 +105,11 @@ pub struct Config {
     #[arg(long, env = "PENMESH_IDLE_TIMEOUT_SECS", default_value_t = 60)]
     pub idle_timeout_secs: u64,
 
+    /// A connection heard nothing from (not even a pong) for this long is pinged, and after
+    /// three such periods it is taken for gone and its strokes are let go (ms).
+    #[arg(long, env = "PENMESH_HEARTBEAT_MS", default_value_t = 5000)]
+    pub heartbeat_ms: u64,
+
     /// Largest HTTP request body (bytes), e.g. a GLB mesh upload.
     #[arg(long, env = "PENMESH_MAX_BODY_BYTES", default_value_t = 16 * 1024 * 1024)]
     pub max_body_bytes: usize,

@@ -187,10 +187,65 @@ impl Claims {
     }
 
     pub fn release(&self, stroke: StrokeId, conn: u64) {
-        if self.forget(stroke, conn)
-            && let Some(locks) = self.locks.clone()
-        {
-            tokio::spawn(async move { locks.unlock(stroke).await });
+        if self.forget(stroke, conn) {
+            self.unlock(vec![stroke]);
         }
+    }
+
+    /// Lets go of every stroke `conn` holds.
+    fn release_all(&self, conn: u64) {
+        let mut held = self.held.lock().expect("claims lock");
+        let strokes: Vec<StrokeId> =
+            held.iter().filter(|(_, holder)| **holder == conn).map(|(s, _)| *s).collect();
+        for stroke in &strokes {
+            held.remove(stroke);
+        }
+        drop(held);
+        if !strokes.is_empty() {
+            self.released.notify_waiters();
+            self.unlock(strokes);
+        }
+    }
+
+    /// Gives the database locks of `strokes` back (PostgreSQL), in the background.
+    fn unlock(&self, strokes: Vec<StrokeId>) {
+        let Some(locks) = self.locks.clone() else { return };
+        // Also called while a panicking task unwinds: only spawn where a runtime runs.
+        if let Ok(runtime) = tokio::runtime::Handle::try_current() {
+            runtime.spawn(async move {
+                for stroke in strokes {
+                    locks.unlock(stroke).await;
+                }
+            });
+        }
+    }
+}
+
+/// The strokes one connection holds: claimed through it, and all let go when it is dropped,
+/// however the connection ends (a panic in its task included).
+#[derive(Debug)]
+pub struct ConnectionClaims {
+    state: AppState,
+    conn: u64,
+}
+
+impl ConnectionClaims {
+    pub fn new(state: AppState, conn: u64) -> ConnectionClaims {
+        ConnectionClaims { state, conn }
+    }
+
+    /// Takes `stroke` for this connection ([`Claims::claim`]).
+    pub async fn claim(&self, stroke: StrokeId, wait: Duration) -> bool {
+        self.state.claims.claim(stroke, self.conn, wait).await
+    }
+
+    pub fn release(&self, stroke: StrokeId) {
+        self.state.claims.release(stroke, self.conn);
+    }
+}
+
+impl Drop for ConnectionClaims {
+    fn drop(&mut self) {
+        self.state.claims.release_all(self.conn);
     }
 }

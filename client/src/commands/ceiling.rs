@@ -62,7 +62,7 @@ async fn new_session() -> (StatusCode, axum::Json<serde_json::Value>) {
 }
 
 async fn upgrade(Path(session): Path<Uuid>, ws: WebSocketUpgrade) -> Response {
-    // The proxy's read buffer (see proxy/src/ws.rs), so both measure the same stack.
+    // The proxy's read buffer (see proxy/src/ws/adapter.rs), so both measure the same stack.
     ws.read_buffer_size(4 * 1024).on_upgrade(move |socket| serve(socket, session))
 }
 

@@ -1,5 +1,9 @@
-use penmesh::protocol::{ServerMessage, StrokeStatus};
-use penmesh_e2e::{assemble_retained, batch_simplified, spawn_proxy, stroke_samples};
+use penmesh::protocol::{
+    ClientMessage, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, StrokeStatus,
+};
+use penmesh_e2e::{
+    assemble_retained, batch_simplified, spawn_proxy, spawn_proxy_with, stroke_samples,
+};
 use uuid::Uuid;
 
 #[tokio::test]
@@ -140,4 +144,45 @@ async fn a_resent_batch_is_acked_again_and_stored_once() {
     )
     .await;
     assert_eq!(rows, 2);
+}
+
+/// A client that vanished without a FIN (it reads and answers nothing, its socket stays open):
+/// the heartbeat takes it for gone and lets go of its stroke, so the same person's resume on a
+/// new connection is granted within the claim wait instead of refused until the idle timeout.
+/// The control case, with a heartbeat longer than the claim wait, is refused.
+#[tokio::test]
+async fn a_vanished_client_lets_go_of_its_stroke_within_the_heartbeat() {
+    for (heartbeat_ms, granted) in [(300, true), (60_000, false)] {
+        let proxy = spawn_proxy_with(|c| {
+            c.heartbeat_ms = heartbeat_ms;
+            c.claim_wait_ms = 2_000;
+        })
+        .await;
+        let session = proxy.create_session().await;
+        let stroke = Uuid::new_v4();
+        let mut vanished = proxy.drawing(&session, stroke).await;
+        vanished.points(stroke, 0, &stroke_samples(10)).await;
+        vanished.wait_ack(stroke, 10).await;
+
+        let mut back = proxy.connect(&session).await;
+        back.send(&ClientMessage::Hello(Hello {
+            protocol: PROTOCOL_VERSION,
+            client: "penmesh-e2e".into(),
+            name: None,
+            resume: vec![stroke],
+        }))
+        .await;
+        let mut refused = false;
+        let welcome = loop {
+            match back.recv().await {
+                ServerMessage::Welcome(welcome) => break welcome,
+                ServerMessage::Error(e) if e.code == ErrorCode::StrokeConflict => refused = true,
+                other => panic!("heartbeat {heartbeat_ms} ms: {other:?}"),
+            }
+        };
+        let state = &welcome.resume[0];
+        assert_eq!(refused, !granted, "heartbeat {heartbeat_ms} ms: {welcome:?}");
+        assert_eq!((state.status, state.next_seq), (StrokeStatus::Open, 10));
+        drop(vanished);
+    }
 }

@@ -108,8 +108,12 @@ fn is_peer_event(msg: &ServerMessage) -> bool {
 }
 
 async fn next_message(rx: &mut mpsc::Receiver<Frame>) -> ServerMessage {
-    match tokio::time::timeout(TIMEOUT, rx.recv()).await.expect("a frame in time") {
-        Some(Frame::Binary(bytes)) => decode_server(&bytes, usize::MAX).unwrap(),
-        other => panic!("expected a binary frame, got {other:?}"),
+    loop {
+        match tokio::time::timeout(TIMEOUT, rx.recv()).await.expect("a frame in time") {
+            Some(Frame::Binary(bytes)) => return decode_server(&bytes, usize::MAX).unwrap(),
+            // The heartbeat of a connection that has been silent: not a protocol message.
+            Some(Frame::Ping(_)) => continue,
+            other => panic!("expected a binary frame, got {other:?}"),
+        }
     }
 }

@@ -1,0 +1,157 @@
+//! The session's events to this client: live events through the connection's `PeerView`,
+//! and the resync from storage after a gap or an overflow (`lagged`).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, Synced};
+use tokio::time::Instant;
+
+use super::Frame;
+use super::connection::Connection;
+use super::error::{ConnError, End};
+use super::outgoing::Form;
+use crate::fanout::{Admit, EventKind, Lag, Published, SessionEvent, Subscription};
+
+/// A connection that overflows its queue more than `MAX_LAGS` times within `LAG_WINDOW` is
+/// dropped (its client reconnects and resumes) instead of resynced once more.
+const MAX_LAGS: usize = 3;
+const LAG_WINDOW: Duration = Duration::from_secs(60);
+
+/// The next event of the subscription; never ready without one.
+pub(super) async fn next_event(events: &mut Option<Subscription>) -> Result<Arc<Published>, Lag> {
+    match events {
+        Some(events) => events.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
+impl Connection {
+    /// A live event of the session.
+    pub(super) async fn on_event(&mut self, published: &Published) {
+        let event = &published.event;
+        if self.is_own(event) {
+            return;
+        }
+        match self.view.admit(event) {
+            Admit::Whole => {
+                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                // Encoded once for every participant of the session.
+                let frame = match self.outgoing.form {
+                    Form::Binary => Frame::Binary(published.binary().to_vec()),
+                    Form::Json => Frame::Text(published.json().to_string()),
+                };
+                self.send_frame(frame);
+            }
+            Admit::Part(msg) => {
+                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                self.send(msg);
+            }
+            Admit::Skip => {}
+            Admit::Gap => {
+                tracing::warn!(connection = self.id, ?event, "peer event past a gap; resyncing");
+                self.resync(Some(Lag::Gap)).await;
+            }
+        }
+    }
+
+    fn is_own(&self, event: &SessionEvent) -> bool {
+        match &event.kind {
+            EventKind::Joined { participant, .. } | EventKind::Left { participant } => {
+                *participant == self.participant
+            }
+            _ => event.stroke().is_some_and(|s| self.own.contains(&s)),
+        }
+    }
+
+    /// (Re)joins the session's fan-out, then sends the history the client lacks and `Synced`.
+    /// `lag` says why a previous subscription ended (`None` on the first join).
+    pub(super) async fn resync(&mut self, lag: Option<Lag>) {
+        self.events = None;
+        if lag == Some(Lag::Overflow) {
+            let now = Instant::now();
+            self.lags.retain(|at| now.duration_since(*at) < LAG_WINDOW);
+            self.lags.push(now);
+            if self.lags.len() > MAX_LAGS {
+                tracing::info!(connection = self.id, "lagged again and again: disconnecting");
+                return self.fail(ConnError::fatal(
+                    ErrorCode::Lagged,
+                    "this connection keeps falling behind the session's events; reconnect",
+                    End::SlowReader,
+                ));
+            }
+            self.fail(ConnError::refused(
+                ErrorCode::Lagged,
+                "this connection fell behind the session's events; resending what it lacks from storage",
+                None,
+            ));
+        }
+        if self.end.is_some() {
+            return;
+        }
+        metrics::counter!("penmesh_fanout_syncs_total").increment(1);
+        let capacity = self.state.config.outgoing_queue;
+        self.events = Some(self.state.fanout.subscribe(self.session, capacity));
+        let history = match self.state.store.session_history(self.session).await {
+            Ok(history) => history,
+            Err(err) => {
+                self.events = None;
+                return self.fail(ConnError::internal(
+                    "reading a session's history",
+                    err,
+                    "could not read the session's history; reconnect to see the others",
+                    None,
+                ));
+            }
+        };
+        for (stroke, _why) in &history.unreadable {
+            // Said, not hidden: the client knows the stroke exists and is missing. In order
+            // with the history, so waiting for room like it.
+            metrics::counter!("penmesh_errors_total", "code" => ErrorCode::Internal.as_str())
+                .increment(1);
+            let message = match stroke {
+                Some(id) => format!("stroke {id} cannot be read from storage; the others follow"),
+                None => "a stroke cannot be read from storage; the others follow".to_string(),
+            };
+            self.send_wait(ServerMessage::Error(ErrorMessage {
+                code: ErrorCode::Internal,
+                message,
+                stroke: *stroke,
+            }))
+            .await;
+        }
+        let batch = self.state.config.max_batch_samples.max(1);
+        for event in history.events {
+            if self.is_own(&event) {
+                continue;
+            }
+            let pieces = match event.kind {
+                EventKind::Retained { participant, stroke, first, points } => points
+                    .chunks(batch)
+                    .enumerate()
+                    .map(|(i, chunk)| {
+                        SessionEvent::new(
+                            self.session,
+                            EventKind::Retained {
+                                participant,
+                                stroke,
+                                first: first + (i * batch) as u64,
+                                points: chunk.to_vec(),
+                            },
+                        )
+                    })
+                    .collect(),
+                kind => vec![SessionEvent::new(self.session, kind)],
+            };
+            for piece in pieces {
+                match self.view.admit(&piece) {
+                    Admit::Whole => self.send_wait(piece.message()).await,
+                    Admit::Part(msg) => self.send_wait(msg).await,
+                    Admit::Skip | Admit::Gap => {}
+                }
+            }
+        }
+        let n_strokes = self.view.n_strokes() as u64;
+        self.send_wait(ServerMessage::Synced(Synced { n_strokes })).await;
+    }
+}

@@ -1,0 +1,436 @@
+//! The stroke lifecycle on one connection: begin (or resume), points, end, and the answers
+//! once the writer has committed them (`Ack` after commit, never before).
+
+use std::collections::HashSet;
+use std::time::Duration;
+
+use futures_util::FutureExt;
+use futures_util::future::BoxFuture;
+use penmesh::protocol::{
+    Ack, ErrorCode, ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage,
+    StrokeBegin, StrokeDone, StrokeEnd, StrokeId, StrokeStatus,
+};
+use penmesh::{Kept, Sample};
+
+use super::connection::Connection;
+use super::error::ConnError;
+use crate::fanout::{EventKind, SessionEvent};
+use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
+use crate::store::{StrokeRow, WriteError, WriteOp};
+
+/// What to send once a write request commits.
+#[derive(Debug)]
+pub(super) enum AfterCommit {
+    Ack { stroke: StrokeId, upto_seq: u64 },
+    Done { stroke: StrokeId, n_retained: u64 },
+}
+
+pub(super) type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommit)>;
+
+/// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
+type Resumed = (Vec<ResumeState>, Vec<(StrokeId, Vec<Kept>)>);
+
+impl Connection {
+    fn limits(&self) -> StrokeLimits {
+        StrokeLimits {
+            max_batch_samples: self.state.config.max_batch_samples,
+            max_stroke_samples: self.state.config.max_stroke_samples,
+        }
+    }
+
+    fn claim_wait(&self) -> Duration {
+        Duration::from_millis(self.state.config.claim_wait_ms)
+    }
+
+    fn conflict(stroke: StrokeId) -> ConnError {
+        ConnError::refused(
+            ErrorCode::StrokeConflict,
+            format!("stroke {stroke} is being drawn on another connection"),
+            Some(stroke),
+        )
+    }
+
+    /// Takes over the strokes of `Hello.resume` that are not done (up to the open-stroke
+    /// limit): what `Welcome.resume` says of each, and the samples retained so far to send
+    /// again. A stroke that cannot be taken is reported with an error, and as it is stored.
+    pub(super) async fn resume_strokes(&mut self, wanted: Vec<StrokeId>) -> Resumed {
+        let mut resume = Vec::with_capacity(wanted.len());
+        let mut resent = Vec::new();
+        let mut seen = HashSet::new();
+        for stroke in wanted.into_iter().filter(|s| seen.insert(*s)) {
+            let row = match self.state.store.stroke(stroke).await {
+                Ok(row) => row.filter(|row| row.session_id == self.session),
+                Err(err) => {
+                    self.fail(ConnError::internal(
+                        "reading a stroke to resume",
+                        err,
+                        "could not read the stroke",
+                        Some(stroke),
+                    ));
+                    None
+                }
+            };
+            let Some(row) = row else {
+                resume.push(ResumeState { stroke, next_seq: 0, status: StrokeStatus::Unknown });
+                continue;
+            };
+            let mut status = row.status;
+            let mut next_seq = row.n_points;
+            if status != StrokeStatus::Done
+                && self.strokes.len() < self.state.config.max_open_strokes
+            {
+                match self.take_over(stroke, row.params, row.participant).await {
+                    Ok(state) => {
+                        next_seq = state.next_seq();
+                        status = StrokeStatus::Open;
+                        resent.push((stroke, state.kept().to_vec()));
+                        self.strokes.insert(stroke, state);
+                    }
+                    Err(err) => self.fail(err),
+                }
+            }
+            resume.push(ResumeState { stroke, next_seq, status });
+        }
+        (resume, resent)
+    }
+
+    /// Claims a stroke that is not on this connection, and rebuilds its state from the
+    /// database. Marks it `open` again.
+    async fn take_over(
+        &mut self,
+        stroke: StrokeId,
+        params: penmesh::AcutsParams,
+        participant: ParticipantId,
+    ) -> Result<StrokeState, ConnError> {
+        if !self.claims.claim(stroke, self.claim_wait()).await {
+            return Err(Self::conflict(stroke));
+        }
+        let internal = |err: &dyn std::fmt::Display| {
+            ConnError::internal(
+                "resuming a stroke",
+                err,
+                "could not load the stroke to resume it",
+                Some(stroke),
+            )
+        };
+        let result = async {
+            let samples = self.state.store.raw_samples(stroke).await.map_err(|e| internal(&e))?;
+            self.state
+                .writer
+                .write(vec![WriteOp::SetStatus { stroke, status: StrokeStatus::Open }])
+                .await
+                .map_err(|e| internal(&e))?;
+            Ok(StrokeState::replay(params, &samples))
+        }
+        .await;
+        if result.is_err() {
+            self.claims.release(stroke);
+        } else {
+            self.owners.insert(stroke, participant);
+            self.own.insert(stroke);
+        }
+        result
+    }
+
+    pub(super) async fn on_stroke_begin(&mut self, begin: StrokeBegin) -> Result<(), ConnError> {
+        let stroke = begin.stroke;
+        if let Err(err) = begin.brush.validate() {
+            return Err(ConnError::refused(ErrorCode::BadBrush, err.to_string(), Some(stroke)));
+        }
+        let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
+        if let Err(err) = params.validate() {
+            return Err(ConnError::refused(
+                ErrorCode::BadParams,
+                format!("params: {err}"),
+                Some(stroke),
+            ));
+        }
+        if let Some(state) = self.strokes.get(&stroke) {
+            // A repeat on the same connection: already begun.
+            let upto_seq = state.committed_seq;
+            self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+            return Ok(());
+        }
+        if self.finishing.contains(&stroke) {
+            return Err(ConnError::refused(
+                ErrorCode::StrokeFinished,
+                format!("stroke {stroke} has ended"),
+                Some(stroke),
+            ));
+        }
+        if self.strokes.len() >= self.state.config.max_open_strokes {
+            return Err(ConnError::refused(
+                ErrorCode::TooManyOpenStrokes,
+                format!(
+                    "this connection already has {} open strokes, the limit; end one first",
+                    self.strokes.len()
+                ),
+                Some(stroke),
+            ));
+        }
+        if !self.claims.claim(stroke, self.claim_wait()).await {
+            return Err(Self::conflict(stroke));
+        }
+        let existing = match self.state.store.stroke(stroke).await {
+            Ok(existing) => existing,
+            Err(err) => {
+                self.claims.release(stroke);
+                return Err(ConnError::internal(
+                    "reading a stroke",
+                    err,
+                    "could not read the stroke",
+                    Some(stroke),
+                ));
+            }
+        };
+        match existing {
+            Some(row) if row.session_id != self.session => {
+                self.claims.release(stroke);
+                Err(ConnError::refused(
+                    ErrorCode::StrokeConflict,
+                    format!("stroke id {stroke} is already in use; choose a new id"),
+                    Some(stroke),
+                ))
+            }
+            Some(row) if row.status == StrokeStatus::Done => {
+                self.claims.release(stroke);
+                self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
+                Ok(())
+            }
+            Some(row) => {
+                // Begun before on another connection: resume it.
+                let state = self.take_over(stroke, row.params, row.participant).await?;
+                let kept = state.kept().to_vec();
+                let upto_seq = state.committed_seq;
+                self.strokes.insert(stroke, state);
+                self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+                self.send_retained(stroke, 0, &kept);
+                Ok(())
+            }
+            None => {
+                let (session, participant) = (self.session, self.participant);
+                let event = SessionEvent::new(
+                    session,
+                    EventKind::StrokeBegin { participant, stroke, brush: begin.brush },
+                );
+                let pending = self
+                    .state
+                    .writer
+                    .submit_with(
+                        vec![WriteOp::BeginStroke {
+                            stroke,
+                            session,
+                            participant,
+                            brush: begin.brush,
+                            params,
+                            device: begin.device,
+                        }],
+                        vec![event],
+                    )
+                    .await;
+                self.owners.insert(stroke, participant);
+                self.own.insert(stroke);
+                metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
+                self.strokes.insert(stroke, StrokeState::new(params));
+                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq: 0 });
+                Ok(())
+            }
+        }
+    }
+
+    /// Why a stroke that is not open on this connection cannot take points or an end, with
+    /// its row when it is in this session.
+    async fn not_open(&mut self, stroke: StrokeId) -> (ConnError, Option<StrokeRow>) {
+        let finished = |row| {
+            let message = format!("stroke {stroke} has ended");
+            (ConnError::refused(ErrorCode::StrokeFinished, message, Some(stroke)), row)
+        };
+        if self.finishing.contains(&stroke) {
+            return finished(None);
+        }
+        match self.state.store.stroke(stroke).await {
+            Ok(Some(row)) if row.session_id == self.session && row.status == StrokeStatus::Done => {
+                finished(Some(row))
+            }
+            Ok(Some(row)) if row.session_id == self.session => (
+                ConnError::refused(
+                    ErrorCode::UnknownStroke,
+                    format!(
+                        "stroke {stroke} is not open on this connection; resume it with hello.resume or stroke_begin"
+                    ),
+                    Some(stroke),
+                ),
+                Some(row),
+            ),
+            _ => (
+                ConnError::refused(
+                    ErrorCode::UnknownStroke,
+                    format!("unknown stroke {stroke}: send stroke_begin first"),
+                    Some(stroke),
+                ),
+                None,
+            ),
+        }
+    }
+
+    pub(super) async fn on_points(&mut self, points: Points) -> Result<(), ConnError> {
+        let stroke = points.stroke;
+        let limits = self.limits();
+        let Some(state) = self.strokes.get_mut(&stroke) else {
+            return Err(self.not_open(stroke).await.0);
+        };
+        metrics::counter!("penmesh_samples_in_total").increment(points.points.0.len() as u64);
+        let accepted = state
+            .push_points(points.seq, &points.points.0, &limits)
+            .map_err(|refusal| ConnError::from_refusal(refusal, Some(stroke)))?;
+        match accepted {
+            Accepted::Duplicate => {
+                let end = points.seq + points.points.0.len() as u64;
+                if end <= state.committed_seq {
+                    let upto_seq = state.committed_seq;
+                    self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+                }
+                // Otherwise the ack of the first copy is on its way.
+            }
+            Accepted::New { seq, samples, kept, first_kept } => {
+                let upto_seq = seq + samples.len() as u64;
+                self.send_retained(stroke, first_kept, &kept);
+                let events = self.retained_event(stroke, first_kept, &kept).into_iter().collect();
+                let pending = self
+                    .state
+                    .writer
+                    .submit_with(vec![WriteOp::Append { stroke, seq, samples }], events)
+                    .await;
+                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq });
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) async fn on_stroke_end(&mut self, end: StrokeEnd) -> Result<(), ConnError> {
+        let stroke = end.stroke;
+        let Some(state) = self.strokes.get_mut(&stroke) else {
+            let (err, row) = self.not_open(stroke).await;
+            if let Some(row) =
+                row.filter(|r| r.status == StrokeStatus::Done && r.n_points == end.n_points)
+            {
+                // A resent end after a reconnect: say done again.
+                self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
+                return Ok(());
+            }
+            return Err(err);
+        };
+        let Finished { last, kept } = state
+            .finish(end.n_points)
+            .map_err(|refusal| ConnError::from_refusal(refusal, Some(stroke)))?;
+        self.strokes.remove(&stroke);
+        self.finishing.insert(stroke);
+        let mut events = Vec::new();
+        if let Some((index, k)) = last {
+            self.send_retained(stroke, index, &[k]);
+            events.extend(self.retained_event(stroke, index, &[k]));
+        }
+        let n_retained = kept.len() as u64;
+        let participant = self.owner(stroke);
+        events.push(SessionEvent::new(
+            self.session,
+            EventKind::StrokeDone { participant, stroke, n_retained },
+        ));
+        let pending =
+            self.state.writer.submit_with(vec![WriteOp::Finish { stroke, kept }], events).await;
+        self.queue_write(pending, AfterCommit::Done { stroke, n_retained });
+        Ok(())
+    }
+
+    /// The answer to a committed (or failed) write.
+    pub(super) fn after_commit(&mut self, result: Result<(), WriteError>, after: AfterCommit) {
+        match (result, after) {
+            (Ok(()), AfterCommit::Ack { stroke, upto_seq }) => {
+                if let Some(state) = self.strokes.get_mut(&stroke) {
+                    state.committed_seq = state.committed_seq.max(upto_seq);
+                }
+                self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
+            }
+            (Ok(()), AfterCommit::Done { stroke, n_retained }) => {
+                self.stroke_done(stroke);
+                self.send(ServerMessage::StrokeDone(done_message(stroke, n_retained)));
+            }
+            (Err(err), after) => {
+                let stroke = match after {
+                    AfterCommit::Ack { stroke, .. } | AfterCommit::Done { stroke, .. } => stroke,
+                };
+                // The in-memory state is ahead of the database: drop it, so the client
+                // resumes from what is committed.
+                self.strokes.remove(&stroke);
+                self.finishing.remove(&stroke);
+                self.claims.release(stroke);
+                let advice =
+                    format!("storing the stroke failed ({err}); resume it from the last ack");
+                self.fail(ConnError::internal("storing a stroke", err, advice, Some(stroke)));
+            }
+        }
+    }
+
+    /// A commit that lands after the client is gone: nobody to answer, but a finished stroke
+    /// is done and let go.
+    pub(super) fn after_commit_unheard(
+        &mut self,
+        result: Result<(), WriteError>,
+        after: AfterCommit,
+    ) {
+        if let (Ok(()), AfterCommit::Done { stroke, .. }) = (result, after) {
+            self.stroke_done(stroke);
+        }
+    }
+
+    fn stroke_done(&mut self, stroke: StrokeId) {
+        self.finishing.remove(&stroke);
+        self.claims.release(stroke);
+        metrics::counter!("penmesh_strokes_total", "event" => "done").increment(1);
+    }
+
+    pub(super) fn send_retained(&mut self, stroke: StrokeId, first: u64, kept: &[Kept]) {
+        if kept.is_empty() {
+            return;
+        }
+        metrics::counter!("penmesh_samples_retained_total").increment(kept.len() as u64);
+        let batch = self.state.config.max_batch_samples.max(1);
+        for (i, chunk) in kept.chunks(batch).enumerate() {
+            let points: Vec<Sample> = chunk.iter().map(|k| k.sample).collect();
+            self.send(ServerMessage::Retained(Retained {
+                stroke,
+                first: first + (i * batch) as u64,
+                points: PointBatch(points),
+            }));
+        }
+    }
+
+    fn owner(&self, stroke: StrokeId) -> ParticipantId {
+        self.owners.get(&stroke).copied().unwrap_or(self.participant)
+    }
+
+    /// The peers' event for retained samples `first..` of a stroke drawn here.
+    fn retained_event(&self, stroke: StrokeId, first: u64, kept: &[Kept]) -> Option<SessionEvent> {
+        if kept.is_empty() {
+            return None;
+        }
+        let participant = self.owner(stroke);
+        let points = kept.iter().map(|k| k.sample).collect();
+        Some(SessionEvent::new(
+            self.session,
+            EventKind::Retained { participant, stroke, first, points },
+        ))
+    }
+
+    fn queue_write(
+        &mut self,
+        pending: impl Future<Output = Result<(), WriteError>> + Send + 'static,
+        after: AfterCommit,
+    ) {
+        self.pending.push_back(pending.map(move |result| (result, after)).boxed());
+    }
+}
+
+fn done_message(stroke: StrokeId, n_retained: u64) -> StrokeDone {
+    StrokeDone { stroke, n_retained, url: format!("/v1/strokes/{stroke}/simplified") }
+}
