@@ -20,6 +20,67 @@ pub enum SqliteSync {
     Full,
 }
 
+/// A database URL whose password never reaches a log or an error message: `Display` and
+/// `Debug` show it with the password (of the user info, or a `password` parameter) as `***`;
+/// [`DatabaseUrl::expose`] gives the whole URL to the code that connects.
+///
+/// Not `secrecy::SecretString`: that one hides the host and the database too, which an operator
+/// needs to read in the logs, and it cannot be serialised, which merging the config file needs.
+#[derive(Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct DatabaseUrl(String);
+
+impl DatabaseUrl {
+    /// The whole URL, password included: only for connecting.
+    pub fn expose(&self) -> &str {
+        &self.0
+    }
+}
+
+impl From<String> for DatabaseUrl {
+    fn from(url: String) -> DatabaseUrl {
+        DatabaseUrl(url)
+    }
+}
+
+impl std::str::FromStr for DatabaseUrl {
+    type Err = std::convert::Infallible;
+
+    fn from_str(url: &str) -> Result<DatabaseUrl, Self::Err> {
+        Ok(DatabaseUrl(url.to_string()))
+    }
+}
+
+impl std::fmt::Display for DatabaseUrl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Ok(mut url) = url::Url::parse(self.0.trim()) else {
+            // Where a password would be is unknown: say only what kind of URL it is.
+            let scheme = self.0.split_once(':').map_or("", |(scheme, _)| scheme);
+            return write!(f, "({scheme}: URL that cannot be parsed)");
+        };
+        if url.password().is_some() {
+            let _ = url.set_password(Some("***"));
+        }
+        if url.query_pairs().any(|(key, _)| key == "password") {
+            let pairs: Vec<(String, String)> = url
+                .query_pairs()
+                .map(|(key, value)| {
+                    let value = if key == "password" { "***".into() } else { value.into_owned() };
+                    (key.into_owned(), value)
+                })
+                .collect();
+            url.query_pairs_mut().clear().extend_pairs(pairs);
+        }
+        f.write_str(url.as_str())
+    }
+}
+
+impl std::fmt::Debug for DatabaseUrl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "DatabaseUrl({self})")
+    }
+}
+
 /// Every setting of the proxy.
 #[derive(Debug, Clone, Parser, Serialize, Deserialize)]
 #[command(name = "penmesh-proxy", version, about = "penmesh simplification proxy")]
@@ -40,14 +101,14 @@ pub struct Config {
 
     /// Database: `sqlite://PATH` (file created if missing) or `postgres://USER@HOST/DB`.
     #[arg(long, env = "PENMESH_DATABASE_URL", default_value = "sqlite://penmesh.db")]
-    pub database_url: String,
+    pub database_url: DatabaseUrl,
 
     /// PostgreSQL only: the URL of the connections that need a session of their own: the
     /// session-event listener (`LISTEN`), the stroke locks and the migrations (session-level
     /// advisory locks). Set it to the server itself when `database_url` goes through a pooler
     /// in transaction mode (PgBouncer), which breaks all three. Default: `database_url`.
     #[arg(long, env = "PENMESH_DIRECT_DATABASE_URL")]
-    pub direct_database_url: Option<String>,
+    pub direct_database_url: Option<DatabaseUrl>,
 
     /// SQLite durability: `normal` (survives a killed process) or `full` (also a power cut).
     #[arg(long, env = "PENMESH_SQLITE_SYNCHRONOUS", value_enum, default_value_t = SqliteSync::Normal)]
@@ -237,8 +298,8 @@ impl Config {
     }
 
     /// Where the listener, the lock connection and the migrations go (`direct_database_url`).
-    pub fn direct_database_url(&self) -> &str {
-        self.direct_database_url.as_deref().unwrap_or(&self.database_url)
+    pub fn direct_database_url(&self) -> &DatabaseUrl {
+        self.direct_database_url.as_ref().unwrap_or(&self.database_url)
     }
 
     pub fn hard_message_limit(&self) -> usize {
@@ -297,7 +358,7 @@ mod tests {
     fn direct_database_url_defaults_to_the_main_one() {
         let main = "postgres://app@pooler:6432/penmesh";
         let config = load_without_env(&["penmesh-proxy", "--database-url", main]).unwrap();
-        assert_eq!(config.direct_database_url(), main);
+        assert_eq!(config.direct_database_url().expose(), main);
         let direct = "postgres://app@db:5432/penmesh";
         let config = load_without_env(&[
             "penmesh-proxy",
@@ -307,8 +368,32 @@ mod tests {
             direct,
         ])
         .unwrap();
-        assert_eq!(config.direct_database_url(), direct);
-        assert_eq!(config.database_url, main);
+        assert_eq!(config.direct_database_url().expose(), direct);
+        assert_eq!(config.database_url.expose(), main);
+    }
+
+    #[test]
+    fn a_database_url_never_shows_its_password() {
+        let cases = [
+            ("postgres://u:secret@h/db", "postgres://u:***@h/db"),
+            (
+                "postgres://u@h/db?sslmode=require&password=secret",
+                "postgres://u@h/db?sslmode=require&password=***",
+            ),
+            (
+                "postgresql://u:p%40ss@h:5433/db?application_name=x",
+                "postgresql://u:***@h:5433/db?application_name=x",
+            ),
+            ("sqlite://penmesh.db", "sqlite://penmesh.db"),
+            ("postgres://u:secret@[::1", "(postgres: URL that cannot be parsed)"),
+        ];
+        for (url, shown) in cases {
+            let url: DatabaseUrl = url.parse().unwrap();
+            assert_eq!(url.to_string(), shown);
+            assert_eq!(format!("{url:?}"), format!("DatabaseUrl({shown})"));
+            let config = Config { database_url: url, ..Config::defaults() };
+            assert!(!format!("{config:?}").contains("secret"), "{config:?}");
+        }
     }
 
     #[test]

@@ -25,7 +25,7 @@ use crate::cluster::{StrokeLocks, start_listener, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::state::AppState;
-use crate::store::{Backend, Store, WriterTask, redact, start_checkpointer};
+use crate::store::{Backend, Store, WriterTask, start_checkpointer};
 use crate::{http, mesh_build, metrics, web, ws};
 
 /// A bound, ready-to-run proxy.
@@ -74,8 +74,8 @@ impl Application {
                 let stop = CancellationToken::new();
                 // Both need a session of their own: past a transaction pooler, the direct URL.
                 let direct = config.direct_database_url();
-                let task = start_listener(direct, fanout.clone(), stop.clone()).await?;
-                let locks = StrokeLocks::connect(direct).await?;
+                let task = start_listener(direct.expose(), fanout.clone(), stop.clone()).await?;
+                let locks = StrokeLocks::connect(direct.expose()).await?;
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
@@ -99,7 +99,7 @@ impl Application {
         let port = tcp.local_addr()?.port();
         tracing::info!(
             address = %tcp.local_addr()?,
-            database = %redact(&config.database_url),
+            database = %config.database_url,
             "penmesh proxy listening"
         );
         let state =

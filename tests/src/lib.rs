@@ -80,7 +80,7 @@ pub fn test_config(db: &TestDatabase) -> Config {
     let mut config = Config::defaults();
     config.host = "127.0.0.1".into();
     config.port = 0;
-    config.database_url = db.url.clone();
+    config.database_url = db.url.clone().into();
     config.shutdown_grace_secs = 5;
     config.claim_wait_ms = 3000;
     config

@@ -119,7 +119,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         let mut config = Config::defaults();
         config.host = args.host.clone();
         config.port = args.port;
-        config.database_url = format!("sqlite://{}", db.display());
+        config.database_url = format!("sqlite://{}", db.display()).into();
         config.shutdown_grace_secs = 5;
         let app = Application::build(config).await.context("starting the proxy")?;
         let port = app.port();

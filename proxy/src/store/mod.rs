@@ -167,7 +167,7 @@ impl Store {
     /// Connects (creating a SQLite file if missing) and applies the migrations.
     pub async fn connect(config: &Config) -> anyhow::Result<Store> {
         sqlx::any::install_default_drivers();
-        let url = config.database_url.trim();
+        let url = config.database_url.expose().trim();
         let (backend, url) = if url.starts_with("sqlite:") {
             create_parent_dir(url)?;
             let url = if url.contains("mode=") {
@@ -181,7 +181,10 @@ impl Store {
         } else if url.starts_with("postgres:") || url.starts_with("postgresql:") {
             (Backend::Postgres, url.to_string())
         } else {
-            anyhow::bail!("database URL must start with sqlite:// or postgres://, got {url:?}");
+            anyhow::bail!(
+                "database URL must start with sqlite:// or postgres://, got {}",
+                config.database_url
+            );
         };
         let options = AnyConnectOptions::from_str(&url).context("parsing the database URL")?;
         let synchronous = match config.sqlite_synchronous {
@@ -201,7 +204,7 @@ impl Store {
             })
             .connect_with(options.clone())
             .await
-            .with_context(|| format!("connecting to {}", redact(&config.database_url)))?;
+            .with_context(|| format!("connecting to {}", config.database_url))?;
         match backend {
             Backend::Sqlite => SQLITE_MIGRATIONS.run(&pool).await,
             // The migrator holds a session-level advisory lock, which a transaction pooler
@@ -211,9 +214,9 @@ impl Store {
                 // One connection: the migrator's lock and its migrations share it.
                 let direct_pool = sqlx::postgres::PgPoolOptions::new()
                     .max_connections(1)
-                    .connect(direct)
+                    .connect(direct.expose())
                     .await
-                    .with_context(|| format!("connecting to {} to migrate", redact(direct)))?;
+                    .with_context(|| format!("connecting to {direct} to migrate"))?;
                 let applied = POSTGRES_MIGRATIONS.run(&direct_pool).await;
                 direct_pool.close().await;
                 applied
@@ -663,22 +666,6 @@ fn create_parent_dir(url: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A database URL with its password hidden, for logs.
-pub fn redact(url: &str) -> String {
-    match (url.find("://"), url.rfind('@')) {
-        (Some(scheme), Some(at)) if at > scheme => {
-            let userinfo = &url[scheme + 3..at];
-            match userinfo.find(':') {
-                Some(colon) => {
-                    format!("{}{}:***{}", &url[..scheme + 3], &userinfo[..colon], &url[at..])
-                }
-                None => url.to_string(),
-            }
-        }
-        _ => url.to_string(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -714,11 +701,5 @@ mod tests {
         assert!(decode_samples(LAYOUT_F64, &[0; 31]).is_err());
         assert!(decode_samples(LAYOUT_POINT_BATCH, &[]).is_err());
         assert!(decode_samples(7, &bytes).unwrap_err().to_string().contains("layout 7"));
-    }
-
-    #[test]
-    fn redacts_passwords() {
-        assert_eq!(redact("postgres://u:secret@h/db"), "postgres://u:***@h/db");
-        assert_eq!(redact("sqlite://x.db"), "sqlite://x.db");
     }
 }

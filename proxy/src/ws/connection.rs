@@ -469,7 +469,7 @@ mod tests {
     ) -> (AppState, WriterTask, Uuid) {
         let mut config = Config::defaults();
         configure(&mut config);
-        config.database_url = format!("sqlite://{}", dir.path().join("t.db").display());
+        config.database_url = format!("sqlite://{}", dir.path().join("t.db").display()).into();
         let store = Store::connect(&config).await.unwrap();
         let (writer, writer_task) =
             WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default(), None)
