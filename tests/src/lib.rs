@@ -101,6 +101,20 @@ pub struct TestProxy {
     runtime: Option<ReplicaRuntime>,
 }
 
+impl TestProxy {
+    /// The handle of an application that is running: its port, shutdown and state.
+    fn started(
+        db: TestDatabase,
+        (port, shutdown, state): (u16, tokio_util::sync::CancellationToken, AppState),
+        task: tokio::task::JoinHandle<anyhow::Result<()>>,
+        runtime: Option<ReplicaRuntime>,
+    ) -> TestProxy {
+        let address = format!("http://127.0.0.1:{port}");
+        let http = reqwest::Client::new();
+        TestProxy { address, port, db, http, state, shutdown, task, runtime }
+    }
+}
+
 /// A runtime of its own for one replica. Dropping it drops every task of the replica at once,
 /// without any wind-down: its sockets and database connections close as in a crash.
 #[derive(Debug)]
@@ -131,16 +145,7 @@ pub async fn spawn_replica(db: TestDatabase, tweak: impl FnOnce(&mut Config)) ->
         app.run_until_stopped().await
     });
     let (port, shutdown, state) = started.await.expect("the replica reports its port");
-    TestProxy {
-        address: format!("http://127.0.0.1:{port}"),
-        port,
-        db,
-        http: reqwest::Client::new(),
-        state,
-        shutdown,
-        task,
-        runtime: Some(ReplicaRuntime(Some(runtime))),
-    }
+    TestProxy::started(db, (port, shutdown, state), task, Some(ReplicaRuntime(Some(runtime))))
 }
 
 /// A session's id and token.
@@ -174,20 +179,9 @@ pub async fn spawn_faulty_proxy_on(
     let mut config = test_config(&db);
     tweak(&mut config);
     let app = Application::build_with_faults(config, faults).await.expect("the proxy starts");
-    let port = app.port();
-    let shutdown = app.shutdown_handle();
-    let state = app.state().clone();
+    let started = (app.port(), app.shutdown_handle(), app.state().clone());
     let task = tokio::spawn(app.run_until_stopped());
-    TestProxy {
-        address: format!("http://127.0.0.1:{port}"),
-        port,
-        db,
-        http: reqwest::Client::new(),
-        state,
-        shutdown,
-        task,
-        runtime: None,
-    }
+    TestProxy::started(db, started, task, None)
 }
 
 impl TestProxy {
@@ -604,36 +598,19 @@ pub async fn count_rows(db: &TestDatabase, sql: &str) -> i64 {
     n
 }
 
-/// A minimal GLB (binary glTF 2.0) holding one indexed triangle list of `vertices` positions
-/// and `indices` indices, its buffer zero-filled: enough for the proxy's upload checks, which
-/// believe a count only when the bytes behind it are in the file.
+/// A GLB (binary glTF 2.0, written by `penmesh` as the client writes its meshes) of one
+/// indexed triangle list of `vertices` positions and `indices` indices, all zero: enough for
+/// the proxy's upload checks, which read the counts and check them against the buffers.
 pub fn minimal_glb(vertices: u64, indices: u64) -> Vec<u8> {
-    let (positions, bin_len) = (vertices * 12, vertices * 12 + indices * 4);
-    let mut json = serde_json::json!({
-        "asset": {"version": "2.0"},
-        "buffers": [{"byteLength": bin_len}],
-        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": positions},
-                        {"buffer": 0, "byteOffset": positions, "byteLength": indices * 4}],
-        "accessors": [{"bufferView": 0, "count": vertices, "type": "VEC3", "componentType": 5126,
-                       "min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0]},
-                      {"bufferView": 1, "count": indices, "type": "SCALAR", "componentType": 5125}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}]
-    })
-    .to_string()
-    .into_bytes();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let bin_padded = bin_len.next_multiple_of(4) as usize;
-    let total = 20 + json.len() + 8 + bin_padded;
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend((total as u32).to_le_bytes());
-    out.extend((json.len() as u32).to_le_bytes());
-    out.extend(0x4E4F_534Au32.to_le_bytes());
-    out.extend(json);
-    out.extend((bin_padded as u32).to_le_bytes());
-    out.extend(0x004E_4942u32.to_le_bytes());
-    out.resize(total, 0);
-    out
+    let mesh = penmesh::StrokeMesh {
+        positions: vec![[0.0; 3]; vertices as usize],
+        normals: vec![[0.0, 0.0, 1.0]; vertices as usize],
+        indices: vec![0; indices as usize],
+    };
+    let meta = penmesh::GlbMeta {
+        stroke: uuid::Uuid::nil(),
+        author: "penmesh-e2e".into(),
+        brush: penmesh::Brush::default(),
+    };
+    penmesh::stroke_glb(&mesh, &meta, &penmesh::GlbOptions::default())
 }

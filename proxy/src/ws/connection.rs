@@ -489,6 +489,28 @@ mod tests {
         (state, writer_task, session)
     }
 
+    /// A connection served over channels: what the client sends, what it receives, the task.
+    /// A text frame `"panic"` makes the socket's stream panic inside the connection's task.
+    fn connect(
+        state: &AppState,
+        session: Uuid,
+    ) -> (mpsc::Sender<Frame>, mpsc::Receiver<Frame>, tokio::task::JoinHandle<()>) {
+        let guard = state.join_session(session).unwrap();
+        let (to_server, from_client) = mpsc::channel::<Frame>(16);
+        let (to_client, from_server) = mpsc::channel::<Frame>(16);
+        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
+            match rx.recv().await {
+                Some(Frame::Text(t)) if t == "panic" => panic!("injected: the socket blew up"),
+                Some(frame) => Some((Ok::<_, std::convert::Infallible>(frame), rx)),
+                None => None,
+            }
+        })
+        .boxed();
+        let sink = PollSender::new(to_client);
+        let task = tokio::spawn(serve(state.clone(), session, guard, sink, stream));
+        (to_server, from_server, task)
+    }
+
     fn decode(frame: Option<Frame>) -> ServerMessage {
         match frame {
             Some(Frame::Binary(b)) => decode_server(&b, usize::MAX).unwrap(),
@@ -520,14 +542,7 @@ mod tests {
     async fn serve_speaks_the_protocol_over_channels() {
         let dir = tempfile::tempdir().unwrap();
         let (state, writer_task, session) = app(&dir).await;
-        let guard = state.join_session(session).unwrap();
-        let (to_server, from_client) = mpsc::channel::<Frame>(16);
-        let (to_client, mut from_server) = mpsc::channel::<Frame>(16);
-        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
-            rx.recv().await.map(|f| (Ok::<_, std::convert::Infallible>(f), rx))
-        })
-        .boxed();
-        let task = tokio::spawn(serve(state, session, guard, PollSender::new(to_client), stream));
+        let (to_server, mut from_server, task) = connect(&state, session);
 
         to_server.send(hello()).await.unwrap();
         assert!(matches!(decode(from_server.recv().await), ServerMessage::Welcome(_)));
@@ -557,20 +572,8 @@ mod tests {
     async fn a_panicking_connection_lets_go_of_its_strokes() {
         let dir = tempfile::tempdir().unwrap();
         let (state, writer_task, session) = app(&dir).await;
-        let guard = state.join_session(session).unwrap();
         let stroke = Uuid::new_v4();
-        let (to_server, from_client) = mpsc::channel::<Frame>(16);
-        let (to_client, mut from_server) = mpsc::channel::<Frame>(16);
-        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
-            match rx.recv().await {
-                Some(Frame::Text(t)) if t == "panic" => panic!("injected: the socket blew up"),
-                Some(frame) => Some((Ok::<_, std::convert::Infallible>(frame), rx)),
-                None => None,
-            }
-        })
-        .boxed();
-        let task =
-            tokio::spawn(serve(state.clone(), session, guard, PollSender::new(to_client), stream));
+        let (to_server, mut from_server, task) = connect(&state, session);
         to_server.send(hello()).await.unwrap();
         to_server.send(begin(stroke)).await.unwrap();
         while !matches!(decode(from_server.recv().await), ServerMessage::Ack(_)) {}
@@ -594,15 +597,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (state, writer_task, session) = app_with(&dir, |c| c.heartbeat_ms = 300).await;
         let period = Duration::from_millis(state.config.heartbeat_ms);
-        let guard = state.join_session(session).unwrap();
-        let (to_server, from_client) = mpsc::channel::<Frame>(16);
-        let (to_client, mut from_server) = mpsc::channel::<Frame>(16);
-        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
-            rx.recv().await.map(|f| (Ok::<_, std::convert::Infallible>(f), rx))
-        })
-        .boxed();
-        let task =
-            tokio::spawn(serve(state.clone(), session, guard, PollSender::new(to_client), stream));
+        let (to_server, mut from_server, task) = connect(&state, session);
         to_server.send(hello()).await.unwrap();
         let stroke = Uuid::new_v4();
         to_server.send(begin(stroke)).await.unwrap();
@@ -638,14 +633,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (state, writer_task, session) = app_with(&dir, |c| c.heartbeat_ms = 300).await;
         let period = Duration::from_millis(state.config.heartbeat_ms);
-        let guard = state.join_session(session).unwrap();
-        let (to_server, from_client) = mpsc::channel::<Frame>(16);
-        let (to_client, mut from_server) = mpsc::channel::<Frame>(16);
-        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
-            rx.recv().await.map(|f| (Ok::<_, std::convert::Infallible>(f), rx))
-        })
-        .boxed();
-        let task = tokio::spawn(serve(state, session, guard, PollSender::new(to_client), stream));
+        let (to_server, mut from_server, task) = connect(&state, session);
         to_server.send(hello()).await.unwrap();
         let start = Instant::now();
         let mut pongs = 0;
