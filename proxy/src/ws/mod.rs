@@ -4,9 +4,11 @@
 //! One file per job:
 //! - `adapter.rs`: `GET /v1/sessions/{session}/ws` ([`ws_handler`]): authenticate, upgrade,
 //!   and axum's WebSocket turned into a `Sink`/`Stream` of [`Frame`]s.
-//! - `connection.rs`: [`serve`], the connection loop, written against a generic
-//!   `Sink`/`Stream` of frames (so a test drives it with channels): decode, `Hello`, the
-//!   heartbeat, the idle timeout, the wind-down.
+//! - `serve.rs`: [`serve`], the connection loop, written against a generic `Sink`/`Stream`
+//!   of frames (so a test drives it with channels): decode, `Hello`, the heartbeat, the idle
+//!   timeout, the wind-down.
+//! - `connection.rs`: one connection's state and what every part uses to answer (`send`,
+//!   `fail`, how it ends).
 //! - `outgoing.rs`: the bounded outgoing queue, its overflow of answers already owed, and the
 //!   task that writes frames to the socket.
 //! - `strokes.rs`: the stroke lifecycle: begin, points, end, resume, acks after commit.
@@ -47,11 +49,12 @@ mod connection;
 mod error;
 mod outgoing;
 mod peers;
+mod serve;
 mod strokes;
 
 pub use adapter::ws_handler;
-pub use connection::serve;
 pub use error::ReadError;
+pub use serve::serve;
 
 /// A WebSocket frame, independent of the WebSocket library.
 #[derive(Debug, Clone, PartialEq)]

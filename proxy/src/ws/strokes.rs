@@ -5,27 +5,17 @@ use std::collections::HashSet;
 use std::time::Duration;
 
 use futures_util::FutureExt;
-use futures_util::future::BoxFuture;
 use penmesh::protocol::{
     Ack, ErrorCode, ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage,
     StrokeBegin, StrokeDone, StrokeEnd, StrokeId, StrokeStatus,
 };
 use penmesh::{Kept, Sample};
 
-use super::connection::Connection;
+use super::connection::{AfterCommit, Connection};
 use super::error::ConnError;
 use crate::fanout::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
 use crate::store::{StrokeRow, WriteError, WriteOp};
-
-/// What to send once a write request commits.
-#[derive(Debug)]
-pub(super) enum AfterCommit {
-    Ack { stroke: StrokeId, upto_seq: u64 },
-    Done { stroke: StrokeId, n_retained: u64 },
-}
-
-pub(super) type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommit)>;
 
 /// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
 type Resumed = (Vec<ResumeState>, Vec<(StrokeId, Vec<Kept>)>);

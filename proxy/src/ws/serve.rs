@@ -1,0 +1,549 @@
+//! The connection loop: one WebSocket connection from `Hello` to its end.
+
+//! The connection loop: one WebSocket connection from `Hello` to its end.
+
+use std::time::Duration;
+
+use futures_util::{Sink, Stream, StreamExt};
+use penmesh::protocol::{
+    ClientMessage, CodecError, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, StrokeId,
+    Welcome, decode_client, decode_client_json,
+};
+use tokio::time::Instant;
+use uuid::Uuid;
+
+use super::connection::Connection;
+use super::error::{ConnError, End, ReadError};
+use super::outgoing::{Form, Outgoing, forward};
+use super::{Frame, close_code};
+use crate::fanout::{EventKind, SessionEvent};
+use crate::state::{AppState, SessionGuard};
+use crate::store::WriteOp;
+
+/// Runs one connection to its end.
+pub async fn serve<Si, St, E>(
+    state: AppState,
+    session: Uuid,
+    guard: SessionGuard,
+    sink: Si,
+    mut stream: St,
+) where
+    Si: Sink<Frame> + Send + 'static,
+    St: Stream<Item = Result<Frame, E>> + Unpin + Send,
+    E: Into<ReadError>,
+{
+    let (outgoing, out_rx) = Outgoing::new(state.config.outgoing_queue);
+    let sender = tokio::spawn(forward(out_rx, sink));
+    let mut conn = Connection::new(state.clone(), session, guard, outgoing);
+    metrics::gauge!("penmesh_ws_connections").increment(1.0);
+    metrics::counter!("penmesh_ws_connections_total").increment(1);
+    tracing::debug!(connection = conn.id, %session, "connected");
+    let idle = Duration::from_secs(state.config.idle_timeout_secs);
+    let heartbeat = Heartbeat::new(Duration::from_millis(state.config.heartbeat_ms));
+    let mut last_heard = Instant::now();
+    let mut last_message = last_heard;
+    let shutdown = state.shutdown.clone();
+    // A quarter of the outgoing queue stays free for the connection's own answers.
+    let reserve = state.config.outgoing_queue.max(1) / 4;
+    let slow_reader = Duration::from_millis(state.config.slow_reader_ms);
+    while conn.end.is_none() {
+        let behind = conn.outgoing.is_behind();
+        let can_read = !behind && conn.pending.len() < state.config.max_inflight.max(1);
+        let can_forward =
+            !behind && conn.events.is_some() && conn.outgoing.has_room_beyond(reserve);
+        tokio::select! {
+            biased;
+            _ = shutdown.cancelled() => conn.fail(ConnError::fatal(
+                ErrorCode::ShuttingDown,
+                "the proxy is shutting down; resume later",
+                End::Close(close_code::GOING_AWAY, "shutting down".into()),
+            )),
+            Some((result, after)) = conn.pending.next(), if !conn.pending.is_empty() => {
+                conn.after_commit(result, after);
+            }
+            event = super::peers::next_event(&mut conn.events), if can_forward => match event {
+                Ok(event) => conn.on_event(&event).await,
+                Err(lag) => conn.resync(Some(lag)).await,
+            },
+            // The socket was too slow to take peer events: wake up when it caught up.
+            _ = conn.outgoing.room(reserve + 1), if !behind && conn.events.is_some() && !can_forward => {}
+            permit = conn.outgoing.place(), if behind => match permit {
+                Ok(permit) => conn.outgoing.flush_one(permit),
+                Err(_) => conn.end_with(End::Gone),
+            },
+            _ = sleep_until_some(conn.outgoing.slow_reader_deadline(slow_reader)), if behind => {
+                tracing::info!(connection = conn.id, "outgoing queue full: disconnecting a slow reader");
+                conn.end_with(End::SlowReader);
+            }
+            frame = stream.next(), if can_read => {
+                last_heard = Instant::now();
+                match frame {
+                    None | Some(Ok(Frame::Close(_))) => conn.end_with(End::Gone),
+                    Some(Err(err)) => conn.on_read_error(err.into()),
+                    // The answer to the heartbeat's ping: the client is there, nothing to do.
+                    Some(Ok(Frame::Pong(_))) => {}
+                    Some(Ok(frame)) => {
+                        last_message = last_heard;
+                        conn.on_frame(frame).await;
+                    }
+                }
+            }
+            // Checked only while reading: a connection that waits for its commits does not
+            // hear its client, which is not the client's silence.
+            _ = tokio::time::sleep_until(heartbeat.next(last_heard)), if can_read => {
+                if heartbeat.is_dead(last_heard) {
+                    tracing::info!(connection = conn.id, "no answer to the heartbeat: the client is gone");
+                    metrics::counter!("penmesh_ws_heartbeat_disconnects_total").increment(1);
+                    conn.end_with(End::Gone);
+                } else {
+                    conn.send_frame(Frame::Ping(Vec::new()));
+                }
+            }
+            _ = tokio::time::sleep_until(last_message + idle) => conn.fail(ConnError::fatal(
+                ErrorCode::IdleTimeout,
+                format!("nothing received for {} s", idle.as_secs()),
+                End::Close(close_code::NORMAL, "idle timeout".into()),
+            )),
+        }
+    }
+    conn.wind_down().await;
+    let end = conn.end.take().unwrap_or(End::Gone);
+    if end == End::SlowReader {
+        metrics::counter!("penmesh_ws_slow_reader_disconnects_total").increment(1);
+    }
+    let Connection { outgoing, claims, .. } = conn;
+    drop(claims);
+    outgoing.finish(&end, sender, Duration::from_secs(2)).await;
+    metrics::gauge!("penmesh_ws_connections").decrement(1.0);
+}
+
+/// When a silent client is pinged, and when it is taken for gone: pinged after one period of
+/// silence and again after each further one; gone after [`Heartbeat::MISSED`] periods (a client
+/// that is there answers a ping at once, whatever it is doing, so silence that long means the
+/// peer vanished without a FIN, and its strokes must not stay claimed until the idle timeout).
+#[derive(Debug, Clone, Copy)]
+struct Heartbeat {
+    period: Duration,
+}
+
+impl Heartbeat {
+    const MISSED: u32 = 3;
+
+    fn new(period: Duration) -> Heartbeat {
+        Heartbeat { period: period.max(Duration::from_millis(100)) }
+    }
+
+    /// The next time to look at a client last heard at `heard`.
+    fn next(&self, heard: Instant) -> Instant {
+        let silent = Instant::now().saturating_duration_since(heard);
+        let periods = (silent.as_nanos() / self.period.as_nanos()) as u32 + 1;
+        heard + self.period * periods.min(Self::MISSED)
+    }
+
+    fn is_dead(&self, heard: Instant) -> bool {
+        Instant::now().saturating_duration_since(heard) >= self.period * Self::MISSED
+    }
+}
+
+/// Ready at `deadline`; never without one.
+async fn sleep_until_some(deadline: Option<Instant>) {
+    match deadline {
+        Some(deadline) => tokio::time::sleep_until(deadline).await,
+        None => std::future::pending().await,
+    }
+}
+
+impl Connection {
+    fn on_read_error(&mut self, err: ReadError) {
+        match err {
+            ReadError::TooLarge(why) => self.fail(ConnError::fatal(
+                ErrorCode::FrameTooLarge,
+                format!("message refused: {why}"),
+                End::Close(close_code::TOO_BIG, "message too large".into()),
+            )),
+            ReadError::Broken(why) => {
+                tracing::debug!(connection = self.id, error = why, "read failed");
+                self.end_with(End::Gone);
+            }
+        }
+    }
+
+    async fn on_frame(&mut self, frame: Frame) {
+        let limit = self.state.config.max_message_bytes;
+        let decoded = match &frame {
+            Frame::Binary(bytes) => {
+                self.outgoing.form = Form::Binary;
+                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "binary")
+                    .increment(1);
+                decode_client(bytes, limit).map_err(|e| decode_error(e, ErrorCode::Malformed))
+            }
+            Frame::Text(text) => {
+                self.outgoing.form = Form::Json;
+                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
+                    .increment(1);
+                decode_client_json(text, limit).map_err(|e| decode_error(e, ErrorCode::BadJson))
+            }
+            // The WebSocket library answers pings itself.
+            Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
+        };
+        let done = match decoded {
+            Ok(msg) => self.on_message(msg).await,
+            Err(err) => Err(err),
+        };
+        if let Err(err) = done {
+            self.fail(err);
+        }
+    }
+
+    async fn on_message(&mut self, msg: ClientMessage) -> Result<(), ConnError> {
+        if !self.hello {
+            return match msg {
+                ClientMessage::Hello(hello) => self.on_hello(hello).await,
+                _ => Err(ConnError::fatal(
+                    ErrorCode::Protocol,
+                    "the first message must be hello",
+                    End::Close(close_code::PROTOCOL, "hello expected".into()),
+                )),
+            };
+        }
+        match msg {
+            ClientMessage::Hello(_) => Err(ConnError::refused(
+                ErrorCode::Protocol,
+                "hello was already received on this connection",
+                None,
+            )),
+            ClientMessage::StrokeBegin(begin) => self.on_stroke_begin(begin).await,
+            ClientMessage::Points(points) => self.on_points(points).await,
+            ClientMessage::StrokeEnd(end) => self.on_stroke_end(end).await,
+            ClientMessage::Ping(ping) => {
+                self.send(ServerMessage::Pong(ping));
+                Ok(())
+            }
+        }
+    }
+
+    async fn on_hello(&mut self, hello: Hello) -> Result<(), ConnError> {
+        if hello.protocol != PROTOCOL_VERSION {
+            return Err(ConnError::fatal(
+                ErrorCode::Protocol,
+                format!(
+                    "protocol version {} is not supported; this proxy speaks {PROTOCOL_VERSION}",
+                    hello.protocol
+                ),
+                End::Close(close_code::PROTOCOL, "unsupported protocol".into()),
+            ));
+        }
+        self.hello = true;
+        tracing::debug!(connection = self.id, client = %hello.client, "hello");
+        let (resume, resent) = self.resume_strokes(hello.resume).await;
+        self.send(ServerMessage::Welcome(Welcome {
+            protocol: PROTOCOL_VERSION,
+            session: self.session,
+            participant: self.participant,
+            resume,
+        }));
+        for (stroke, kept) in resent {
+            self.send_retained(stroke, 0, &kept);
+        }
+        let name: String = hello
+            .name
+            .as_deref()
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+            .unwrap_or(hello.client.as_str())
+            .chars()
+            .take(200)
+            .collect();
+        let (participant, session) = (self.participant, self.session);
+        let joined = self
+            .state
+            .writer
+            .write_with(
+                vec![WriteOp::Join {
+                    participant,
+                    session,
+                    name: name.clone(),
+                    replica: self.state.claims.replica_key(),
+                }],
+                vec![SessionEvent::new(session, EventKind::Joined { participant, name })],
+            )
+            .await;
+        match joined {
+            Ok(()) => self.joined = true,
+            // Drawing goes on; the others do not see this participant in the list.
+            Err(err) => {
+                tracing::error!(connection = self.id, error = %err, "storing a participant failed")
+            }
+        }
+        self.resync(None).await;
+        Ok(())
+    }
+
+    /// Waits for every pending commit (sending its ack if the client still listens), then
+    /// marks the strokes still open `interrupted` and lets go of them.
+    async fn wind_down(&mut self) {
+        while let Some((result, after)) = self.pending.next().await {
+            if matches!(self.end, Some(End::Close(..))) {
+                self.after_commit(result, after);
+            } else {
+                self.after_commit_unheard(result, after);
+            }
+        }
+        let open: Vec<StrokeId> = self.strokes.keys().copied().collect();
+        if !open.is_empty() {
+            let ops = open
+                .iter()
+                .map(|&stroke| WriteOp::SetStatus {
+                    stroke,
+                    status: penmesh::protocol::StrokeStatus::Interrupted,
+                })
+                .collect();
+            if let Err(err) = self.state.writer.write(ops).await {
+                tracing::error!(connection = self.id, error = %err, "marking strokes interrupted failed");
+            }
+            metrics::counter!("penmesh_strokes_total", "event" => "interrupted")
+                .increment(open.len() as u64);
+        }
+        for stroke in open.into_iter().chain(self.finishing.drain()) {
+            self.claims.release(stroke);
+        }
+        self.strokes.clear();
+        self.events = None;
+        if self.joined {
+            let participant = self.participant;
+            let left = self
+                .state
+                .writer
+                .write_with(
+                    vec![WriteOp::Leave { participant }],
+                    vec![SessionEvent::new(self.session, EventKind::Left { participant })],
+                )
+                .await;
+            if let Err(err) = left {
+                tracing::error!(connection = self.id, error = %err, "storing a participant's leave failed");
+            }
+        }
+        tracing::debug!(connection = self.id, end = ?self.end, "disconnected");
+    }
+}
+
+/// The refusal of a frame that cannot be decoded; `malformed` is the code of a broken frame in
+/// its form (binary or JSON).
+fn decode_error(err: CodecError, malformed: ErrorCode) -> ConnError {
+    let code = match err {
+        CodecError::TooLarge { .. } => ErrorCode::FrameTooLarge,
+        CodecError::UnknownMessage(_) => ErrorCode::UnknownMessage,
+        _ => malformed,
+    };
+    ConnError::refused(code, err.to_string(), None)
+}
+
+#[cfg(test)]
+mod tests {
+    use penmesh::protocol::{
+        Ack, Ping, StrokeBegin, Synced, decode_server, decode_server_json, encode_client,
+        encode_client_json,
+    };
+    use tokio::sync::mpsc;
+    use tokio_util::sync::{CancellationToken, PollSender};
+
+    use super::*;
+    use crate::config::Config;
+    use crate::fanout::Fanout;
+    use crate::store::{Store, WriterTask};
+
+    async fn app(dir: &tempfile::TempDir) -> (AppState, WriterTask, Uuid) {
+        app_with(dir, |_| {}).await
+    }
+
+    async fn app_with(
+        dir: &tempfile::TempDir,
+        configure: impl FnOnce(&mut Config),
+    ) -> (AppState, WriterTask, Uuid) {
+        let mut config = Config::defaults();
+        configure(&mut config);
+        config.database_url = format!("sqlite://{}", dir.path().join("t.db").display()).into();
+        let store = Store::connect(&config).await.unwrap();
+        let (writer, writer_task) =
+            WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default(), None)
+                .await
+                .unwrap();
+        let session = Uuid::new_v4();
+        store.create_session(session, "hash").await.unwrap();
+        let state = AppState::new(
+            config,
+            store,
+            writer,
+            CancellationToken::new(),
+            crate::metrics::install(),
+            Fanout::default(),
+            None,
+        );
+        (state, writer_task, session)
+    }
+
+    /// A connection served over channels: what the client sends, what it receives, the task.
+    /// A text frame `"panic"` makes the socket's stream panic inside the connection's task.
+    fn connect(
+        state: &AppState,
+        session: Uuid,
+    ) -> (mpsc::Sender<Frame>, mpsc::Receiver<Frame>, tokio::task::JoinHandle<()>) {
+        let guard = state.join_session(session).unwrap();
+        let (to_server, from_client) = mpsc::channel::<Frame>(16);
+        let (to_client, from_server) = mpsc::channel::<Frame>(16);
+        let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
+            match rx.recv().await {
+                Some(Frame::Text(t)) if t == "panic" => panic!("injected: the socket blew up"),
+                Some(frame) => Some((Ok::<_, std::convert::Infallible>(frame), rx)),
+                None => None,
+            }
+        })
+        .boxed();
+        let sink = PollSender::new(to_client);
+        let task = tokio::spawn(serve(state.clone(), session, guard, sink, stream));
+        (to_server, from_server, task)
+    }
+
+    fn decode(frame: Option<Frame>) -> ServerMessage {
+        match frame {
+            Some(Frame::Binary(b)) => decode_server(&b, usize::MAX).unwrap(),
+            Some(Frame::Text(t)) => decode_server_json(&t, usize::MAX).unwrap(),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn hello() -> Frame {
+        Frame::Binary(encode_client(&ClientMessage::Hello(Hello {
+            protocol: PROTOCOL_VERSION,
+            client: "unit".into(),
+            name: None,
+            resume: vec![],
+        })))
+    }
+
+    fn begin(stroke: StrokeId) -> Frame {
+        Frame::Binary(encode_client(&ClientMessage::StrokeBegin(StrokeBegin {
+            stroke,
+            brush: Default::default(),
+            device: None,
+            params: None,
+        })))
+    }
+
+    /// The connection loop driven through channels, with no socket.
+    #[tokio::test]
+    async fn serve_speaks_the_protocol_over_channels() {
+        let dir = tempfile::tempdir().unwrap();
+        let (state, writer_task, session) = app(&dir).await;
+        let (to_server, mut from_server, task) = connect(&state, session);
+
+        to_server.send(hello()).await.unwrap();
+        assert!(matches!(decode(from_server.recv().await), ServerMessage::Welcome(_)));
+        // An empty session: no history, then the marker.
+        assert_eq!(
+            decode(from_server.recv().await),
+            ServerMessage::Synced(Synced { n_strokes: 0 })
+        );
+        let ping = ClientMessage::Ping(Ping { nonce: 3 });
+        to_server.send(Frame::Text(encode_client_json(&ping))).await.unwrap();
+        assert!(matches!(from_server.recv().await, Some(Frame::Text(_))));
+        let stroke = Uuid::new_v4();
+        to_server.send(begin(stroke)).await.unwrap();
+        assert_eq!(
+            decode(from_server.recv().await),
+            ServerMessage::Ack(Ack { stroke, upto_seq: 0 })
+        );
+
+        drop(to_server);
+        task.await.unwrap();
+        writer_task.stop().await;
+    }
+
+    /// A connection task that panics (here its socket's stream does) lets go of its strokes:
+    /// the claims are held by a guard, not released by a code path the panic skips.
+    #[tokio::test]
+    async fn a_panicking_connection_lets_go_of_its_strokes() {
+        let dir = tempfile::tempdir().unwrap();
+        let (state, writer_task, session) = app(&dir).await;
+        let stroke = Uuid::new_v4();
+        let (to_server, mut from_server, task) = connect(&state, session);
+        to_server.send(hello()).await.unwrap();
+        to_server.send(begin(stroke)).await.unwrap();
+        while !matches!(decode(from_server.recv().await), ServerMessage::Ack(_)) {}
+        let other_connection = u64::MAX;
+        assert!(
+            !state.claims.claim(stroke, other_connection, Duration::ZERO).await,
+            "the stroke is held while its connection lives"
+        );
+
+        to_server.send(Frame::Text("panic".into())).await.unwrap();
+        assert!(task.await.unwrap_err().is_panic());
+        assert!(
+            state.claims.claim(stroke, other_connection, Duration::ZERO).await,
+            "the stroke is free once its connection's task is gone"
+        );
+        writer_task.stop().await;
+    }
+
+    #[tokio::test]
+    async fn a_silent_client_is_pinged_and_then_taken_for_gone() {
+        let dir = tempfile::tempdir().unwrap();
+        let (state, writer_task, session) = app_with(&dir, |c| c.heartbeat_ms = 300).await;
+        let period = Duration::from_millis(state.config.heartbeat_ms);
+        let (to_server, mut from_server, task) = connect(&state, session);
+        to_server.send(hello()).await.unwrap();
+        let stroke = Uuid::new_v4();
+        to_server.send(begin(stroke)).await.unwrap();
+        let start = Instant::now();
+        let mut pings = Vec::new();
+        // The client answers nothing from here on (a peer gone without a FIN).
+        while let Some(frame) = from_server.recv().await {
+            if frame == Frame::Ping(Vec::new()) {
+                pings.push(start.elapsed());
+            }
+        }
+        task.await.unwrap();
+        let gone = start.elapsed();
+        assert_eq!(pings.len(), Heartbeat::MISSED as usize - 1, "{pings:?}");
+        // The clock starts a little after the last frame was read: allow for that.
+        let slack = period / 2;
+        assert!(pings[0] + slack >= period && pings[0] < 2 * period, "{pings:?}");
+        assert!(
+            gone + slack >= period * Heartbeat::MISSED
+                && gone < period * (Heartbeat::MISSED + 1) + slack,
+            "gone after {gone:?}"
+        );
+        assert!(
+            state.claims.claim(stroke, u64::MAX, Duration::ZERO).await,
+            "the stroke of a client taken for gone is free"
+        );
+        drop(to_server);
+        writer_task.stop().await;
+    }
+
+    #[tokio::test]
+    async fn a_client_that_answers_the_pings_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let (state, writer_task, session) = app_with(&dir, |c| c.heartbeat_ms = 300).await;
+        let period = Duration::from_millis(state.config.heartbeat_ms);
+        let (to_server, mut from_server, task) = connect(&state, session);
+        to_server.send(hello()).await.unwrap();
+        let start = Instant::now();
+        let mut pongs = 0;
+        while start.elapsed() < period * (Heartbeat::MISSED * 2) {
+            match from_server.recv().await {
+                Some(Frame::Ping(payload)) => {
+                    to_server.send(Frame::Pong(payload)).await.unwrap();
+                    pongs += 1;
+                }
+                Some(_) => {}
+                None => panic!("a client that answers the pings was dropped after {pongs} pongs"),
+            }
+        }
+        assert!(pongs >= 3, "{pongs} pongs");
+        assert!(!task.is_finished());
+        drop(to_server);
+        task.await.unwrap();
+        writer_task.stop().await;
+    }
+}
