@@ -34,7 +34,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::{IntoResponse, Response};
 use futures_util::future::BoxFuture;
@@ -43,11 +43,10 @@ use futures_util::{FutureExt, Sink, SinkExt, Stream, StreamExt};
 use penmesh::protocol::{
     Ack, ClientMessage, CodecError, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION,
     ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage, StrokeBegin,
-    StrokeDone, StrokeEnd, StrokeId, StrokeStatus, Synced, Welcome, decode_client,
-    decode_client_json, encode_server, encode_server_json,
+    StrokeDone, StrokeEnd, StrokeId, StrokeStatus, Synced, Welcome, decode_client_json_limited,
+    decode_client_limited, encode_server, encode_server_json,
 };
 use penmesh::{Kept, Sample};
-use serde::Deserialize;
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -77,35 +76,36 @@ pub mod close_code {
     pub const TOO_BIG: u16 = 1009;
 }
 
-#[derive(Debug, Deserialize)]
-pub struct TokenQuery {
-    token: Option<String>,
-}
-
 /// `GET /v1/sessions/{session}/ws`: authenticates, then upgrades.
 pub async fn ws_handler(
     State(state): State<AppState>,
     Path(session): Path<String>,
-    Query(query): Query<TokenQuery>,
     headers: HeaderMap,
     upgrade: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
 ) -> Result<Response, AppError> {
     if state.shutdown.is_cancelled() {
         return Err(AppError::ShuttingDown);
     }
-    // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol.
-    let token = query.token.as_deref().or_else(|| crate::web::subprotocol_token(&headers));
+    // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol. A
+    // token in the query string is not read (URLs reach access logs).
+    let token = crate::web::subprotocol_token(&headers);
     let session = authorize_session(&state, &headers, token, &session).await?;
     let upgrade = match upgrade {
         Ok(upgrade) => upgrade,
         Err(rejection) => return Ok(rejection.into_response()),
     };
+    let slot = state.connection_slot().ok_or_else(|| {
+        AppError::Busy(format!(
+            "this replica has {} WebSocket connections, the limit (--max-connections)",
+            state.config.max_connections
+        ))
+    })?;
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);
     let tracked = state.tracker.token();
     let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES).protocols([crate::web::SUBPROTOCOL]);
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
-        let _tracked = tracked;
+        let (_tracked, _slot) = (tracked, slot);
         let (sink, stream) = split(socket);
         match guard {
             Some(guard) => serve(state, session, guard, sink, stream).await,
@@ -422,6 +422,7 @@ impl Connection {
         StrokeLimits {
             max_batch_samples: self.state.config.max_batch_samples,
             max_stroke_samples: self.state.config.max_stroke_samples,
+            max_stroke_retained: self.state.config.max_stroke_retained,
         }
     }
 
@@ -653,13 +654,15 @@ impl Connection {
                 self.form = Form::Binary;
                 metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "binary")
                     .increment(1);
-                decode_client(bytes, limit).map_err(binary_refusal)
+                decode_client_limited(bytes, limit, self.state.config.max_batch_samples)
+                    .map_err(binary_refusal)
             }
             Frame::Text(text) => {
                 self.form = Form::Json;
                 metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
                     .increment(1);
-                decode_client_json(text, limit).map_err(json_refusal)
+                decode_client_json_limited(text, limit, self.state.config.max_batch_samples)
+                    .map_err(json_refusal)
             }
             // The WebSocket library answers pings itself.
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
@@ -705,6 +708,21 @@ impl Connection {
                 None,
             );
             self.end_with(End::Close(close_code::PROTOCOL, "unsupported protocol".into()));
+            return;
+        }
+        let max_resume = self.state.config.max_open_strokes;
+        if hello.resume.len() > max_resume {
+            // Each entry costs a query and perhaps a claim wait: refuse a long list outright.
+            self.send_error(
+                ErrorCode::TooManyOpenStrokes,
+                format!(
+                    "hello.resume names {} strokes, more than the limit of {max_resume} open \
+                     strokes per connection",
+                    hello.resume.len()
+                ),
+                None,
+            );
+            self.end_with(End::Close(close_code::POLICY, "resume list too long".into()));
             return;
         }
         self.hello = true;
@@ -863,6 +881,9 @@ impl Connection {
         let stroke = begin.stroke;
         if let Err(err) = begin.brush.validate() {
             return self.send_error(ErrorCode::BadBrush, err.to_string(), Some(stroke));
+        }
+        if let Some(refusal) = device_refusal(begin.device.as_deref(), self.state.config.max_device_chars) {
+            return self.refuse(refusal, Some(stroke));
         }
         let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
         if let Err(err) = params.validate() {
@@ -1139,8 +1160,20 @@ fn done_message(stroke: StrokeId, n_retained: u64) -> StrokeDone {
     StrokeDone { stroke, n_retained, url: format!("/v1/strokes/{stroke}/simplified") }
 }
 
+/// `StrokeBegin.device` longer than `max` characters.
+fn device_refusal(device: Option<&str>, max: usize) -> Option<Refusal> {
+    let n = device?.chars().count();
+    (n > max).then(|| {
+        Refusal::new(
+            ErrorCode::Malformed,
+            format!("stroke_begin.device is {n} characters, more than the limit of {max}"),
+        )
+    })
+}
+
 fn binary_refusal(err: CodecError) -> Refusal {
     match err {
+        CodecError::BatchTooLarge { .. } => Refusal::new(ErrorCode::BatchTooLarge, err.to_string()),
         CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
         CodecError::UnknownMessage(_) => Refusal::new(ErrorCode::UnknownMessage, err.to_string()),
         _ => Refusal::new(ErrorCode::Malformed, err.to_string()),
@@ -1149,6 +1182,7 @@ fn binary_refusal(err: CodecError) -> Refusal {
 
 fn json_refusal(err: CodecError) -> Refusal {
     match err {
+        CodecError::BatchTooLarge { .. } => Refusal::new(ErrorCode::BatchTooLarge, err.to_string()),
         CodecError::TooLarge { .. } => Refusal::new(ErrorCode::FrameTooLarge, err.to_string()),
         CodecError::UnknownMessage(_) => Refusal::new(ErrorCode::UnknownMessage, err.to_string()),
         _ => Refusal::new(ErrorCode::BadJson, err.to_string()),

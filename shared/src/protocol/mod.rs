@@ -27,6 +27,7 @@ use crate::model::{Brush, Sample};
 pub use codec::{
     CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, POSITION_STEP,
     PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json,
+    decode_client_json_limited, decode_client_limited,
     decode_point_batch, decode_server, decode_server_json, encode_client, encode_client_json,
     encode_point_batch, encode_server, encode_server_json, quantize_sample,
 };
