@@ -185,14 +185,19 @@ impl StrokeState {
 mod tests {
     use super::*;
 
-    const LIMITS: StrokeLimits =
-        StrokeLimits { max_batch_samples: 100, max_stroke_samples: 1000, max_stroke_retained: 1000 };
+    const LIMITS: StrokeLimits = StrokeLimits {
+        max_batch_samples: 100,
+        max_stroke_samples: 1000,
+        max_stroke_retained: 1000,
+    };
 
     #[test]
     fn retained_samples_held_per_stroke_are_limited_and_a_refusal_changes_nothing() {
         // A zigzag: every sample is retained.
         let zigzag: Vec<Sample> = (0..40)
-            .map(|i| Sample::new(i as f64 * 4.0, if i % 2 == 0 { 0.0 } else { 50.0 }, i as f64, 0.5))
+            .map(|i| {
+                Sample::new(i as f64 * 4.0, if i % 2 == 0 { 0.0 } else { 50.0 }, i as f64, 0.5)
+            })
             .collect();
         let limits = StrokeLimits { max_stroke_retained: 25, ..LIMITS };
         let mut s = state();

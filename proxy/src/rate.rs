@@ -67,9 +67,8 @@ pub fn client_key(peer: SocketAddr, headers: &HeaderMap, trust_forwarded_for: bo
             .flat_map(|v| v.split(','))
             .next_back()
             .and_then(|a| a.trim().parse::<IpAddr>().ok());
-        last_forwarded.or_else(|| {
-            headers.get("x-real-ip")?.to_str().ok()?.trim().parse::<IpAddr>().ok()
-        })
+        last_forwarded
+            .or_else(|| headers.get("x-real-ip")?.to_str().ok()?.trim().parse::<IpAddr>().ok())
     };
     let ip = if trust_forwarded_for { forwarded() } else { None }.unwrap_or(peer.ip());
     match ip {
@@ -102,7 +101,10 @@ mod tests {
         }
         let a: SocketAddr = "[2001:db8::1]:1".parse().unwrap();
         let b: SocketAddr = "[2001:db8::ffff:2]:1".parse().unwrap();
-        assert_eq!(client_key(a, &HeaderMap::new(), false), client_key(b, &HeaderMap::new(), false));
+        assert_eq!(
+            client_key(a, &HeaderMap::new(), false),
+            client_key(b, &HeaderMap::new(), false)
+        );
     }
 
     #[test]

@@ -16,11 +16,11 @@ use axum::Router;
 use axum::extract::{ConnectInfo, DefaultBodyLimit};
 use axum::http::{Request, StatusCode};
 use axum::routing::{get, post, put};
+use hyper::body::Incoming;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
-use hyper::body::Incoming;
-use tower_http::timeout::TimeoutLayer;
 use tower_http::classify::{ServerErrorsAsFailures, SharedClassifier};
+use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 
@@ -96,6 +96,7 @@ impl Application {
             faults,
         )
         .await?;
+        let writer = writer.limit_bytes(config.writer_queue_bytes);
         let tcp = TcpListener::bind((config.host.as_str(), config.port))
             .await
             .with_context(|| format!("binding {}:{}", config.host, config.port))?;
@@ -206,11 +207,13 @@ async fn serve(
     header_timeout: Duration,
     stop: CancellationToken,
 ) {
-    use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+    use hyper_util::rt::{TokioIo, TokioTimer};
     use tower::ServiceExt;
-    let mut builder = hyper_util::server::conn::auto::Builder::new(TokioExecutor::new()).http1_only();
-    builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
-    let graceful = hyper_util::server::graceful::GracefulShutdown::new();
+    // hyper's HTTP/1 builder itself: hyper-util's `auto` one first waits, with no timeout, for
+    // enough bytes to tell HTTP/1 from HTTP/2.
+    let mut builder = hyper::server::conn::http1::Builder::new();
+    builder.timer(TokioTimer::new()).header_read_timeout(header_timeout);
+    let connections = tokio_util::task::TaskTracker::new();
     loop {
         let (tcp, peer) = tokio::select! {
             _ = stop.cancelled() => break,
@@ -234,16 +237,26 @@ async fn serve(
             request.extensions_mut().insert(ConnectInfo(peer));
             router.clone().oneshot(request.map(axum::body::Body::new))
         });
-        let connection = builder.serve_connection_with_upgrades(TokioIo::new(tcp), service);
-        let connection = graceful.watch(connection.into_owned());
-        tokio::spawn(async move {
-            if let Err(err) = connection.await {
+        let connection = builder.serve_connection(TokioIo::new(tcp), service).with_upgrades();
+        let stop = stop.clone();
+        connections.spawn(async move {
+            let mut connection = std::pin::pin!(connection);
+            let result = tokio::select! {
+                result = connection.as_mut() => result,
+                _ = stop.cancelled() => {
+                    // Finish the request in progress, then close.
+                    connection.as_mut().graceful_shutdown();
+                    connection.await
+                }
+            };
+            if let Err(err) = result {
                 tracing::debug!(error = %err, "HTTP connection ended");
             }
         });
     }
     drop(listener);
-    graceful.shutdown().await;
+    connections.close();
+    connections.wait().await;
 }
 
 /// The span of an HTTP request: method and path, never the query string, which may carry a
@@ -325,7 +338,8 @@ mod tests {
             + Send
             + Sync
             + 'static,
-        <L::Service as tower::Service<Request<Body>>>::Response: axum::response::IntoResponse + 'static,
+        <L::Service as tower::Service<Request<Body>>>::Response:
+            axum::response::IntoResponse + 'static,
         <L::Service as tower::Service<Request<Body>>>::Future: Send + 'static,
     {
         let captured = Captured::default();

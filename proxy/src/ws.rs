@@ -882,7 +882,9 @@ impl Connection {
         if let Err(err) = begin.brush.validate() {
             return self.send_error(ErrorCode::BadBrush, err.to_string(), Some(stroke));
         }
-        if let Some(refusal) = device_refusal(begin.device.as_deref(), self.state.config.max_device_chars) {
+        if let Some(refusal) =
+            device_refusal(begin.device.as_deref(), self.state.config.max_device_chars)
+        {
             return self.refuse(refusal, Some(stroke));
         }
         let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
@@ -935,7 +937,9 @@ impl Connection {
                 self.state.claims.release(stroke, self.id);
                 self.send_error(
                     ErrorCode::StrokeConflict,
-                    format!("stroke id {stroke} is already in use; choose a new id"),
+                    // Says no more than that the id is taken (not where, nor anything of
+                    // the stroke): ids are global, see docs/reliability-limits.md.
+                    format!("stroke id {stroke} is taken; choose a new random id"),
                     Some(stroke),
                 );
             }

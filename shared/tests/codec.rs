@@ -270,7 +270,8 @@ fn the_callers_batch_limit_is_applied_while_decoding_in_both_encodings() {
         ClientMessage::Points(Points { stroke: id(1), seq: 0, points: PointBatch(samples(n)) })
     };
     // A forged count of 2^20 with no samples behind it: refused on the count alone.
-    let forged = points_frame_with_batch(&pack_bits(&format!("1 {} 1 {}", "0".repeat(20), "0".repeat(20))));
+    let forged =
+        points_frame_with_batch(&pack_bits(&format!("1 {} 1 {}", "0".repeat(20), "0".repeat(20))));
     let binary = |bytes: &[u8], limit| decode_client_limited(bytes, LIMIT, limit);
     let json = |msg: &ClientMessage, limit| {
         decode_client_json_limited(&encode_client_json(msg), LIMIT, limit)
@@ -286,7 +287,14 @@ fn the_callers_batch_limit_is_applied_while_decoding_in_both_encodings() {
             None => assert_eq!(result, Ok(points(10)), "{case}"),
             Some(n) => {
                 let err = result.unwrap_err();
-                assert_eq!(err, CodecError::BatchTooLarge { n, limit: if case.contains("forged") { 4096 } else { 10 } }, "{case}");
+                assert_eq!(
+                    err,
+                    CodecError::BatchTooLarge {
+                        n,
+                        limit: if case.contains("forged") { 4096 } else { 10 }
+                    },
+                    "{case}"
+                );
                 assert!(err.to_string().contains("larger than the limit"), "{case}: {err}");
             }
         }
