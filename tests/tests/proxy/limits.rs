@@ -324,7 +324,9 @@ async fn fields_over_their_limits_are_refused_naming_them() {
         })
     };
     let s = Uuid::new_v4();
-    let cases: Vec<(&str, bool, Vec<ClientMessage>, ErrorCode, &[&str])> = vec![
+    /// A case: its name, JSON or binary, what is sent after hello, the error and words of it.
+    type Case<'a> = (&'a str, bool, Vec<ClientMessage>, ErrorCode, &'a [&'a str]);
+    let cases: Vec<Case> = vec![
         (
             "device",
             false,

@@ -172,7 +172,9 @@ async fn the_proxy_reaches_postgresql_over_tls_with_sslmode_require() {
     }
     // The server takes TLS only: without it the connection is refused.
     let plain = format!("postgres://postgres@127.0.0.1:{port}/postgres?sslmode=disable");
-    let err = sqlx::PgConnection::connect(&plain).await.err().expect("plain refused");
+    let Err(err) = sqlx::PgConnection::connect(&plain).await else {
+        panic!("a connection without TLS was let in");
+    };
     assert!(
         err.to_string().contains("no encryption") || err.to_string().contains("pg_hba"),
         "{err}"
