@@ -121,13 +121,57 @@ pub struct StrokeLocks {
 struct LockConnection {
     conn: Option<PgConnection>,
     /// How many times each key is locked on `conn` (advisory locks stack).
-    held: HashMap<i64, u32>,
+    held: HashMap<LockKey, u32>,
 }
 
-/// The advisory-lock key of a stroke.
-pub fn lock_key(stroke: Uuid) -> i64 {
-    let (hi, lo) = stroke.as_u64_pair();
-    (hi ^ lo) as i64
+/// An advisory-lock key: a stroke's (the two-`int4` form) or the replica's (one `bigint`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum LockKey {
+    Stroke(i32, i32),
+    Replica(i64),
+}
+
+/// The advisory-lock key of a stroke: 64 bits of SHA-256 of its id, in the two-`int4` key
+/// space. Stroke ids are chosen by clients: a key they could compute (the old `hi ^ lo`) let a
+/// client pick an id whose key is another stroke's, a replica's or sqlx's migration lock (all
+/// `bigint` keys, which PostgreSQL keeps apart from the two-`int4` ones) and block it.
+pub fn lock_key(stroke: Uuid) -> (i32, i32) {
+    use sha2::Digest;
+    let digest = sha2::Sha256::new_with_prefix(b"penmesh stroke lock\0")
+        .chain_update(stroke.as_bytes())
+        .finalize();
+    let half = |i: usize| i32::from_be_bytes(digest[i..i + 4].try_into().expect("4 bytes"));
+    (half(0), half(4))
+}
+
+impl LockKey {
+    /// Takes this lock on `conn` if no other session holds it.
+    async fn try_lock(self, conn: &mut PgConnection) -> Result<bool, sqlx::Error> {
+        match self {
+            LockKey::Stroke(a, b) => {
+                sqlx::query_scalar("SELECT pg_try_advisory_lock($1, $2)")
+                    .bind(a)
+                    .bind(b)
+                    .fetch_one(conn)
+                    .await
+            }
+            LockKey::Replica(k) => {
+                sqlx::query_scalar("SELECT pg_try_advisory_lock($1)").bind(k).fetch_one(conn).await
+            }
+        }
+    }
+
+    async fn unlock(self, conn: &mut PgConnection) -> Result<(), sqlx::Error> {
+        match self {
+            LockKey::Stroke(a, b) => {
+                sqlx::query("SELECT pg_advisory_unlock($1, $2)").bind(a).bind(b).execute(conn).await
+            }
+            LockKey::Replica(k) => {
+                sqlx::query("SELECT pg_advisory_unlock($1)").bind(k).execute(conn).await
+            }
+        }
+        .map(|_| ())
+    }
 }
 
 impl StrokeLocks {
@@ -141,7 +185,7 @@ impl StrokeLocks {
             .execute(&mut conn)
             .await
             .context("taking the replica's lock")?;
-        let held = HashMap::from([(replica_key, 1)]);
+        let held = HashMap::from([(LockKey::Replica(replica_key), 1)]);
         Ok(StrokeLocks {
             options,
             inner: Mutex::new(LockConnection { conn: Some(conn), held }),
@@ -156,15 +200,11 @@ impl StrokeLocks {
 
     /// Takes the stroke's lock if no other replica holds it.
     pub async fn try_lock(&self, stroke: Uuid) -> anyhow::Result<bool> {
-        let key = lock_key(stroke);
+        let (a, b) = lock_key(stroke);
+        let key = LockKey::Stroke(a, b);
         let mut inner = self.inner.lock().await;
         let conn = self.connection(&mut inner).await?;
-        let result: Result<bool, sqlx::Error> =
-            sqlx::query_scalar("SELECT pg_try_advisory_lock($1)")
-                .bind(key)
-                .fetch_one(&mut *conn)
-                .await;
-        match result {
+        match key.try_lock(conn).await {
             Ok(true) => {
                 *inner.held.entry(key).or_default() += 1;
                 Ok(true)
@@ -179,7 +219,8 @@ impl StrokeLocks {
 
     /// Lets go of one hold of the stroke's lock.
     pub async fn unlock(&self, stroke: Uuid) {
-        let key = lock_key(stroke);
+        let (a, b) = lock_key(stroke);
+        let key = LockKey::Stroke(a, b);
         let mut inner = self.inner.lock().await;
         match inner.held.get_mut(&key) {
             Some(n) if *n > 1 => *n -= 1,
@@ -189,9 +230,7 @@ impl StrokeLocks {
             None => return,
         }
         let Ok(conn) = self.connection(&mut inner).await else { return };
-        if let Err(err) =
-            sqlx::query("SELECT pg_advisory_unlock($1)").bind(key).execute(&mut *conn).await
-        {
+        if let Err(err) = key.unlock(conn).await {
             tracing::warn!(error = %err, "releasing a stroke lock");
             inner.conn = None;
         }
@@ -208,18 +247,14 @@ impl StrokeLocks {
             let mut lost = Vec::new();
             for (&key, &n) in &inner.held {
                 for _ in 0..n {
-                    let ok: bool = sqlx::query_scalar("SELECT pg_try_advisory_lock($1)")
-                        .bind(key)
-                        .fetch_one(&mut conn)
-                        .await?;
-                    if !ok {
+                    if !key.try_lock(&mut conn).await? {
                         lost.push(key);
                         break;
                     }
                 }
             }
             for key in lost {
-                tracing::error!(key, "a stroke lock was taken by another replica meanwhile");
+                tracing::error!(?key, "a stroke lock was taken by another replica meanwhile");
                 inner.held.remove(&key);
             }
             inner.conn = Some(conn);

@@ -162,6 +162,50 @@ pub struct Config {
     #[arg(long, env = "PENMESH_MAX_CONNECTIONS_PER_SESSION", default_value_t = 64)]
     pub max_connections_per_session: usize,
 
+    /// Most WebSocket connections at once on this replica; past it an upgrade gets 503.
+    #[arg(long, env = "PENMESH_MAX_CONNECTIONS", default_value_t = 10_000)]
+    pub max_connections: usize,
+
+    /// An HTTP connection that has not sent a whole request head (request line and headers)
+    /// this many seconds after it opened, or after its previous request, is closed (slowloris).
+    #[arg(long, env = "PENMESH_HEADER_TIMEOUT_SECS", default_value_t = 10)]
+    pub header_timeout_secs: u64,
+
+    /// An HTTP request (not the WebSocket) not answered within this many seconds, its body
+    /// included, gets 408.
+    #[arg(long, env = "PENMESH_REQUEST_TIMEOUT_SECS", default_value_t = 30)]
+    pub request_timeout_secs: u64,
+
+    /// Sessions one client address may create per minute (`POST /v1/sessions`), after a burst
+    /// of `session_burst`; past it, 429 with `Retry-After`. 0: no limit.
+    #[arg(long, env = "PENMESH_SESSION_RATE_PER_MINUTE", default_value_t = 30)]
+    pub session_rate_per_minute: u32,
+
+    /// Sessions one client address may create at once before `session_rate_per_minute` applies.
+    #[arg(long, env = "PENMESH_SESSION_BURST", default_value_t = 10)]
+    pub session_burst: u32,
+
+    /// Take the client address from `X-Forwarded-For` / `X-Real-IP` / `Forwarded` (only
+    /// behind a proxy that sets them; otherwise a client can claim any address). Off: the
+    /// peer's address, which behind a proxy is the proxy's.
+    #[arg(long, env = "PENMESH_TRUST_FORWARDED_FOR", default_value_t = false,
+          action = clap::ArgAction::Set, num_args = 0..=1, default_missing_value = "true")]
+    pub trust_forwarded_for: bool,
+
+    /// Longest `device` of a `StrokeBegin` (characters).
+    #[arg(long, env = "PENMESH_MAX_DEVICE_CHARS", default_value_t = 200)]
+    pub max_device_chars: usize,
+
+    /// Most retained (simplified) samples one open stroke holds in memory; past it the batch
+    /// is refused with `stroke_too_long` (a tolerance near 0 retains every sample).
+    #[arg(long, env = "PENMESH_MAX_STROKE_RETAINED", default_value_t = 20_000)]
+    pub max_stroke_retained: usize,
+
+    /// Bytes of samples queued into the writer at once (connections wait past it), next to
+    /// the count limit `writer_queue`.
+    #[arg(long, env = "PENMESH_WRITER_QUEUE_BYTES", default_value_t = 64 * 1024 * 1024)]
+    pub writer_queue_bytes: usize,
+
     /// A connection that sends nothing for this many seconds is closed.
     #[arg(long, env = "PENMESH_IDLE_TIMEOUT_SECS", default_value_t = 60)]
     pub idle_timeout_secs: u64,

@@ -4,7 +4,9 @@
 //! Strokes are found by id and must belong to the token's session (404 otherwise).
 
 use axum::Json;
-use axum::extract::{Path, State};
+use std::net::SocketAddr;
+
+use axum::extract::{ConnectInfo, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use penmesh::protocol::{PointBatch, Retained, ServerMessage, encode_server};
@@ -34,6 +36,12 @@ pub enum AppError {
     TooLarge(String),
     #[error("the proxy is shutting down")]
     ShuttingDown,
+    /// A rate limit: the client may try again after this long.
+    #[error("too many requests from this address; try again in {} s", .0.as_secs())]
+    TooManyRequests(std::time::Duration),
+    /// This replica is at a limit (e.g. `max_connections`): try again later or elsewhere.
+    #[error("{0}")]
+    Busy(String),
     #[error("internal error")]
     Internal(#[from] anyhow::Error),
 }
@@ -47,6 +55,8 @@ impl IntoResponse for AppError {
             AppError::Conflict(_) => (StatusCode::CONFLICT, "conflict"),
             AppError::TooLarge(_) => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
             AppError::ShuttingDown => (StatusCode::SERVICE_UNAVAILABLE, "shutting_down"),
+            AppError::Busy(_) => (StatusCode::SERVICE_UNAVAILABLE, "busy"),
+            AppError::TooManyRequests(_) => (StatusCode::TOO_MANY_REQUESTS, "too_many_requests"),
             AppError::Internal(err) => {
                 tracing::error!(error = ?err, "request failed");
                 (StatusCode::INTERNAL_SERVER_ERROR, "internal")
@@ -55,6 +65,9 @@ impl IntoResponse for AppError {
         metrics::counter!("penmesh_http_errors_total", "code" => code).increment(1);
         let body = ErrorBody { error: code.into(), message: self.to_string() };
         let mut response = (status, Json(body)).into_response();
+        if let AppError::TooManyRequests(wait) = &self {
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(wait.as_secs()));
+        }
         if status == StatusCode::UNAUTHORIZED {
             response
                 .headers_mut()
@@ -64,14 +77,15 @@ impl IntoResponse for AppError {
     }
 }
 
-/// The bearer token of a request: `Authorization: Bearer …`, else `?token=…` when given.
-pub fn request_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Option<&'a str> {
+/// The bearer token of a request: `Authorization: Bearer …`, else `other` (the token a
+/// browser offers as a WebSocket subprotocol). Never the query string: URLs reach logs.
+pub fn request_token<'a>(headers: &'a HeaderMap, other: Option<&'a str>) -> Option<&'a str> {
     headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
         .map(str::trim)
-        .or(query)
+        .or(other)
         .filter(|t| !t.is_empty())
 }
 
@@ -79,9 +93,9 @@ pub fn request_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Opti
 pub async fn token_session(
     state: &AppState,
     headers: &HeaderMap,
-    query: Option<&str>,
+    subprotocol: Option<&str>,
 ) -> Result<Uuid, AppError> {
-    let token = request_token(headers, query).ok_or(AppError::Unauthorized)?;
+    let token = request_token(headers, subprotocol).ok_or(AppError::Unauthorized)?;
     state.store.session_for_token_hash(&hash_token(token)).await?.ok_or(AppError::Unauthorized)
 }
 
@@ -89,11 +103,11 @@ pub async fn token_session(
 pub async fn authorize_session(
     state: &AppState,
     headers: &HeaderMap,
-    query: Option<&str>,
+    subprotocol: Option<&str>,
     session: &str,
 ) -> Result<Uuid, AppError> {
     let session = Uuid::parse_str(session).map_err(|_| AppError::Unauthorized)?;
-    let of_token = token_session(state, headers, query).await?;
+    let of_token = token_session(state, headers, subprotocol).await?;
     if of_token == session { Ok(session) } else { Err(AppError::Unauthorized) }
 }
 
@@ -119,10 +133,15 @@ fn wants_binary(headers: &HeaderMap) -> bool {
 
 /// Creates a session and its token.
 #[utoipa::path(post, path = "/v1/sessions", tag = "sessions",
-    responses((status = 201, description = "Session created", body = NewSession)))]
+    responses((status = 201, description = "Session created", body = NewSession),
+              (status = 429, description = "Too many sessions from this address (`Retry-After`)",
+               body = ErrorBody)))]
 pub async fn create_session(
     State(state): State<AppState>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    headers: HeaderMap,
 ) -> Result<(StatusCode, Json<NewSession>), AppError> {
+    state.session_limiter.check(peer, &headers).map_err(AppError::TooManyRequests)?;
     let mut bytes = [0u8; 32];
     rand::rng().fill_bytes(&mut bytes);
     let token = hex::encode(bytes);

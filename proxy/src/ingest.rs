@@ -23,6 +23,8 @@ impl Refusal {
 pub struct StrokeLimits {
     pub max_batch_samples: usize,
     pub max_stroke_samples: u64,
+    /// Most retained samples held in memory for the stroke (one more may join at pen-up).
+    pub max_stroke_retained: usize,
 }
 
 /// What a `Points` batch amounts to.
@@ -138,10 +140,24 @@ impl StrokeState {
         let tail: Vec<Sample> = tail.iter().map(quantize_sample).collect();
         validate_samples(&tail, self.last.as_ref(), self.next_seq as usize).map_err(bad)?;
         let first_kept = self.kept.len() as u64;
+        // On a copy (its state is a few numbers), so that a refused batch changes nothing.
+        let mut simplifier = self.simplifier.clone();
         let mut kept = Vec::new();
         for s in &tail {
-            kept.extend(self.simplifier.push(*s));
+            kept.extend(simplifier.push(*s));
         }
+        let retained = self.kept.len() + kept.len();
+        if retained > limits.max_stroke_retained {
+            return Err(Refusal::new(
+                ErrorCode::StrokeTooLong,
+                format!(
+                    "stroke would retain {retained} samples, more than the limit of {} (a larger \
+                     tolerance retains fewer); end it and begin another",
+                    limits.max_stroke_retained
+                ),
+            ));
+        }
+        self.simplifier = simplifier;
         self.kept.extend_from_slice(&kept);
         let seq = self.next_seq;
         self.next_seq = end;
@@ -169,7 +185,34 @@ impl StrokeState {
 mod tests {
     use super::*;
 
-    const LIMITS: StrokeLimits = StrokeLimits { max_batch_samples: 100, max_stroke_samples: 1000 };
+    const LIMITS: StrokeLimits = StrokeLimits {
+        max_batch_samples: 100,
+        max_stroke_samples: 1000,
+        max_stroke_retained: 1000,
+    };
+
+    #[test]
+    fn retained_samples_held_per_stroke_are_limited_and_a_refusal_changes_nothing() {
+        // A zigzag: every sample is retained.
+        let zigzag: Vec<Sample> = (0..40)
+            .map(|i| {
+                Sample::new(i as f64 * 4.0, if i % 2 == 0 { 0.0 } else { 50.0 }, i as f64, 0.5)
+            })
+            .collect();
+        let limits = StrokeLimits { max_stroke_retained: 25, ..LIMITS };
+        let mut s = state();
+        s.push_points(0, &zigzag[..20], &limits).unwrap();
+        let before = (s.next_seq(), s.kept().len());
+        let err = s.push_points(20, &zigzag[20..], &limits).unwrap_err();
+        assert_eq!(err.code, ErrorCode::StrokeTooLong);
+        assert!(err.message.contains("retain") && err.message.contains("25"), "{}", err.message);
+        assert_eq!((s.next_seq(), s.kept().len()), before, "a refused batch changes nothing");
+        // What fits still goes in, and the result is what the batch simplification keeps.
+        s.push_points(20, &zigzag[20..24], &limits).unwrap();
+        let kept = s.finish(24).unwrap().kept;
+        let indices: Vec<usize> = kept.iter().map(|k| k.index).collect();
+        assert_eq!(indices, penmesh::simplify(&zigzag[..24], &AcutsParams::default()));
+    }
 
     fn line(from: usize, to: usize) -> Vec<Sample> {
         (from..to)

@@ -13,6 +13,7 @@ mod ingest;
 mod mesh_build;
 mod metrics;
 mod openapi;
+mod rate;
 mod startup;
 mod state;
 mod store;

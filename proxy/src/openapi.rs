@@ -9,7 +9,7 @@ use crate::{http, mesh_build};
 #[derive(Debug, OpenApi)]
 #[openapi(
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
-        The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, ?token=, or for browsers the `penmesh.token.TOKEN` \
+        The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, or for browsers the `penmesh.token.TOKEN` \
         WebSocket subprotocol)."),
     paths(
         http::create_session,

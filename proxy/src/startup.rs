@@ -9,15 +9,18 @@
 //! the session-event listener and the stroke-lock connection ([`crate::cluster`]), so any
 //! number of replicas can serve one database.
 
-use axum::serve::ListenerExt;
 use std::time::Duration;
 
 use anyhow::Context;
 use axum::Router;
-use axum::extract::DefaultBodyLimit;
+use axum::extract::{ConnectInfo, DefaultBodyLimit};
+use axum::http::{Request, StatusCode};
 use axum::routing::{get, post, put};
+use hyper::body::Incoming;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
+use tower_http::classify::{ServerErrorsAsFailures, SharedClassifier};
+use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 
@@ -93,6 +96,7 @@ impl Application {
             faults,
         )
         .await?;
+        let writer = writer.limit_bytes(config.writer_queue_bytes);
         let tcp = TcpListener::bind((config.host.as_str(), config.port))
             .await
             .with_context(|| format!("binding {}:{}", config.host, config.port))?;
@@ -132,20 +136,9 @@ impl Application {
         #[cfg(not(unix))]
         let term = ();
         let signals = tokio::spawn(cancel_on_signal(shutdown.clone(), term));
-        let server = tokio::spawn(
-            // Nagle's algorithm would hold small frames (Ack, StrokeDone) until the peer's
-            // delayed ACK, adding tens of milliseconds to each answer.
-            axum::serve(
-                listener.tap_io(|tcp| {
-                    if let Err(err) = tcp.set_nodelay(true) {
-                        tracing::debug!("cannot set TCP_NODELAY: {err}");
-                    }
-                }),
-                router(state.clone()),
-            )
-            .with_graceful_shutdown(shutdown.clone().cancelled_owned())
-            .into_future(),
-        );
+        let header_timeout = Duration::from_secs(state.config.header_timeout_secs);
+        let server =
+            tokio::spawn(serve(listener, router(state.clone()), header_timeout, shutdown.clone()));
         shutdown.cancelled().await;
         signals.abort();
         let grace = Duration::from_secs(state.config.shutdown_grace_secs);
@@ -157,7 +150,6 @@ impl Application {
         }
         let mut server = server;
         match tokio::time::timeout_at(deadline, &mut server).await {
-            Ok(Ok(Err(err))) => tracing::error!(error = %err, "server failed"),
             Ok(_) => {}
             Err(_) => {
                 tracing::warn!("HTTP connections outlived the grace period");
@@ -204,13 +196,96 @@ async fn cancel_on_signal(shutdown: CancellationToken, _term: ()) {
     shutdown.cancel();
 }
 
+/// Serves `router` on `listener` until `stop`, then lets the open connections finish (the
+/// caller bounds how long). HTTP/1.1 only, through hyper directly rather than `axum::serve`,
+/// which sets no timer, so hyper's header-read timeout would not apply: a connection that
+/// has not sent a whole request head within `header_timeout` of opening (or of its previous
+/// request) is closed (slowloris). Each request carries the peer's address as `ConnectInfo`.
+async fn serve(
+    listener: TcpListener,
+    router: Router,
+    header_timeout: Duration,
+    stop: CancellationToken,
+) {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    use tower::ServiceExt;
+    // hyper's HTTP/1 builder itself: hyper-util's `auto` one first waits, with no timeout, for
+    // enough bytes to tell HTTP/1 from HTTP/2.
+    let mut builder = hyper::server::conn::http1::Builder::new();
+    builder.timer(TokioTimer::new()).header_read_timeout(header_timeout);
+    let connections = tokio_util::task::TaskTracker::new();
+    loop {
+        let (tcp, peer) = tokio::select! {
+            _ = stop.cancelled() => break,
+            accepted = listener.accept() => match accepted {
+                Ok(accepted) => accepted,
+                Err(err) => {
+                    // Out of file descriptors, say: wait instead of spinning.
+                    tracing::warn!(error = %err, "accepting a connection failed");
+                    tokio::time::sleep(Duration::from_millis(100)).await;
+                    continue;
+                }
+            },
+        };
+        // Nagle's algorithm would hold small frames (Ack, StrokeDone) until the peer's
+        // delayed ACK, adding tens of milliseconds to each answer.
+        if let Err(err) = tcp.set_nodelay(true) {
+            tracing::debug!("cannot set TCP_NODELAY: {err}");
+        }
+        let router = router.clone();
+        let service = hyper::service::service_fn(move |mut request: Request<Incoming>| {
+            request.extensions_mut().insert(ConnectInfo(peer));
+            router.clone().oneshot(request.map(axum::body::Body::new))
+        });
+        let connection = builder.serve_connection(TokioIo::new(tcp), service).with_upgrades();
+        let stop = stop.clone();
+        connections.spawn(async move {
+            let mut connection = std::pin::pin!(connection);
+            let result = tokio::select! {
+                result = connection.as_mut() => result,
+                _ = stop.cancelled() => {
+                    // Finish the request in progress, then close.
+                    connection.as_mut().graceful_shutdown();
+                    connection.await
+                }
+            };
+            if let Err(err) = result {
+                tracing::debug!(error = %err, "HTTP connection ended");
+            }
+        });
+    }
+    drop(listener);
+    connections.close();
+    connections.wait().await;
+}
+
+/// The span of an HTTP request: method and path, never the query string, which may carry a
+/// secret (`?token=` from a client that should not send one).
+fn request_span(request: &Request<axum::body::Body>) -> tracing::Span {
+    tracing::debug_span!(
+        "request",
+        method = %request.method(),
+        path = %request.uri().path(),
+        version = ?request.version(),
+    )
+}
+
+type RequestSpan = fn(&Request<axum::body::Body>) -> tracing::Span;
+
+/// The request log: spans from [`request_span`].
+fn trace_layer() -> TraceLayer<SharedClassifier<ServerErrorsAsFailures>, RequestSpan> {
+    TraceLayer::new_for_http().make_span_with(request_span as RequestSpan)
+}
+
 /// Every route of the proxy.
 pub fn router(state: AppState) -> Router {
     let body_limit = state.config.max_body_bytes;
+    let request_timeout = Duration::from_secs(state.config.request_timeout_secs);
+    // The WebSocket lives as long as the connection: no request timeout on it.
+    let websocket = Router::new().route("/v1/sessions/{session}/ws", get(ws::ws_handler));
     Router::new()
         .route("/v1/sessions", post(http::create_session))
         .route("/v1/sessions/{session}/strokes", get(http::list_strokes))
-        .route("/v1/sessions/{session}/ws", get(ws::ws_handler))
         .route("/v1/strokes/{id}/simplified", get(http::simplified))
         .route("/v1/strokes/{id}/raw", get(http::raw))
         .route("/v1/strokes/{id}/mesh", put(http::put_mesh).get(http::get_mesh))
@@ -220,11 +295,78 @@ pub fn router(state: AppState) -> Router {
         .route("/healthz", get(http::healthz))
         .route("/readyz", get(http::readyz))
         .route("/metrics", get(http::metrics))
+        .layer(TimeoutLayer::with_status_code(StatusCode::REQUEST_TIMEOUT, request_timeout))
+        .merge(websocket)
         .layer(DefaultBodyLimit::max(body_limit))
-        .layer(TraceLayer::new_for_http())
+        .layer(trace_layer())
         .with_state(state)
 }
 
 async fn openapi_json() -> axum::Json<utoipa::openapi::OpenApi> {
     axum::Json(crate::openapi::ApiDoc::openapi())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::{Arc, Mutex};
+
+    use axum::body::Body;
+    use tower::ServiceExt;
+
+    use super::*;
+
+    /// Log lines, shared with the subscriber that writes them.
+    #[derive(Clone, Default)]
+    struct Captured(Arc<Mutex<Vec<u8>>>);
+
+    impl std::io::Write for Captured {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(buf);
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// What a request to `/v1/x?token=secret` logs at the most verbose level through `layer`.
+    fn logs_of<L>(layer: L) -> String
+    where
+        L: tower::Layer<axum::routing::Route> + Clone + Send + Sync + 'static,
+        L::Service: tower::Service<Request<Body>, Error = std::convert::Infallible>
+            + Clone
+            + Send
+            + Sync
+            + 'static,
+        <L::Service as tower::Service<Request<Body>>>::Response:
+            axum::response::IntoResponse + 'static,
+        <L::Service as tower::Service<Request<Body>>>::Future: Send + 'static,
+    {
+        let captured = Captured::default();
+        let writer = captured.clone();
+        let subscriber = tracing_subscriber::fmt()
+            .with_max_level(tracing::Level::TRACE)
+            .with_ansi(false)
+            .with_writer(move || writer.clone())
+            .finish();
+        tracing::subscriber::with_default(subscriber, || {
+            let runtime = tokio::runtime::Builder::new_current_thread().build().unwrap();
+            runtime.block_on(async {
+                let app = Router::new().route("/v1/x", get(|| async { "ok" })).layer(layer);
+                let request = Request::get("/v1/x?token=secret").body(Body::empty()).unwrap();
+                assert_eq!(app.oneshot(request).await.unwrap().status(), 200);
+            });
+        });
+        String::from_utf8(captured.0.lock().unwrap().clone()).unwrap()
+    }
+
+    #[test]
+    fn a_token_in_the_query_string_does_not_reach_the_logs() {
+        // tower-http's default span logs the whole URI: the capture does see it.
+        let default = logs_of(TraceLayer::new_for_http());
+        assert!(default.contains("secret"), "the capture works: {default}");
+        let ours = logs_of(trace_layer());
+        assert!(ours.contains("/v1/x"), "the path is logged: {ours}");
+        assert!(!ours.contains("secret") && !ours.contains("token="), "{ours}");
+    }
 }

@@ -40,6 +40,10 @@ pub struct Inner {
     pub fanout: Fanout,
     /// Live connections per session on this replica.
     hubs: Mutex<HashMap<Uuid, usize>>,
+    /// The rate limit of `POST /v1/sessions`.
+    pub session_limiter: crate::rate::SessionLimiter,
+    /// One permit per WebSocket connection on this replica (`max_connections`).
+    connections: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -60,6 +64,14 @@ impl AppState {
         fanout: Fanout,
         locks: Option<StrokeLocks>,
     ) -> AppState {
+        let connections = Arc::new(tokio::sync::Semaphore::new(
+            config.max_connections.min(tokio::sync::Semaphore::MAX_PERMITS),
+        ));
+        let session_limiter = crate::rate::SessionLimiter::new(
+            config.session_rate_per_minute,
+            config.session_burst,
+            config.trust_forwarded_for,
+        );
         AppState {
             inner: Arc::new(Inner {
                 config,
@@ -71,6 +83,8 @@ impl AppState {
                 metrics,
                 fanout,
                 hubs: Mutex::new(HashMap::new()),
+                connections,
+                session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
         }
@@ -78,6 +92,12 @@ impl AppState {
 
     pub fn next_connection_id(&self) -> u64 {
         self.next_connection.fetch_add(1, Ordering::Relaxed)
+    }
+
+    /// A WebSocket connection's slot on this replica, unless `max_connections` are open;
+    /// the slot frees when the permit is dropped.
+    pub fn connection_slot(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        self.connections.clone().try_acquire_owned().ok()
     }
 
     /// Counts a new connection in its session, unless the session is full.

@@ -250,10 +250,8 @@ fn binary_refuses_forged_sample_counts_without_allocating() {
     // n - 1 = 2^40 in Exp-Golomb: far over MAX_BATCH_SAMPLES.
     let huge = format!("1 {} 1 {}", "0".repeat(40), "0".repeat(40));
     let err = decode_client(&points_frame_with_batch(&pack_bits(&huge)), LIMIT).unwrap_err();
-    assert!(
-        matches!(&err, CodecError::Malformed(m) if m.contains("larger than the limit")),
-        "{err}"
-    );
+    let n = Some(1u64 << 40);
+    assert_eq!(err, CodecError::BatchTooLarge { n, limit: MAX_BATCH_SAMPLES });
     // n = 2^20 (within the limit) but with no bytes behind it: cut short, nothing reserved.
     let many = format!("1 {} 1 {}", "0".repeat(20), "0".repeat(20));
     let err = decode_client(&points_frame_with_batch(&pack_bits(&many)), LIMIT).unwrap_err();
@@ -264,6 +262,46 @@ fn binary_refuses_forged_sample_counts_without_allocating() {
     // A code longer than 62 bits.
     let long = format!("1 1 1 1 {}", "0".repeat(80));
     assert!(decode_client(&points_frame_with_batch(&pack_bits(&long)), LIMIT).is_err());
+}
+
+#[test]
+fn the_callers_batch_limit_is_applied_while_decoding_in_both_encodings() {
+    let points = |n: usize| {
+        ClientMessage::Points(Points { stroke: id(1), seq: 0, points: PointBatch(samples(n)) })
+    };
+    // A forged count of 2^20 with no samples behind it: refused on the count alone.
+    let forged =
+        points_frame_with_batch(&pack_bits(&format!("1 {} 1 {}", "0".repeat(20), "0".repeat(20))));
+    let binary = |bytes: &[u8], limit| decode_client_limited(bytes, LIMIT, limit);
+    let json = |msg: &ClientMessage, limit| {
+        decode_client_json_limited(&encode_client_json(msg), LIMIT, limit)
+    };
+    for (case, result, expected) in [
+        ("binary at the limit", binary(&encode_client(&points(10)), 10), None),
+        ("binary over", binary(&encode_client(&points(11)), 10), Some(Some(11))),
+        ("binary forged count", binary(&forged, 4096), Some(Some(1 << 20))),
+        ("json at the limit", json(&points(10), 10), None),
+        ("json over", json(&points(11), 10), Some(None)),
+    ] {
+        match expected {
+            None => assert_eq!(result, Ok(points(10)), "{case}"),
+            Some(n) => {
+                let err = result.unwrap_err();
+                assert_eq!(
+                    err,
+                    CodecError::BatchTooLarge {
+                        n,
+                        limit: if case.contains("forged") { 4096 } else { 10 }
+                    },
+                    "{case}"
+                );
+                assert!(err.to_string().contains("larger than the limit"), "{case}: {err}");
+            }
+        }
+    }
+    // The limit is for one decode only: the next one without it takes a large batch.
+    assert!(decode_client(&encode_client(&points(11)), LIMIT).is_ok());
+    assert!(decode_client_json(&encode_client_json(&points(11)), LIMIT).is_ok());
 }
 
 #[test]

@@ -70,6 +70,11 @@ impl TestDatabase {
         TestDatabase { url: format!("{host_part}/{name}{query}"), _dir: None }
     }
 
+    /// A database that exists already at `url` (the caller made it and keeps it alive).
+    pub fn existing(url: String) -> TestDatabase {
+        TestDatabase { url, _dir: None }
+    }
+
     pub fn is_postgres(&self) -> bool {
         self.url.starts_with("postgres")
     }

@@ -62,6 +62,15 @@ pub enum WriteOp {
 }
 
 impl WriteOp {
+    /// Bytes of samples the op holds while it waits for the writer.
+    fn sample_bytes(&self) -> usize {
+        match self {
+            WriteOp::Append { samples, .. } => std::mem::size_of_val(samples.as_slice()),
+            WriteOp::Finish { kept, .. } => std::mem::size_of_val(kept.as_slice()),
+            _ => 0,
+        }
+    }
+
     fn n_samples(&self) -> usize {
         match self {
             WriteOp::Append { samples, .. } => samples.len(),
@@ -169,15 +178,31 @@ struct WriteRequest {
     ops: Vec<WriteOp>,
     events: Vec<SessionEvent>,
     done: oneshot::Sender<Result<(), WriteError>>,
+    /// The request's share of the queue's bytes, given back when the request is dropped.
+    _bytes: Option<tokio::sync::OwnedSemaphorePermit>,
 }
 
 /// The sending side, cloned into every connection.
 #[derive(Debug, Clone)]
 pub struct Writer {
     tx: mpsc::Sender<WriteRequest>,
+    /// Bytes of samples queued or being committed, at most the semaphore's size (none: no
+    /// limit but the count).
+    bytes: Option<(Arc<tokio::sync::Semaphore>, u32)>,
 }
 
 impl Writer {
+    /// Bounds the bytes of samples queued into the writer (and not yet committed) by `limit`,
+    /// next to the count of requests: a sender waits until they fit. A request larger than
+    /// the whole limit waits for the queue to be empty of samples.
+    pub fn limit_bytes(self, limit: usize) -> Writer {
+        let limit = limit.clamp(1, u32::MAX as usize) as u32;
+        Writer {
+            bytes: Some((Arc::new(tokio::sync::Semaphore::new(limit as usize)), limit)),
+            ..self
+        }
+    }
+
     /// Queues `ops` (waiting while the queue is full) and returns a future that resolves once
     /// they are committed.
     pub async fn submit(
@@ -194,7 +219,19 @@ impl Writer {
         events: Vec<SessionEvent>,
     ) -> impl Future<Output = Result<(), WriteError>> + Send + 'static {
         let (done, rx) = oneshot::channel();
-        let queued = self.tx.send(WriteRequest { ops, events, done }).await.is_ok();
+        let bytes = match &self.bytes {
+            Some((semaphore, limit)) => {
+                let n: usize = ops.iter().map(WriteOp::sample_bytes).sum();
+                let n = n.min(*limit as usize) as u32;
+                match n {
+                    0 => None,
+                    n => semaphore.clone().acquire_many_owned(n).await.ok(),
+                }
+            }
+            None => None,
+        };
+        let request = WriteRequest { ops, events, done, _bytes: bytes };
+        let queued = self.tx.send(request).await.is_ok();
         async move {
             if !queued {
                 return Err(WriteError::Closed);
@@ -272,7 +309,7 @@ impl WriterTask {
                 })
             })?;
         match opened.await {
-            Ok(Ok(())) => Ok((Writer { tx }, WriterTask { thread, stop })),
+            Ok(Ok(())) => Ok((Writer { tx, bytes: None }, WriterTask { thread, stop })),
             Ok(Err(err)) => Err(err.context("opening the writer's database connection")),
             Err(_) => anyhow::bail!("the writer thread ended while opening its connection"),
         }
@@ -718,4 +755,36 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn append(n: usize) -> Vec<WriteOp> {
+        let samples = vec![Sample::new(0.0, 0.0, 0.0, 0.5); n];
+        vec![WriteOp::Append { stroke: Uuid::new_v4(), seq: 0, samples }]
+    }
+
+    #[tokio::test]
+    async fn the_bytes_queued_into_the_writer_are_bounded() {
+        let (tx, mut rx) = mpsc::channel(100);
+        let sample = std::mem::size_of::<Sample>();
+        let writer = Writer { tx, bytes: None }.limit_bytes(4 * sample);
+        // Three samples fit, a fourth fits, a fifth waits: the count alone (100) would take it.
+        let _first = writer.submit(append(3)).await;
+        let _second = writer.submit(append(1)).await;
+        let waits = tokio::time::timeout(Duration::from_millis(100), writer.submit(append(1)));
+        assert!(waits.await.is_err(), "queued past the byte limit");
+        // Once the writer is done with a request its bytes are free again.
+        drop(rx.recv().await.unwrap());
+        let goes = tokio::time::timeout(Duration::from_secs(5), writer.submit(append(1)));
+        assert!(goes.await.is_ok());
+        // A request larger than the whole limit goes in alone instead of waiting forever.
+        while let Ok(request) = rx.try_recv() {
+            drop(request);
+        }
+        let huge = tokio::time::timeout(Duration::from_secs(5), writer.submit(append(100)));
+        assert!(huge.await.is_ok());
+    }
 }

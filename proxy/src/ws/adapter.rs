@@ -2,47 +2,47 @@
 //! `Sink`/`Stream` of [`Frame`]s for [`serve`].
 
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use axum::response::{IntoResponse, Response};
 use futures_util::{Sink, SinkExt, Stream, StreamExt};
 use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, encode_server_json};
-use serde::Deserialize;
 
 use super::error::ReadError;
 use super::{Frame, close_code, serve};
 use crate::http::{AppError, authorize_session};
 use crate::state::AppState;
 
-#[derive(Debug, Deserialize)]
-pub struct TokenQuery {
-    token: Option<String>,
-}
-
 /// `GET /v1/sessions/{session}/ws`: authenticates, then upgrades.
 pub async fn ws_handler(
     State(state): State<AppState>,
     Path(session): Path<String>,
-    Query(query): Query<TokenQuery>,
     headers: HeaderMap,
     upgrade: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
 ) -> Result<Response, AppError> {
     if state.shutdown.is_cancelled() {
         return Err(AppError::ShuttingDown);
     }
-    // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol.
-    let token = query.token.as_deref().or_else(|| crate::web::subprotocol_token(&headers));
+    // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol. A
+    // token in the query string is not read (URLs reach access logs).
+    let token = crate::web::subprotocol_token(&headers);
     let session = authorize_session(&state, &headers, token, &session).await?;
     let upgrade = match upgrade {
         Ok(upgrade) => upgrade,
         Err(rejection) => return Ok(rejection.into_response()),
     };
+    let slot = state.connection_slot().ok_or_else(|| {
+        AppError::Busy(format!(
+            "this replica has {} WebSocket connections, the limit (--max-connections)",
+            state.config.max_connections
+        ))
+    })?;
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);
     let tracked = state.tracker.token();
     let upgrade = upgrade.read_buffer_size(READ_BUFFER_BYTES).protocols([crate::web::SUBPROTOCOL]);
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
-        let _tracked = tracked;
+        let (_tracked, _slot) = (tracked, slot);
         let (sink, stream) = split(socket);
         match guard {
             Some(guard) => serve(state, session, guard, sink, stream).await,

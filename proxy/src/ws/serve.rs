@@ -1,13 +1,11 @@
 //! The connection loop: one WebSocket connection from `Hello` to its end.
 
-//! The connection loop: one WebSocket connection from `Hello` to its end.
-
 use std::time::Duration;
 
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
     ClientMessage, CodecError, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, StrokeId,
-    Welcome, decode_client, decode_client_json,
+    Welcome, decode_client_json_limited, decode_client_limited,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -175,13 +173,15 @@ impl Connection {
                 self.outgoing.form = Form::Binary;
                 metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "binary")
                     .increment(1);
-                decode_client(bytes, limit).map_err(|e| decode_error(e, ErrorCode::Malformed))
+                decode_client_limited(bytes, limit, self.state.config.max_batch_samples)
+                    .map_err(|e| decode_error(e, ErrorCode::Malformed))
             }
             Frame::Text(text) => {
                 self.outgoing.form = Form::Json;
                 metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
                     .increment(1);
-                decode_client_json(text, limit).map_err(|e| decode_error(e, ErrorCode::BadJson))
+                decode_client_json_limited(text, limit, self.state.config.max_batch_samples)
+                    .map_err(|e| decode_error(e, ErrorCode::BadJson))
             }
             // The WebSocket library answers pings itself.
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
@@ -231,6 +231,19 @@ impl Connection {
                     hello.protocol
                 ),
                 End::Close(close_code::PROTOCOL, "unsupported protocol".into()),
+            ));
+        }
+        let max_resume = self.state.config.max_open_strokes;
+        if hello.resume.len() > max_resume {
+            // Each entry costs a query and perhaps a claim wait: refuse a long list outright.
+            return Err(ConnError::fatal(
+                ErrorCode::TooManyOpenStrokes,
+                format!(
+                    "hello.resume names {} strokes, more than the limit of {max_resume} open \
+                     strokes per connection",
+                    hello.resume.len()
+                ),
+                End::Close(close_code::POLICY, "resume list too long".into()),
             ));
         }
         self.hello = true;
@@ -331,6 +344,7 @@ impl Connection {
 /// its form (binary or JSON).
 fn decode_error(err: CodecError, malformed: ErrorCode) -> ConnError {
     let code = match err {
+        CodecError::BatchTooLarge { .. } => ErrorCode::BatchTooLarge,
         CodecError::TooLarge { .. } => ErrorCode::FrameTooLarge,
         CodecError::UnknownMessage(_) => ErrorCode::UnknownMessage,
         _ => malformed,

@@ -25,6 +25,7 @@ impl Connection {
         StrokeLimits {
             max_batch_samples: self.state.config.max_batch_samples,
             max_stroke_samples: self.state.config.max_stroke_samples,
+            max_stroke_retained: self.state.config.max_stroke_retained,
         }
     }
 
@@ -127,6 +128,16 @@ impl Connection {
         if let Err(err) = begin.brush.validate() {
             return Err(ConnError::refused(ErrorCode::BadBrush, err.to_string(), Some(stroke)));
         }
+        let (device, max_device) = (begin.device.as_deref(), self.state.config.max_device_chars);
+        if let Some(n) = device.map(|d| d.chars().count()).filter(|&n| n > max_device) {
+            return Err(ConnError::refused(
+                ErrorCode::Malformed,
+                format!(
+                    "stroke_begin.device is {n} characters, more than the limit of {max_device}"
+                ),
+                Some(stroke),
+            ));
+        }
         let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
         if let Err(err) = params.validate() {
             return Err(ConnError::refused(
@@ -178,7 +189,9 @@ impl Connection {
                 self.claims.release(stroke);
                 Err(ConnError::refused(
                     ErrorCode::StrokeConflict,
-                    format!("stroke id {stroke} is already in use; choose a new id"),
+                    // Says no more than that the id is taken (not where, nor anything of the
+                    // stroke): ids are global, see docs/reliability-limits.md.
+                    format!("stroke id {stroke} is taken; choose a new random id"),
                     Some(stroke),
                 ))
             }

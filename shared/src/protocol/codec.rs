@@ -90,8 +90,54 @@ pub const TIME_STEP: f64 = 1.0 / 8.0;
 pub const PRESSURE_STEP: f64 = 1.0 / 1024.0;
 /// Largest magnitude, in steps, of a value sent on the grid; larger ones are sent raw.
 pub const MAX_STEPS: i64 = 1 << 48;
-/// Most samples one binary batch may hold; a larger count is refused when decoding.
+/// Most samples one batch may hold; a larger count is refused when decoding. A caller with a
+/// lower limit passes it to [`decode_client_limited`], which refuses a larger count before
+/// decoding (or allocating for) the samples.
 pub const MAX_BATCH_SAMPLES: usize = 1 << 20;
+
+thread_local! {
+    /// The batch limit of the frame being decoded on this thread, and the batch it refused.
+    /// serde gives a `Deserialize` impl no context, and decoding is synchronous, so the limit
+    /// reaches [`PointBatch`]'s decoder this way; [`BatchLimit`] sets and restores it.
+    static BATCH_LIMIT: std::cell::Cell<(usize, Option<BatchRefused>)> =
+        const { std::cell::Cell::new((MAX_BATCH_SAMPLES, None)) };
+}
+
+/// A batch over the limit: its count (binary), or only that it has more (JSON).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BatchRefused {
+    n: Option<u64>,
+    limit: usize,
+}
+
+/// Sets the batch limit for one decode on this thread; restores the previous one when dropped.
+struct BatchLimit(usize);
+
+impl BatchLimit {
+    fn set(limit: usize) -> BatchLimit {
+        let limit = limit.min(MAX_BATCH_SAMPLES);
+        BatchLimit(BATCH_LIMIT.replace((limit, None)).0)
+    }
+
+    fn limit() -> usize {
+        BATCH_LIMIT.get().0
+    }
+
+    fn refuse(refused: BatchRefused) {
+        BATCH_LIMIT.set((refused.limit, Some(refused)));
+    }
+
+    /// The batch this decode refused, if that is why it failed.
+    fn refused(&self) -> Option<CodecError> {
+        BATCH_LIMIT.get().1.map(|r| CodecError::BatchTooLarge { n: r.n, limit: r.limit })
+    }
+}
+
+impl Drop for BatchLimit {
+    fn drop(&mut self) {
+        BATCH_LIMIT.set((self.0, None));
+    }
+}
 
 /// bincode's own limit on what one decode may claim (string and vector lengths).
 const BINCODE_LIMIT: usize = 16 * 1024 * 1024;
@@ -122,6 +168,11 @@ pub enum CodecError {
     /// Well-formed framing that names a message this protocol version does not have.
     #[error("unknown message: {0}")]
     UnknownMessage(String),
+    /// A point batch with more samples than the caller's limit (`n`: its count, when known
+    /// before reading them).
+    #[error("batch of {} samples is larger than the limit of {limit}",
+            .n.map_or_else(|| "more".to_string(), |n| n.to_string()))]
+    BatchTooLarge { n: Option<u64>, limit: usize },
 }
 
 /// The step count of `v` on a grid of `step`, if it is finite and within [`MAX_STEPS`].
@@ -544,9 +595,11 @@ fn decode_batch<R: ByteSource>(source: &mut R) -> Result<Vec<Sample>, R::Error> 
         return Ok(Vec::new());
     };
     let n = r.exp_golomb(0)?.saturating_add(1);
-    if n > MAX_BATCH_SAMPLES as u64 {
+    let limit = BatchLimit::limit();
+    if n > limit as u64 {
+        BatchLimit::refuse(BatchRefused { n: Some(n), limit });
         return Err(R::malformed(&format!(
-            "batch of {n} samples is larger than the limit of {MAX_BATCH_SAMPLES}"
+            "batch of {n} samples is larger than the limit of {limit}"
         )));
     }
     let n = n as usize;
@@ -645,10 +698,36 @@ impl<'de> Visitor<'de> for BatchVisitor {
     }
 }
 
+/// A JSON batch: an array of samples, refused at the first sample past the limit.
+struct JsonBatchVisitor;
+
+impl<'de> Visitor<'de> for JsonBatchVisitor {
+    type Value = PointBatch;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("an array of [x, y, t, p] samples")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<PointBatch, A::Error> {
+        let limit = BatchLimit::limit();
+        let mut samples = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(limit).min(1024));
+        while let Some(sample) = seq.next_element::<Sample>()? {
+            if samples.len() == limit {
+                BatchLimit::refuse(BatchRefused { n: None, limit });
+                return Err(serde::de::Error::custom(format_args!(
+                    "batch of more than {limit} samples"
+                )));
+            }
+            samples.push(sample);
+        }
+        Ok(PointBatch(samples))
+    }
+}
+
 impl<'de> Deserialize<'de> for PointBatch {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<PointBatch, D::Error> {
         if deserializer.is_human_readable() {
-            return Ok(PointBatch(Vec::<Sample>::deserialize(deserializer)?));
+            return deserializer.deserialize_seq(JsonBatchVisitor);
         }
         // The bit string delimits itself: the visitor takes exactly the bytes it needs.
         deserializer.deserialize_tuple(usize::MAX, BatchVisitor)
@@ -699,7 +778,11 @@ impl MessageKind for ServerMessage {
     ];
 }
 
-fn decode<T: DeserializeOwned + MessageKind>(bytes: &[u8], limit: usize) -> Result<T, CodecError> {
+fn decode<T: DeserializeOwned + MessageKind>(
+    bytes: &[u8],
+    limit: usize,
+    max_batch: usize,
+) -> Result<T, CodecError> {
     let limit = limit.min(BINCODE_LIMIT);
     if bytes.len() > limit {
         return Err(CodecError::TooLarge { size: bytes.len(), limit });
@@ -717,8 +800,10 @@ fn decode<T: DeserializeOwned + MessageKind>(bytes: &[u8], limit: usize) -> Resu
             T::NAMES.len()
         )));
     }
-    let (msg, used) = bincode::serde::decode_from_slice(body, config())
-        .map_err(|e| CodecError::Malformed(e.to_string()))?;
+    let batch_limit = BatchLimit::set(max_batch);
+    let (msg, used) = bincode::serde::decode_from_slice(body, config()).map_err(|e| {
+        batch_limit.refused().unwrap_or_else(|| CodecError::Malformed(e.to_string()))
+    })?;
     if used != body.len() {
         return Err(CodecError::Malformed(format!("{} trailing bytes", body.len() - used)));
     }
@@ -728,11 +813,16 @@ fn decode<T: DeserializeOwned + MessageKind>(bytes: &[u8], limit: usize) -> Resu
 fn decode_json<T: DeserializeOwned + MessageKind>(
     text: &str,
     limit: usize,
+    max_batch: usize,
 ) -> Result<T, CodecError> {
     if text.len() > limit {
         return Err(CodecError::TooLarge { size: text.len(), limit });
     }
+    let batch_limit = BatchLimit::set(max_batch);
     serde_json::from_str(text).map_err(|e| {
+        if let Some(refused) = batch_limit.refused() {
+            return refused;
+        }
         // Only on the error path: look again to tell an unknown message from bad JSON.
         match serde_json::from_str::<serde_json::Value>(text) {
             Ok(serde_json::Value::Object(map)) if map.len() == 1 => {
@@ -776,11 +866,21 @@ pub fn encode_server(msg: &ServerMessage) -> Vec<u8> {
 }
 /// Decodes a binary frame of at most `limit` bytes.
 pub fn decode_client(bytes: &[u8], limit: usize) -> Result<ClientMessage, CodecError> {
-    decode(bytes, limit)
+    decode(bytes, limit, MAX_BATCH_SAMPLES)
+}
+/// Decodes a binary frame of at most `limit` bytes whose point batch (if any) holds at most
+/// `max_batch` samples: a larger count is refused with [`CodecError::BatchTooLarge`] before
+/// the samples are read.
+pub fn decode_client_limited(
+    bytes: &[u8],
+    limit: usize,
+    max_batch: usize,
+) -> Result<ClientMessage, CodecError> {
+    decode(bytes, limit, max_batch)
 }
 /// Decodes a binary frame of at most `limit` bytes.
 pub fn decode_server(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
-    decode(bytes, limit)
+    decode(bytes, limit, MAX_BATCH_SAMPLES)
 }
 /// A JSON text frame of a client message.
 pub fn encode_client_json(msg: &ClientMessage) -> String {
@@ -792,9 +892,17 @@ pub fn encode_server_json(msg: &ServerMessage) -> String {
 }
 /// Decodes a JSON text frame of at most `limit` bytes.
 pub fn decode_client_json(text: &str, limit: usize) -> Result<ClientMessage, CodecError> {
-    decode_json(text, limit)
+    decode_json(text, limit, MAX_BATCH_SAMPLES)
+}
+/// [`decode_client_limited`] for a JSON text frame.
+pub fn decode_client_json_limited(
+    text: &str,
+    limit: usize,
+    max_batch: usize,
+) -> Result<ClientMessage, CodecError> {
+    decode_json(text, limit, max_batch)
 }
 /// Decodes a JSON text frame of at most `limit` bytes.
 pub fn decode_server_json(text: &str, limit: usize) -> Result<ServerMessage, CodecError> {
-    decode_json(text, limit)
+    decode_json(text, limit, MAX_BATCH_SAMPLES)
 }

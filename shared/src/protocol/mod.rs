@@ -9,7 +9,7 @@
 //! **Only this module knows the wire encoding.** Everything else passes typed messages.
 //!
 //! Authentication is outside the messages: the session's token as `Authorization: Bearer` on
-//! the upgrade (or `?token=`), or, for a browser, which cannot set headers on a WebSocket and
+//! the upgrade (never `?token=`: URLs reach logs), or, for a browser, which cannot set headers on a WebSocket and
 //! must keep the token out of URLs, as the offered subprotocol `penmesh.token.TOKEN` next to
 //! `penmesh`, which the proxy selects (`docs/web.md`). A client that cannot run LRPDP (the
 //! browser) asks the proxy to build a done stroke's mesh: `POST /v1/strokes/{id}/mesh/build`,
@@ -27,8 +27,9 @@ use crate::model::{Brush, Sample};
 pub use codec::{
     CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, POSITION_STEP,
     PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json,
-    decode_point_batch, decode_server, decode_server_json, encode_client, encode_client_json,
-    encode_point_batch, encode_server, encode_server_json, quantize_sample,
+    decode_client_json_limited, decode_client_limited, decode_point_batch, decode_server,
+    decode_server_json, encode_client, encode_client_json, encode_point_batch, encode_server,
+    encode_server_json, quantize_sample,
 };
 pub use http::{ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples};
 

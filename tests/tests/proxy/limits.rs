@@ -3,7 +3,7 @@ use std::time::Duration;
 use futures_util::SinkExt;
 use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, encode_client,
+    ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, StrokeBegin, encode_client,
 };
 use penmesh_e2e::{Incoming, WsClient, spawn_proxy_with, stroke_samples};
 use tokio_tungstenite::tungstenite::Message;
@@ -197,6 +197,7 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
     let proxy = spawn_proxy_with(|c| {
         c.outgoing_queue = 4;
         c.max_stroke_samples = 100_000_000;
+        c.max_stroke_retained = 100_000_000;
     })
     .await;
     let session = proxy.create_session().await;
@@ -289,4 +290,221 @@ async fn a_burst_of_answers_larger_than_the_outgoing_queue_does_not_cut_off_a_re
     ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
     assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
     assert!(!proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
+}
+
+/// Fields bigger than the settings allow: each refused with a code and a message that names
+/// the field and the limit (the batch before its samples are decoded).
+#[tokio::test]
+async fn fields_over_their_limits_are_refused_naming_them() {
+    let proxy = spawn_proxy_with(|c| {
+        c.max_batch_samples = 10;
+        c.max_device_chars = 20;
+        c.max_stroke_retained = 15;
+        c.max_open_strokes = 2;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    // A zigzag: every sample is retained.
+    let zigzag: Vec<Sample> = (0..20)
+        .map(|i| Sample::new(i as f64 * 4.0, if i % 2 == 0 { 0.0 } else { 50.0 }, i as f64, 0.5))
+        .collect();
+    let begin = |stroke, device: &str| {
+        ClientMessage::StrokeBegin(StrokeBegin {
+            stroke,
+            brush: Default::default(),
+            device: Some(device.into()),
+            params: None,
+        })
+    };
+    let points = |stroke, seq: usize, samples: &[Sample]| {
+        ClientMessage::Points(Points {
+            stroke,
+            seq: seq as u64,
+            points: PointBatch(samples.to_vec()),
+        })
+    };
+    let s = Uuid::new_v4();
+    /// A case: its name, JSON or binary, what is sent after hello, the error and words of it.
+    type Case<'a> = (&'a str, bool, Vec<ClientMessage>, ErrorCode, &'a [&'a str]);
+    let cases: Vec<Case> = vec![
+        (
+            "device",
+            false,
+            vec![begin(s, &"d".repeat(21))],
+            ErrorCode::Malformed,
+            &["device", "21", "20"],
+        ),
+        (
+            "binary batch",
+            false,
+            vec![points(s, 0, &stroke_samples(11))],
+            ErrorCode::BatchTooLarge,
+            &["11", "10"],
+        ),
+        (
+            "json batch",
+            true,
+            vec![points(s, 0, &stroke_samples(11))],
+            ErrorCode::BatchTooLarge,
+            &["more", "10"],
+        ),
+        (
+            "retained",
+            false,
+            vec![begin(s, "pen"), points(s, 0, &zigzag[..10]), points(s, 10, &zigzag[10..])],
+            ErrorCode::StrokeTooLong,
+            &["retain", "15"],
+        ),
+    ];
+    for (case, json, messages, code, words) in cases {
+        let mut ws = proxy.connect(&session).await;
+        if json {
+            ws = ws.json();
+        }
+        ws.hello(vec![]).await;
+        for msg in &messages {
+            ws.send(msg).await;
+        }
+        let err = ws.expect_error(code).await;
+        for word in words {
+            assert!(err.message.contains(word), "{case}: {}", err.message);
+        }
+        // The connection goes on.
+        ws.send(&ClientMessage::Ping(penmesh::protocol::Ping { nonce: 7 })).await;
+        ws.recv_until(|m| matches!(m, ServerMessage::Pong(_))).await;
+    }
+    // A resume list longer than the open strokes a connection may hold: refused and closed.
+    let mut ws = proxy.connect(&session).await;
+    ws.send(&ClientMessage::Hello(penmesh::protocol::Hello {
+        protocol: penmesh::protocol::PROTOCOL_VERSION,
+        client: "t".into(),
+        name: None,
+        resume: (0..3).map(|_| Uuid::new_v4()).collect(),
+    }))
+    .await;
+    let err = ws.expect_error(ErrorCode::TooManyOpenStrokes).await;
+    assert!(err.message.contains("resume") && err.message.contains('2'), "{}", err.message);
+    assert_eq!(ws.expect_close().await, Some(1008));
+}
+
+/// `POST /v1/sessions` needs nothing: per client address, a burst and then a rate.
+#[tokio::test]
+async fn session_creation_is_rate_limited_per_client_address() {
+    for trust in [false, true] {
+        let proxy = spawn_proxy_with(|c| {
+            c.session_burst = 2;
+            c.session_rate_per_minute = 6;
+            c.trust_forwarded_for = trust;
+        })
+        .await;
+        let post = |forwarded: Option<&str>| {
+            let request = proxy.http.post(proxy.url("/v1/sessions"));
+            match forwarded {
+                Some(address) => request.header("x-forwarded-for", address),
+                None => request,
+            }
+        };
+        for (request, status) in [
+            (None, 201),
+            (None, 201),
+            (None, 429),
+            // Another address: its own bucket when the header is trusted, else the same one.
+            (Some("203.0.113.7"), if trust { 201 } else { 429 }),
+            (Some("198.51.100.1, 203.0.113.8"), if trust { 201 } else { 429 }),
+        ] {
+            let response = post(request).send().await.unwrap();
+            assert_eq!(response.status(), status, "trust {trust}, {request:?}");
+            if status == 429 {
+                let wait: u64 =
+                    response.headers()["retry-after"].to_str().unwrap().parse().unwrap();
+                assert!((1..=10).contains(&wait), "retry-after {wait}");
+                let body: serde_json::Value = response.json().await.unwrap();
+                assert_eq!(body["error"], "too_many_requests");
+            }
+        }
+    }
+}
+
+#[tokio::test]
+async fn websocket_connections_per_replica_are_limited_before_the_upgrade() {
+    let proxy = spawn_proxy_with(|c| c.max_connections = 2).await;
+    let (a, b) = (proxy.create_session().await, proxy.create_session().await);
+    let mut first = proxy.connect(&a).await;
+    first.hello(vec![]).await;
+    let mut second = proxy.connect(&b).await;
+    second.hello(vec![]).await;
+    match proxy.try_connect(&a).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => {
+            assert_eq!(response.status(), 503);
+            let body = String::from_utf8_lossy(response.body().as_deref().unwrap_or_default());
+            assert!(body.contains("busy") && body.contains("max-connections"), "{body}");
+        }
+        other => panic!("expected 503, got {:?}", other.map(|_| "an open socket")),
+    }
+    // A slot frees when a connection ends.
+    first.ws.close(None).await.unwrap();
+    drop(first);
+    let mut again = false;
+    for _ in 0..50 {
+        if let Ok(mut ws) = proxy.try_connect(&a).await {
+            ws.hello(vec![]).await;
+            again = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(again, "a slot frees when a connection ends");
+}
+
+/// Slowloris: a connection that does not finish its request head within the header timeout
+/// (from its opening, or from its previous request) is closed.
+#[tokio::test]
+async fn a_connection_that_sends_half_a_request_is_closed_after_the_header_timeout() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let proxy = spawn_proxy_with(|c| c.header_timeout_secs = 1).await;
+    for partial in [
+        "",
+        "GET /healthz HT",
+        "GET /healthz HTTP/1.1\r\nhost: localhost\r\n",
+        // A whole request, then nothing: answered, then closed when idle.
+        "GET /healthz HTTP/1.1\r\nhost: localhost\r\n\r\n",
+    ] {
+        let started = tokio::time::Instant::now();
+        let mut socket = tokio::net::TcpStream::connect(("127.0.0.1", proxy.port)).await.unwrap();
+        socket.write_all(partial.as_bytes()).await.unwrap();
+        let mut answer = Vec::new();
+        let closed =
+            tokio::time::timeout(Duration::from_secs(5), socket.read_to_end(&mut answer)).await;
+        assert!(closed.is_ok(), "{partial:?}: still open after 5 s");
+        let waited = started.elapsed();
+        assert!(waited >= Duration::from_millis(900), "{partial:?}: closed after {waited:?}");
+        if partial.ends_with("\r\n\r\n") {
+            assert!(answer.starts_with(b"HTTP/1.1 200"), "{}", String::from_utf8_lossy(&answer));
+        }
+    }
+}
+
+#[tokio::test]
+async fn an_http_request_whose_body_does_not_come_gets_408() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 1).await;
+    let session = proxy.create_session().await;
+    let stroke = Uuid::new_v4();
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+    penmesh_e2e::draw_stroke(&mut ws, stroke, &stroke_samples(10), 10).await;
+    let mut socket = tokio::net::TcpStream::connect(("127.0.0.1", proxy.port)).await.unwrap();
+    let head = format!(
+        "PUT /v1/strokes/{stroke}/mesh HTTP/1.1\r\nhost: localhost\r\n\
+         authorization: Bearer {}\r\ncontent-length: 1000\r\n\r\nglTF",
+        session.token
+    );
+    socket.write_all(head.as_bytes()).await.unwrap();
+    let mut answer = vec![0u8; 64];
+    let n = tokio::time::timeout(Duration::from_secs(5), socket.read(&mut answer))
+        .await
+        .expect("answered within the request timeout")
+        .unwrap();
+    let status = String::from_utf8_lossy(&answer[..n]).to_string();
+    assert!(status.starts_with("HTTP/1.1 408"), "{status}");
 }

@@ -8,6 +8,7 @@ mod deploy;
 mod http;
 mod limits;
 mod old_database;
+mod postgres;
 mod resume;
 mod shutdown;
 mod web;

@@ -53,6 +53,9 @@ pub(super) fn spawn_server(args: &LoadArgs, plan: &Plan) -> anyhow::Result<(Stri
             .args(["--host", "127.0.0.1", "--port", &port.to_string()])
             .args(["--database-url", &database])
             .args(["--max-connections-per-session", &per_session.to_string()])
+            // One address creates every session and opens every connection of the run.
+            .args(["--session-rate-per-minute", "0"])
+            .args(["--max-connections", &plan.clients.saturating_add(64).max(10_000).to_string()])
             .args(["--idle-timeout-secs", &idle.to_string()])
             .args(&args.proxy_arg);
     } else {
