@@ -74,8 +74,12 @@ impl Application {
                 let stop = CancellationToken::new();
                 // Both need a session of their own: past a transaction pooler, the direct URL.
                 let direct = config.direct_database_url();
-                let task = start_listener(direct, fanout.clone(), stop.clone()).await?;
-                let locks = StrokeLocks::connect(direct).await?;
+                let deadline = Duration::from_millis(config.db_timeout_ms);
+                let heartbeat = Duration::from_millis(config.listener_heartbeat_ms);
+                let task =
+                    start_listener(direct, fanout.clone(), stop.clone(), heartbeat, deadline)
+                        .await?;
+                let locks = StrokeLocks::connect(direct, deadline).await?;
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
@@ -87,6 +91,7 @@ impl Application {
         let (writer, writer_task) = WriterTask::start(
             &store,
             Duration::from_millis(config.commit_interval_ms),
+            Duration::from_millis(config.db_timeout_ms),
             config.commit_max_requests,
             config.writer_queue,
             fanout.clone(),

@@ -190,7 +190,7 @@ impl Store {
         };
         let pool = AnyPoolOptions::new()
             .max_connections(config.db_max_connections.max(1))
-            .acquire_timeout(Duration::from_secs(10))
+            .acquire_timeout(Duration::from_millis(config.db_timeout_ms.max(1)))
             .after_connect(move |conn, _meta| {
                 Box::pin(async move {
                     if backend == Backend::Sqlite {

@@ -136,6 +136,15 @@ impl ProxyChild {
         }
     }
 
+    /// The value of a counter of `/metrics` (0 when it was never incremented).
+    pub async fn counter(&self, name: &str) -> f64 {
+        let text = self.http.get(self.url("/metrics")).send().await.unwrap().text().await.unwrap();
+        text.lines()
+            .filter(|line| line.split([' ', '{']).next() == Some(name))
+            .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
+            .sum()
+    }
+
     pub fn http(&self) -> &reqwest::Client {
         &self.http
     }

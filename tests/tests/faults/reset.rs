@@ -36,4 +36,7 @@ async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
     // The listener is back: the watcher has seen every stroke finish (live or by a resync).
     let seen = watcher.wait_all(&logs, Instant::now(), RECOVERY).await;
     assert!(seen.is_ok(), "the watcher never saw these strokes finish: {seen:?}");
+    // The resets did hit: the listener listened again and the writer reconnected.
+    assert!(proxy.counter("penmesh_listener_resyncs_total").await >= 1.0);
+    assert!(proxy.log_text().contains("write connection"), "{}", proxy.log_text());
 }
