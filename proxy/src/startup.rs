@@ -74,7 +74,7 @@ impl Application {
                 let stop = CancellationToken::new();
                 // Both need a session of their own: past a transaction pooler, the direct URL.
                 let direct = config.direct_database_url();
-                let deadline = Duration::from_millis(config.db_timeout_ms);
+                let deadline = store.deadline();
                 let heartbeat = Duration::from_millis(config.listener_heartbeat_ms);
                 let task =
                     start_listener(direct, fanout.clone(), stop.clone(), heartbeat, deadline)
@@ -91,7 +91,6 @@ impl Application {
         let (writer, writer_task) = WriterTask::start(
             &store,
             Duration::from_millis(config.commit_interval_ms),
-            Duration::from_millis(config.db_timeout_ms),
             config.commit_max_requests,
             config.writer_queue,
             fanout.clone(),

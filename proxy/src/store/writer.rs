@@ -14,7 +14,7 @@
 //! stored (a commit that succeeded but reported failure, retried) are not written again. So a
 //! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
 //!
-//! Every transaction has a deadline (`--db-timeout-ms`): a database that stops answering (a
+//! Every transaction has a deadline (`--db-timeout-ms`, [`Store::deadline`]): a database that stops answering (a
 //! network partition leaves the socket silent, and nothing else would ever end the wait) fails
 //! the requests of the transaction in flight, and the writer drops that connection and opens a
 //! new one for the next transaction. Whether the timed-out `COMMIT` took effect is unknown, as
@@ -238,19 +238,18 @@ pub struct WriterTask {
 }
 
 impl WriterTask {
-    /// Opens the write connection and starts the writer. `deadline` bounds each transaction
-    /// (and each reconnection).
-    #[allow(clippy::too_many_arguments)]
+    /// Opens the write connection and starts the writer. The store's deadline bounds each
+    /// transaction (and each reconnection).
     pub async fn start(
         store: &Store,
         commit_interval: Duration,
-        deadline: Duration,
         max_requests: usize,
         queue: usize,
         fanout: Fanout,
         faults: Option<Arc<CommitFaults>>,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let (tx, rx) = mpsc::channel(queue.max(1));
+        let deadline = store.deadline();
         let stop = CancellationToken::new();
         let (store, loop_stop) = (store.clone(), stop.clone());
         let (opened_tx, opened) = oneshot::channel::<anyhow::Result<()>>();
