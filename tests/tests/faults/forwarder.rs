@@ -2,6 +2,8 @@
 //!
 //! - [`Forwarder::reset_all`]: every connection open now is reset on both sides (RST), as when
 //!   a load balancer or the server restarts; connections made later flow.
+//!   [`Forwarder::reset_where`] resets those whose `application_name` (read from the startup
+//!   message) passes a test: the listener's, the stroke locks', or the others.
 //! - [`Forwarder::black_hole`]: nothing flows any more, on the connections open now and on new
 //!   ones (accepted, then silent), and no side learns of it: a network partition.
 //! - [`Forwarder::heal`]: new connections flow again. The connections that lived through the
@@ -18,18 +20,23 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::watch;
 
+/// Which connections a targeted reset hits, by `application_name` ("" when it has none).
+type Pick = Arc<dyn Fn(&str) -> bool + Send + Sync>;
+
 /// What the network does now.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Clone, Default)]
 struct Weather {
     /// Bumped by every [`Forwarder::reset_all`].
     resets: u64,
+    /// Bumped by every [`Forwarder::reset_where`], which sets `pick`.
+    targeted: u64,
+    pick: Option<Pick>,
     /// Bumped by every [`Forwarder::heal`] after a black hole.
     heals: u64,
     black_hole: bool,
 }
 
 /// A running forwarder; stops when dropped.
-#[derive(Debug)]
 pub struct Forwarder {
     pub addr: SocketAddr,
     weather: Arc<watch::Sender<Weather>>,
@@ -70,6 +77,14 @@ impl Forwarder {
         self.weather.send_modify(|w| w.resets += 1);
     }
 
+    /// Resets the connections open now whose `application_name` passes `pick`.
+    pub fn reset_where(&self, pick: impl Fn(&str) -> bool + Send + Sync + 'static) {
+        self.weather.send_modify(|w| {
+            w.targeted += 1;
+            w.pick = Some(Arc::new(pick));
+        });
+    }
+
     /// Stops all traffic, telling no one.
     pub fn black_hole(&self) {
         self.weather.send_modify(|w| w.black_hole = true);
@@ -103,12 +118,18 @@ fn reset(stream: TcpStream) {
 
 /// Carries one connection's bytes both ways while the weather lets it.
 async fn carry(mut client: TcpStream, mut server: TcpStream, mut rx: watch::Receiver<Weather>) {
-    let born = *rx.borrow_and_update();
+    let born = rx.borrow_and_update().clone();
     let mut partitioned = born.black_hole;
+    let mut targeted = born.targeted;
+    // The start of what the proxy sent, until its application_name is found in it.
+    let (mut sniffed, mut application) = (Vec::new(), None::<String>);
     let (mut up, mut down) = (vec![0u8; 16 * 1024], vec![0u8; 16 * 1024]);
     loop {
-        let now = *rx.borrow_and_update();
-        if now.resets != born.resets {
+        let now = rx.borrow_and_update().clone();
+        let picked = now.targeted != targeted
+            && now.pick.as_ref().is_some_and(|pick| pick(application.as_deref().unwrap_or("")));
+        targeted = now.targeted;
+        if now.resets != born.resets || picked {
             reset(client);
             reset(server);
             return;
@@ -128,7 +149,13 @@ async fn carry(mut client: TcpStream, mut server: TcpStream, mut rx: watch::Rece
             changed = rx.changed() => if changed.is_err() { return },
             read = client.read(&mut up) => match read {
                 Ok(0) | Err(_) => { let _ = server.shutdown().await; return drain(server, &mut down).await }
-                Ok(n) => if server.write_all(&up[..n]).await.is_err() { return reset(client) },
+                Ok(n) => {
+                    if application.is_none() && sniffed.len() < 4096 {
+                        sniffed.extend_from_slice(&up[..n]);
+                        application = application_name(&sniffed);
+                    }
+                    if server.write_all(&up[..n]).await.is_err() { return reset(client) }
+                }
             },
             read = server.read(&mut down) => match read {
                 Ok(0) | Err(_) => { let _ = client.shutdown().await; return drain(client, &mut up).await }
@@ -136,6 +163,14 @@ async fn carry(mut client: TcpStream, mut server: TcpStream, mut rx: watch::Rece
             },
         }
     }
+}
+
+/// The `application_name` of a PostgreSQL startup message in `bytes`, once it is all there.
+fn application_name(bytes: &[u8]) -> Option<String> {
+    let key = b"application_name\0";
+    let at = bytes.windows(key.len()).position(|w| w == key)? + key.len();
+    let len = bytes[at..].iter().position(|&b| b == 0)?;
+    Some(String::from_utf8_lossy(&bytes[at..at + len]).into_owned())
 }
 
 /// Reads what is left of a side that the other has closed, until it closes too.

@@ -6,7 +6,8 @@
 //!
 //! - `kill.rs`: the proxy killed with SIGKILL mid-load and restarted (SQLite, and PostgreSQL
 //!   when `PENMESH_TEST_POSTGRES_URL` is set);
-//! - `reset.rs`, `black_hole.rs`: PostgreSQL's connections reset, and PostgreSQL cut off for
+//! - `reset.rs`, `black_hole.rs`: PostgreSQL's connections reset (one kind at a time, then
+//!   all), and PostgreSQL cut off for
 //!   longer than any timeout, through the TCP forwarder of `forwarder.rs` (PostgreSQL only:
 //!   ignored without the URL, see `tests/build.rs`; with it they run and fail when they must);
 //! - `disk_full.rs`: every file write failing under SQLite (`RLIMIT_FSIZE`), then space back.

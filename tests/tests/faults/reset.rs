@@ -1,10 +1,12 @@
-//! PostgreSQL's connections reset mid-load: the writer's, the listener's, the stroke locks'
-//! and the pool's, all at once, twice. The writer fails the commit in flight and reconnects,
-//! the pens resume from their last ack, the listener listens again and resyncs the session.
+//! PostgreSQL's connections reset mid-load, a second apart: the listener's, then the stroke
+//! locks', then the others (the writer's and the pool's), then all at once. The writer fails
+//! the commit in flight and reconnects, the pens resume from their last ack, the lock
+//! connection reconnects and takes its locks again, the listener listens again and resyncs.
 
 use std::time::{Duration, Instant};
 
 use penmesh_e2e::TestDatabase;
+use penmesh_proxy::{LISTENER_APPLICATION, LOCKS_APPLICATION};
 
 use crate::check::{Load, Watcher, assert_promises, verify};
 use crate::child::ProxyChild;
@@ -22,21 +24,32 @@ async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
     let watcher = Watcher::join(proxy.port, &session);
     let load = Load::start(&proxy, &session, PENS, plan()).await;
 
-    // Act: every connection to PostgreSQL reset, twice, a second apart.
-    network.reset_all();
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    // Act
+    let second = Duration::from_secs(1);
+    network.reset_where(|app| app == LISTENER_APPLICATION);
+    tokio::time::sleep(second).await;
+    // Only the listener was hit (the forwarder tells the connections apart).
+    assert_eq!(proxy.counter("penmesh_listener_resyncs_total").await, 1.0);
+    assert!(!proxy.log_text().contains("write connection"), "{}", proxy.log_text());
+    network.reset_where(|app| app == LOCKS_APPLICATION);
+    tokio::time::sleep(second).await;
+    network.reset_where(|app| app != LISTENER_APPLICATION && app != LOCKS_APPLICATION);
+    tokio::time::sleep(second).await;
     network.reset_all();
     let healed = Instant::now();
     let (session, logs) = load.finish().await;
 
     // Assert
     let figures = verify(&proxy, &session, &logs, healed).await;
-    println!("{}", figures.line("reset x2 (postgres)"));
+    println!("{}", figures.line("resets (postgres)"));
     assert_promises(&figures, RECOVERY);
     // The listener is back: the watcher has seen every stroke finish (live or by a resync).
     let seen = watcher.wait_all(&logs, Instant::now(), RECOVERY).await;
     assert!(seen.is_ok(), "the watcher never saw these strokes finish: {seen:?}");
-    // The resets did hit: the listener listened again and the writer reconnected.
-    assert!(proxy.counter("penmesh_listener_resyncs_total").await >= 1.0);
-    assert!(proxy.log_text().contains("write connection"), "{}", proxy.log_text());
+    // The resets did hit: the listener listened again (twice), the writer and the lock
+    // connection reconnected.
+    assert!(proxy.counter("penmesh_listener_resyncs_total").await >= 2.0);
+    let log = proxy.log_text();
+    assert!(log.contains("write connection"), "{log}");
+    assert!(log.contains("stroke-lock connection broke"), "{log}");
 }
