@@ -28,6 +28,11 @@ async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
     let second = Duration::from_secs(1);
     network.reset_where(|app| app == LISTENER_APPLICATION);
     tokio::time::sleep(second).await;
+    let resynced = Instant::now() + RECOVERY;
+    while proxy.counter("penmesh_listener_resyncs_total").await < 1.0 {
+        assert!(Instant::now() < resynced, "the listener did not listen again");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
     // Only the listener was hit (the forwarder tells the connections apart).
     assert_eq!(proxy.counter("penmesh_listener_resyncs_total").await, 1.0);
     assert!(!proxy.log_text().contains("write connection"), "{}", proxy.log_text());
