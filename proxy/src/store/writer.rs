@@ -14,12 +14,12 @@
 //! stored (a commit that succeeded but reported failure, retried) are not written again. So a
 //! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
 //!
-//! Every transaction has a deadline (`--db-timeout-ms`, [`Store::deadline`]): a database that stops answering (a
-//! network partition leaves the socket silent, and nothing else would ever end the wait) fails
-//! the requests of the transaction in flight, and the writer drops that connection and opens a
-//! new one for the next transaction. Whether the timed-out `COMMIT` took effect is unknown, as
-//! with any failure: the next transaction reads the ends again, and the clients resume from
-//! what is stored.
+//! Every transaction has a deadline (`--db-timeout-ms`, [`Store::deadline`]): a database that
+//! stops answering (a network partition leaves the socket silent, and nothing else would ever
+//! end the wait) fails the requests of the transaction in flight. After any failed transaction
+//! the writer drops its connection and opens a new one for the next. Whether the failed
+//! `COMMIT` took effect is unknown: the next transaction reads the ends again, and the clients
+//! resume from what is stored.
 //!
 //! A request may carry session events ([`SessionEvent`]) that describe it. They are published
 //! only once the request is committed, in commit order: with PostgreSQL as notifications of
