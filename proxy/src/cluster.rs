@@ -6,15 +6,21 @@
 //!   down are lost for good, so when it drops (`PgListener::try_recv` gives `Ok(None)` or an
 //!   error) the listener listens again first and then marks every local subscriber with a gap:
 //!   each connection resyncs its client from the database, filtered by what the client has.
+//!   A connection cut off by a partition is not dropped: it stays silent forever (nothing is
+//!   owed to it, so TCP never notices). So the listener notifies itself on a channel of its
+//!   own every `--listener-heartbeat-ms`, on the same connection; a heartbeat that does not
+//!   come back in time counts as that drop.
 //! - [`StrokeLocks`]: a replica holds `pg_advisory_lock(key(stroke))` on one connection of its
 //!   own for every stroke drawn on it. A replica that dies loses its connection, PostgreSQL
-//!   frees its locks at once, and another replica can take the strokes over (resume).
+//!   frees its locks at once, and another replica can take the strokes over (resume). Its
+//!   queries have a deadline (`--db-timeout-ms`): one that passes drops the connection, and
+//!   the next use opens a new one and takes the held locks again.
 //! - Presence: the same connection holds a lock on the replica's own random key
 //!   ([`StrokeLocks::replica_key`]), stored with each participant. [`start_reaper`] closes the
 //!   participants whose replica's lock is gone (it died) and tells their sessions (`PeerLeft`).
 
 use std::collections::HashMap;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use sqlx::postgres::{PgConnectOptions, PgListener};
@@ -36,33 +42,65 @@ fn options(url: &str, application: &str) -> anyhow::Result<PgConnectOptions> {
     Ok(options.application_name(application))
 }
 
-async fn listen(options: &PgConnectOptions) -> anyhow::Result<PgListener> {
-    let pool =
-        sqlx::postgres::PgPoolOptions::new().max_connections(1).connect_lazy_with(options.clone());
-    let mut listener = PgListener::connect_with(&pool).await?;
-    listener.listen(EVENTS_CHANNEL).await?;
-    Ok(listener)
+/// Listens on the events channel and on `beat`, within `deadline`.
+async fn listen(
+    options: &PgConnectOptions,
+    beat: &str,
+    deadline: Duration,
+) -> anyhow::Result<PgListener> {
+    let pool = sqlx::postgres::PgPoolOptions::new()
+        .max_connections(1)
+        .acquire_timeout(deadline)
+        .connect_lazy_with(options.clone());
+    let listening = async {
+        let mut listener = PgListener::connect_with(&pool).await?;
+        // A dropped connection is reconnected here, with a deadline, and followed by a resync;
+        // sqlx reconnecting inside `try_recv` would do neither.
+        listener.eager_reconnect(false);
+        listener.listen_all([EVENTS_CHANNEL, beat]).await?;
+        anyhow::Ok(listener)
+    };
+    tokio::time::timeout(deadline, listening).await.unwrap_or_else(|_| {
+        anyhow::bail!("PostgreSQL did not answer within {} ms", deadline.as_millis())
+    })
 }
 
-/// Starts listening (returns once `LISTEN` is in place) and dispatches until `stop`.
+/// When the listener's next heartbeat is due, or since when the one sent is awaited.
+#[derive(Debug, Clone, Copy)]
+enum Beat {
+    Due(Instant),
+    Sent(Instant),
+}
+
+/// Starts listening (returns once `LISTEN` is in place) and dispatches until `stop`, checking
+/// the connection with a heartbeat every `heartbeat`; `deadline` bounds each (re)connection.
 pub async fn start_listener(
     url: &str,
     fanout: Fanout,
     stop: CancellationToken,
+    heartbeat: Duration,
+    deadline: Duration,
 ) -> anyhow::Result<tokio::task::JoinHandle<()>> {
     let options = options(url, LISTENER_APPLICATION)?;
-    let listener = listen(&options).await.context("listening for session events")?;
+    // This listener's own channel: no other replica listens to it.
+    let beat_channel = format!("penmesh_heartbeat_{}", Uuid::new_v4().simple());
+    let listener =
+        listen(&options, &beat_channel, deadline).await.context("listening for session events")?;
+    let heartbeat = heartbeat.max(Duration::from_millis(1));
+    let notify_beat = format!("NOTIFY {beat_channel}");
     Ok(tokio::spawn(async move {
         let mut listener = Some(listener);
+        let mut beat = Beat::Due(Instant::now() + heartbeat);
         loop {
             let Some(current) = listener.as_mut() else {
                 // Listen again before resyncing, so nothing falls between the two.
-                match listen(&options).await {
+                match listen(&options, &beat_channel, deadline).await {
                     Ok(new) => {
                         tracing::warn!(
                             "session events: listening again; resyncing every local session"
                         );
                         listener = Some(new);
+                        beat = Beat::Due(Instant::now() + heartbeat);
                         fanout.gap_all();
                         metrics::counter!("penmesh_listener_resyncs_total").increment(1);
                     }
@@ -76,11 +114,50 @@ pub async fn start_listener(
                 }
                 continue;
             };
+            if let Beat::Due(at) = beat
+                && Instant::now() >= at
+            {
+                // On this very connection: it is the one whose silence would go unnoticed.
+                let sent = sqlx::query(&notify_beat).execute(&mut *current);
+                match tokio::time::timeout(deadline, sent).await {
+                    Ok(Ok(_)) => beat = Beat::Sent(Instant::now()),
+                    Ok(Err(err)) => {
+                        tracing::warn!(error = %err, "session events: the heartbeat failed");
+                        metrics::counter!("penmesh_listener_heartbeat_failures_total").increment(1);
+                        listener = None;
+                        continue;
+                    }
+                    Err(_) => {
+                        tracing::warn!("session events: the heartbeat could not be sent in time");
+                        metrics::counter!("penmesh_listener_heartbeat_failures_total").increment(1);
+                        listener = None;
+                        continue;
+                    }
+                }
+            }
+            let wake = match beat {
+                Beat::Due(at) => at,
+                Beat::Sent(at) => at + heartbeat,
+            };
             let received = tokio::select! {
                 _ = stop.cancelled() => return,
-                received = current.try_recv() => received,
+                received = tokio::time::timeout_at(wake.into(), current.try_recv()) => received,
+            };
+            let Ok(received) = received else {
+                if let Beat::Sent(at) = beat {
+                    tracing::warn!(
+                        waited_ms = at.elapsed().as_millis() as u64,
+                        "session events: a heartbeat did not come back; listening again"
+                    );
+                    metrics::counter!("penmesh_listener_heartbeat_failures_total").increment(1);
+                    listener = None;
+                }
+                continue;
             };
             match received {
+                Ok(Some(notification)) if notification.channel() == beat_channel => {
+                    beat = Beat::Due(Instant::now() + heartbeat);
+                }
                 Ok(Some(notification)) => {
                     match SessionEvent::from_payload(notification.payload()) {
                         Ok(event) => fanout.dispatch(event),
@@ -94,11 +171,10 @@ pub async fn start_listener(
                     }
                 }
                 Ok(None) => {
-                    // The connection dropped and sqlx reconnected (and listens again): what was
-                    // notified in between is lost.
-                    tracing::warn!("session events: the listener reconnected; resyncing");
-                    fanout.gap_all();
-                    metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+                    // The connection dropped (sqlx does not reconnect by itself, see `listen`):
+                    // what is notified until a new one listens is lost.
+                    tracing::warn!("session events: the listener's connection dropped");
+                    listener = None;
                 }
                 Err(err) => {
                     tracing::warn!(error = %err, "session events: the listener failed");
@@ -113,6 +189,8 @@ pub async fn start_listener(
 #[derive(Debug)]
 pub struct StrokeLocks {
     options: PgConnectOptions,
+    /// The longest one query (or a reconnection) may take.
+    deadline: Duration,
     inner: Mutex<LockConnection>,
     replica_key: i64,
 }
@@ -175,19 +253,25 @@ impl LockKey {
 }
 
 impl StrokeLocks {
-    pub async fn connect(url: &str) -> anyhow::Result<StrokeLocks> {
+    pub async fn connect(url: &str, deadline: Duration) -> anyhow::Result<StrokeLocks> {
         let options = options(url, LOCKS_APPLICATION)?;
-        let mut conn = PgConnection::connect_with(&options).await.context("the lock connection")?;
         // Positive and below 2^62, so that pg_locks splits it in two plain halves.
         let replica_key = (rand::random::<u64>() >> 2).max(1) as i64;
-        sqlx::query("SELECT pg_advisory_lock($1)")
-            .bind(replica_key)
-            .execute(&mut conn)
-            .await
-            .context("taking the replica's lock")?;
+        let connected = async {
+            let mut conn =
+                PgConnection::connect_with(&options).await.context("the lock connection")?;
+            sqlx::query("SELECT pg_advisory_lock($1)")
+                .bind(replica_key)
+                .execute(&mut conn)
+                .await
+                .context("taking the replica's lock")?;
+            anyhow::Ok(conn)
+        };
+        let conn = within(deadline, connected).await?;
         let held = HashMap::from([(LockKey::Replica(replica_key), 1)]);
         Ok(StrokeLocks {
             options,
+            deadline,
             inner: Mutex::new(LockConnection { conn: Some(conn), held }),
             replica_key,
         })
@@ -204,7 +288,8 @@ impl StrokeLocks {
         let key = LockKey::Stroke(a, b);
         let mut inner = self.inner.lock().await;
         let conn = self.connection(&mut inner).await?;
-        match key.try_lock(conn).await {
+        let result = within(self.deadline, key.try_lock(conn)).await;
+        match result {
             Ok(true) => {
                 *inner.held.entry(key).or_default() += 1;
                 Ok(true)
@@ -212,7 +297,7 @@ impl StrokeLocks {
             Ok(false) => Ok(false),
             Err(err) => {
                 inner.conn = None;
-                Err(err.into())
+                Err(err)
             }
         }
     }
@@ -230,7 +315,8 @@ impl StrokeLocks {
             None => return,
         }
         let Ok(conn) = self.connection(&mut inner).await else { return };
-        if let Err(err) = key.unlock(conn).await {
+        let unlocked = within(self.deadline, key.unlock(conn));
+        if let Err(err) = unlocked.await {
             tracing::warn!(error = %err, "releasing a stroke lock");
             inner.conn = None;
         }
@@ -242,17 +328,22 @@ impl StrokeLocks {
         inner: &'a mut LockConnection,
     ) -> anyhow::Result<&'a mut PgConnection> {
         if inner.conn.is_none() {
-            let mut conn = PgConnection::connect_with(&self.options).await?;
-            tracing::warn!(n = inner.held.len(), "the stroke-lock connection broke; relocking");
-            let mut lost = Vec::new();
-            for (&key, &n) in &inner.held {
-                for _ in 0..n {
-                    if !key.try_lock(&mut conn).await? {
-                        lost.push(key);
-                        break;
+            let held = &inner.held;
+            let relocked = async {
+                let mut conn = PgConnection::connect_with(&self.options).await?;
+                tracing::warn!(n = held.len(), "the stroke-lock connection broke; relocking");
+                let mut lost = Vec::new();
+                for (&key, &n) in held {
+                    for _ in 0..n {
+                        if !key.try_lock(&mut conn).await? {
+                            lost.push(key);
+                            break;
+                        }
                     }
                 }
-            }
+                anyhow::Ok((conn, lost))
+            };
+            let (conn, lost) = within(self.deadline, relocked).await?;
             for key in lost {
                 tracing::error!(?key, "a stroke lock was taken by another replica meanwhile");
                 inner.held.remove(&key);
@@ -260,6 +351,17 @@ impl StrokeLocks {
             inner.conn = Some(conn);
         }
         Ok(inner.conn.as_mut().expect("connected"))
+    }
+}
+
+/// `work`, or an error once `deadline` has passed (a silent connection would wait forever).
+async fn within<T, E: Into<anyhow::Error>>(
+    deadline: Duration,
+    work: impl Future<Output = Result<T, E>>,
+) -> anyhow::Result<T> {
+    match tokio::time::timeout(deadline, work).await {
+        Ok(result) => result.map_err(Into::into),
+        Err(_) => anyhow::bail!("PostgreSQL did not answer within {} ms", deadline.as_millis()),
     }
 }
 

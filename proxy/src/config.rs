@@ -237,6 +237,19 @@ pub struct Config {
     #[arg(long, env = "PENMESH_CLAIM_WAIT_MS", default_value_t = 2000)]
     pub claim_wait_ms: u64,
 
+    /// Longest a database round trip may take (ms) before its connection is given up as dead:
+    /// a network partition leaves a socket silent and nothing else ends the wait. It bounds the
+    /// writer's transaction (its requests fail, the clients resume from their last ack), the
+    /// stroke locks' queries, taking a connection from the pool and (re)connecting the listener.
+    #[arg(long, env = "PENMESH_DB_TIMEOUT_MS", default_value_t = 10_000)]
+    pub db_timeout_ms: u64,
+
+    /// PostgreSQL: every this many ms the session-event listener notifies itself on its own
+    /// connection; a heartbeat not back within as long again means that connection is lost
+    /// (events are being missed): it listens on a new one and resyncs every local session.
+    #[arg(long, env = "PENMESH_LISTENER_HEARTBEAT_MS", default_value_t = 5_000)]
+    pub listener_heartbeat_ms: u64,
+
     /// Seconds granted on shutdown to flush open strokes and close every socket.
     #[arg(long, env = "PENMESH_SHUTDOWN_GRACE_SECS", default_value_t = 10)]
     pub shutdown_grace_secs: u64,

@@ -77,8 +77,17 @@ impl Application {
                 let stop = CancellationToken::new();
                 // Both need a session of their own: past a transaction pooler, the direct URL.
                 let direct = config.direct_database_url();
-                let task = start_listener(direct.expose(), fanout.clone(), stop.clone()).await?;
-                let locks = StrokeLocks::connect(direct.expose()).await?;
+                let deadline = store.deadline();
+                let heartbeat = Duration::from_millis(config.listener_heartbeat_ms);
+                let listener = start_listener(
+                    direct.expose(),
+                    fanout.clone(),
+                    stop.clone(),
+                    heartbeat,
+                    deadline,
+                );
+                let task = listener.await?;
+                let locks = StrokeLocks::connect(direct.expose(), deadline).await?;
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \

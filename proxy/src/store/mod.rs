@@ -43,6 +43,9 @@ pub struct Store {
     /// How the pool's connections are opened, for the writer's own (see `open_write_connection`).
     options: AnyConnectOptions,
     synchronous: &'static str,
+    /// The longest one database round trip may take (`--db-timeout-ms`): taking a pool
+    /// connection, and the writer's transactions.
+    deadline: Duration,
 }
 
 /// A stroke's row.
@@ -191,9 +194,10 @@ impl Store {
             SqliteSync::Normal => "NORMAL",
             SqliteSync::Full => "FULL",
         };
+        let deadline = Duration::from_millis(config.db_timeout_ms.max(1));
         let pool = AnyPoolOptions::new()
             .max_connections(config.db_max_connections.max(1))
-            .acquire_timeout(Duration::from_secs(10))
+            .acquire_timeout(deadline)
             .after_connect(move |conn, _meta| {
                 Box::pin(async move {
                     if backend == Backend::Sqlite {
@@ -223,7 +227,7 @@ impl Store {
             }
         }
         .context("applying migrations")?;
-        Ok(Store { pool, backend, options, synchronous })
+        Ok(Store { pool, backend, options, synchronous, deadline })
     }
 
     /// Opens the group-commit writer's connection, outside the pool. With SQLite, sqlx runs each
@@ -251,6 +255,11 @@ impl Store {
             conn.execute(settings.as_str()).await?;
         }
         Ok(conn)
+    }
+
+    /// The longest one database round trip may take (`--db-timeout-ms`).
+    pub fn deadline(&self) -> Duration {
+        self.deadline
     }
 
     pub fn backend(&self) -> Backend {

@@ -14,6 +14,13 @@
 //! stored (a commit that succeeded but reported failure, retried) are not written again. So a
 //! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
 //!
+//! Every transaction has a deadline (`--db-timeout-ms`, [`Store::deadline`]): a database that
+//! stops answering (a network partition leaves the socket silent, and nothing else would ever
+//! end the wait) fails the requests of the transaction in flight. After any failed transaction
+//! the writer drops its connection and opens a new one for the next. Whether the failed
+//! `COMMIT` took effect is unknown: the next transaction reads the ends again, and the clients
+//! resume from what is stored.
+//!
 //! A request may carry session events ([`SessionEvent`]) that describe it. They are published
 //! only once the request is committed, in commit order: with PostgreSQL as notifications of
 //! the same transaction (so every replica's listener gets them, or none does), with SQLite
@@ -268,7 +275,8 @@ pub struct WriterTask {
 }
 
 impl WriterTask {
-    /// Opens the write connection and starts the writer.
+    /// Opens the write connection and starts the writer. The store's deadline bounds each
+    /// transaction (and each reconnection).
     pub async fn start(
         store: &Store,
         commit_interval: Duration,
@@ -278,6 +286,7 @@ impl WriterTask {
         faults: Option<Arc<CommitFaults>>,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let (tx, rx) = mpsc::channel(queue.max(1));
+        let deadline = store.deadline();
         let stop = CancellationToken::new();
         let (store, loop_stop) = (store.clone(), stop.clone());
         let (opened_tx, opened) = oneshot::channel::<anyhow::Result<()>>();
@@ -285,7 +294,10 @@ impl WriterTask {
         let thread =
             std::thread::Builder::new().name("penmesh-writer".into()).spawn(move || {
                 runtime.block_on(async move {
-                    let conn = match store.open_write_connection().await {
+                    let opened = tokio::time::timeout(deadline, store.open_write_connection())
+                        .await
+                        .unwrap_or_else(|_| Err(timed_out(deadline)));
+                    let conn = match opened {
                         Ok(conn) => conn,
                         Err(err) => {
                             let _ = opened_tx.send(Err(err));
@@ -296,9 +308,10 @@ impl WriterTask {
                     let state = WriterLoop {
                         begin: store.begin_statement(),
                         store,
-                        conn,
+                        conn: Some(conn),
                         rx,
                         interval: commit_interval,
+                        deadline,
                         max_requests: max_requests.max(1),
                         stop: loop_stop,
                         fanout,
@@ -327,10 +340,13 @@ impl WriterTask {
 
 struct WriterLoop {
     store: Store,
-    conn: AnyConnection,
+    /// `None` after a failure that left it unusable: the next transaction opens a new one.
+    conn: Option<AnyConnection>,
     begin: &'static str,
     rx: mpsc::Receiver<WriteRequest>,
     interval: Duration,
+    /// The longest a transaction (or a reconnection) may take.
+    deadline: Duration,
     max_requests: usize,
     stop: CancellationToken,
     fanout: Fanout,
@@ -452,22 +468,23 @@ impl WriterLoop {
         &mut self,
         requests: &[&WriteRequest],
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
-        let result = self.try_commit(requests).await;
+        let deadline = self.deadline;
+        let result = match tokio::time::timeout(deadline, self.try_commit(requests)).await {
+            Ok(result) => result,
+            Err(_) => {
+                // A silent connection, in an unknown state: never used again.
+                self.conn = None;
+                Err(timed_out(deadline))
+            }
+        };
         if result.is_err() {
             // Whether anything of it is stored is unknown: read the ends again when needed.
             self.ends.clear();
-            if self.conn.ping().await.is_err() {
-                // The connection itself broke (a database restart): open a new one.
-                match self.store.open_write_connection().await {
-                    Ok(conn) => {
-                        tracing::warn!("the write connection broke; reconnected");
-                        self.conn = conn;
-                    }
-                    Err(err) => {
-                        tracing::error!(error = %err, "the write connection broke; reconnecting failed")
-                    }
-                }
-            }
+            // Nor is the connection's state: a broken one (a database restart, a partition)
+            // may still answer a ping, and SQLite after SQLITE_FULL (a full disk) keeps a
+            // transaction sqlx cannot roll back, so that every later BEGIN fails. The next
+            // transaction opens a new connection.
+            self.conn = None;
         }
         result
     }
@@ -478,7 +495,15 @@ impl WriterLoop {
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
         let backend = self.store.backend();
-        let mut tx = self.conn.begin_with(self.begin).await?;
+        let conn = match &mut self.conn {
+            Some(conn) => conn,
+            None => {
+                let conn = self.store.open_write_connection().await?;
+                tracing::warn!("the write connection is open again");
+                self.conn.insert(conn)
+            }
+        };
+        let mut tx = conn.begin_with(self.begin).await?;
         let now = now_ms();
         // The ends as this transaction leaves them, and the strokes to forget once it commits
         // (they leave this replica's connections; a stroke taken over is read again).
@@ -565,6 +590,10 @@ impl WriterLoop {
         }
         Ok(refused)
     }
+}
+
+fn timed_out(deadline: Duration) -> anyhow::Error {
+    anyhow::anyhow!("the database did not answer within {} ms", deadline.as_millis())
 }
 
 /// Where the stored samples of `stroke` end (its chunks are contiguous from 0).

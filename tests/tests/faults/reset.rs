@@ -1,0 +1,60 @@
+//! PostgreSQL's connections reset mid-load, a second apart: the listener's, then the stroke
+//! locks', then the others (the writer's and the pool's), then all at once. The writer fails
+//! the commit in flight and reconnects, the pens resume from their last ack, the lock
+//! connection reconnects and takes its locks again, the listener listens again and resyncs.
+
+use std::time::{Duration, Instant};
+
+use penmesh_e2e::TestDatabase;
+use penmesh_proxy::{LISTENER_APPLICATION, LOCKS_APPLICATION};
+
+use crate::check::{Load, Watcher, assert_promises, verify};
+use crate::child::ProxyChild;
+use crate::forwarder::Forwarder;
+use crate::{PENS, RECOVERY, plan, postgres_server};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(not(penmesh_postgres), ignore = "needs PostgreSQL: set PENMESH_TEST_POSTGRES_URL")]
+async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
+    let db = TestDatabase::fresh().await;
+    assert!(db.is_postgres(), "this scenario needs PostgreSQL");
+    let network = Forwarder::start(postgres_server(&db.url)).await;
+    let proxy = ProxyChild::start(&network.rewrite_url(&db.url), &[]).await;
+    let session = proxy.create_session().await;
+    let watcher = Watcher::join(proxy.port, &session);
+    let load = Load::start(&proxy, &session, PENS, plan()).await;
+
+    // Act
+    let second = Duration::from_secs(1);
+    network.reset_where(|app| app == LISTENER_APPLICATION);
+    tokio::time::sleep(second).await;
+    let resynced = Instant::now() + RECOVERY;
+    while proxy.counter("penmesh_listener_resyncs_total").await < 1.0 {
+        assert!(Instant::now() < resynced, "the listener did not listen again");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    // Only the listener was hit (the forwarder tells the connections apart).
+    assert_eq!(proxy.counter("penmesh_listener_resyncs_total").await, 1.0);
+    assert!(!proxy.log_text().contains("write connection"), "{}", proxy.log_text());
+    network.reset_where(|app| app == LOCKS_APPLICATION);
+    tokio::time::sleep(second).await;
+    network.reset_where(|app| app != LISTENER_APPLICATION && app != LOCKS_APPLICATION);
+    tokio::time::sleep(second).await;
+    network.reset_all();
+    let healed = Instant::now();
+    let (session, logs) = load.finish().await;
+
+    // Assert
+    let figures = verify(&proxy, &session, &logs, healed).await;
+    println!("{}", figures.line("resets (postgres)"));
+    assert_promises(&figures, RECOVERY);
+    // The listener is back: the watcher has seen every stroke finish (live or by a resync).
+    let seen = watcher.wait_all(&logs, Instant::now(), RECOVERY).await;
+    assert!(seen.is_ok(), "the watcher never saw these strokes finish: {seen:?}");
+    // The resets did hit: the listener listened again (twice), the writer and the lock
+    // connection reconnected.
+    assert!(proxy.counter("penmesh_listener_resyncs_total").await >= 2.0);
+    let log = proxy.log_text();
+    assert!(log.contains("write connection"), "{log}");
+    assert!(log.contains("stroke-lock connection broke"), "{log}");
+}
