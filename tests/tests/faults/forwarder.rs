@@ -107,7 +107,11 @@ impl Forwarder {
         let host_end = rest.find(['/', '?']).unwrap_or(rest.len());
         let authority = &rest[..host_end];
         let user = authority.rfind('@').map(|at| &authority[..=at]).unwrap_or("");
-        format!("{}{user}{}{}", &url[..scheme_end], self.addr, &rest[host_end..])
+        let url = format!("{}{user}{}{}", &url[..scheme_end], self.addr, &rest[host_end..]);
+        // In plain text, so that the forwarder can read each connection's application_name
+        // (the proxy speaks TLS to a server that offers it, as this machine's does).
+        let joiner = if url.contains('?') { '&' } else { '?' };
+        format!("{url}{joiner}sslmode=disable")
     }
 }
 
