@@ -3,7 +3,10 @@
 //! straight line, a circle and a hairpin coming out as they should.
 
 use glam::DVec2;
-use penmesh::centreline::{directed_distance, polyline_distance, polyline_turns, within_directed};
+use penmesh::centreline::{
+    SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG, directed_distance, polyline_distance, polyline_turns,
+    smooth_at_samples, within_directed,
+};
 use penmesh::{
     AcutsParams, Brush, Centreline, DEFAULT_RESAMPLE_DISTANCE, DEFAULT_TOLERANCE, KeptError,
     OutlineOptions, Sample, SmoothOptions, acuts, fitted_outline, outline, smooth_centreline,
@@ -70,6 +73,28 @@ proptest! {
         let back = directed_distance(&out.centres, &path, 2);
         prop_assert!(back <= BOUND, "centreline {back} px from the raw path");
         assert_clean(&out.centres, &out.radii, "fitted");
+    }
+
+    #[test]
+    fn fitted_centreline_turns_little_where_the_pen_path_is_smooth(raw in stroke_strategy()) {
+        // At each centreline point whose nearest raw sample is on a smooth stretch of the pen's
+        // path (the measure of `penmesh eval`), the centreline turns by at most 10°.
+        let kept = simplified(&raw);
+        let out = fitted_outline(&raw, &kept, &Brush::default(), &OutlineOptions::default())
+            .expect("ACUTS keeps increasing indices");
+        let path = positions(&raw);
+        let smooth =
+            smooth_at_samples(&path, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG.to_radians());
+        for (k, turn) in polyline_turns(&out.centres).into_iter().enumerate() {
+            let at = out.centres[k + 1];
+            let nearest = (0..path.len())
+                .min_by(|&a, &b| path[a].distance(at).total_cmp(&path[b].distance(at)))
+                .expect("a stroke with a centreline has samples");
+            prop_assert!(
+                !smooth[nearest] || turn.to_degrees() <= 10.0 + 1e-9,
+                "turn of {}° at {at} on a smooth stretch", turn.to_degrees()
+            );
+        }
     }
 
     #[test]
