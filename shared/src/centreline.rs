@@ -14,15 +14,23 @@
 //!   [`HARD_CORNER_DEG`] whatever the spacing, is a turn the pen itself made: the curve keeps
 //!   it as a corner, leaving and entering along the chords (a phantom point mirrored across the
 //!   corner, the same as at the stroke's ends). So long chords with a sharp turn stay sharp and
-//!   short, densely retained bends are rounded.
+//!   short, densely retained bends are rounded. That is the rule from the retained samples
+//!   alone ([`knot_corners`]); where the raw samples are known, [`crate::fitted_outline`]
+//!   decides by the pen's own path instead: a retained sample is a corner exactly where that
+//!   path is not smooth ([`smooth_at_samples`] at [`SMOOTH_PATH_REACH`] and
+//!   [`SMOOTH_PATH_TURN_DEG`]). So a bend the pen drew round is never kept sharp, and a turn
+//!   the pen made within a few px (narrower than the stroke itself) costs no points.
 //! - **Tessellation** is adaptive: a nearly straight segment (end tangents within half of
 //!   `max_turn_deg` of the chord, offset from it bounded within `chord_tolerance`) stays one
 //!   piece; any other is cut into as many equal steps of its parameter as its estimated turning
 //!   divided by `max_turn_deg` (10° by default), and each step is halved until it deviates from
 //!   its chord by at most `chord_tolerance` (0.5 px) and its tangent turns by at most
 //!   `max_turn_deg` (and by at most half of that against its own chord, which catches
-//!   S-bends). So consecutive pieces turn by at most about `max_turn_deg`. At most
-//!   [`MAX_DEPTH`] halvings, and no piece is cut below [`MIN_PIECE`] (0.5 px).
+//!   S-bends). So consecutive pieces turn by at most `max_turn_deg`. At most [`MAX_DEPTH`]
+//!   halvings; no piece is cut below [`MIN_PIECE`] (0.5 px) for its distance from the chord,
+//!   but a piece that turns too much is cut down to [`MIN_TURN_PIECE`] (0.02 px): a tight
+//!   bend needs as many points as its turning, whatever its radius (at 0.5 px, bends of a few
+//!   px radius on small signatures turned by up to 29° between pieces).
 //! - **Radius** is interpolated by the same Hermite form over the same knots (no steps), then
 //!   kept within the two end radii of its segment, so it never overshoots (the radius is affine
 //!   in pressure above the brush's floor, so this is the pressure interpolated the same way).
@@ -43,9 +51,12 @@ pub const HARD_CORNER_DEG: f64 = 120.0;
 pub const CORNER_SLACK: f64 = 1.5;
 /// Most halvings of one segment in the tessellation (at most `2^MAX_DEPTH` pieces).
 pub const MAX_DEPTH: u32 = 10;
-/// No piece is made shorter than this (px): finer detail would not show at one px per unit,
-/// and a pen path that turns faster than that is not smooth (tight loops cost no more points).
+/// No piece is made shorter than this (px) to follow the curve's distance from its chord:
+/// finer detail would not show at one px per unit.
 pub const MIN_PIECE: f64 = 0.5;
+/// No piece is cut below this (px) to spread a bend: a tight bend of the curve costs as many
+/// points as its turning needs, whatever its radius, but a cusp does not recurse for ever.
+pub const MIN_TURN_PIECE: f64 = 0.02;
 
 /// How the outline's centreline is made from the simplified samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -163,7 +174,7 @@ impl Segment {
 
 /// Tangent scales tried, in turn, for a segment the caller's check refuses; the last is the
 /// chord, which the check must accept (ACUTS bounds the raw samples by it).
-const TANGENT_SCALES: [f64; 4] = [1.0, 0.5, 0.25, 0.0];
+pub const TANGENT_SCALES: [f64; 4] = [1.0, 0.5, 0.25, 0.0];
 
 /// The smooth centreline through `centres` (distinct consecutive points) with their radii:
 /// the tessellated points and the radius at each. Every input point is an output point; the
@@ -173,30 +184,39 @@ pub fn smooth_centreline(
     radii: &[f64],
     options: &SmoothOptions,
 ) -> (Vec<DVec2>, Vec<f64>) {
-    fit_centreline(centres, radii, options, &mut |_, _| true)
+    let corners = knot_corners(centres, options.bound);
+    fit_centreline(centres, radii, options, &corners, &mut |_, _| true)
 }
 
-/// [`smooth_centreline`], with each segment's tessellation (both ends included) offered to
+/// Which of `centres` are corners by the knots alone ([`is_corner`]; the two ends always are).
+pub fn knot_corners(centres: &[DVec2], bound: f64) -> Vec<bool> {
+    let n = centres.len();
+    (0..n)
+        .map(|k| {
+            k == 0 || k == n - 1 || is_corner(centres[k - 1], centres[k], centres[k + 1], bound)
+        })
+        .collect()
+}
+
+/// [`smooth_centreline`] with the given corners (`corner[k]` for each of `centres`; the ends
+/// are corners whatever it says), each segment's tessellation (both ends included) offered to
 /// `accept(segment index, points)`: a refused segment is rebuilt with its two tangents halved,
-/// then quartered, then as the straight chord. Halving keeps the tangents' directions, so the
-/// curve stays smooth at the knots; only the refused segment flattens.
+/// then quartered, then as the straight chord ([`TANGENT_SCALES`]). Halving keeps the
+/// tangents' directions, so the curve stays smooth at the knots; only the refused segment
+/// flattens, and only the chord makes corners of its two knots.
 pub fn fit_centreline(
     centres: &[DVec2],
     radii: &[f64],
     options: &SmoothOptions,
+    corner: &[bool],
     accept: &mut dyn FnMut(usize, &[DVec2]) -> bool,
 ) -> (Vec<DVec2>, Vec<f64>) {
     let n = centres.len().min(radii.len());
     if n < 3 {
         return (centres[..n].to_vec(), radii[..n].to_vec());
     }
-    let corner: Vec<bool> = (0..n)
-        .map(|k| {
-            k == 0
-                || k == n - 1
-                || is_corner(centres[k - 1], centres[k], centres[k + 1], options.bound)
-        })
-        .collect();
+    let corner: Vec<bool> =
+        (0..n).map(|k| k == 0 || k == n - 1 || corner.get(k).copied().unwrap_or(false)).collect();
     let mut points = vec![centres[0]];
     let mut out_radii = vec![radii[0]];
     let mut piece_points = Vec::new();
@@ -313,18 +333,20 @@ impl Piece<'_> {
 
     #[allow(clippy::too_many_arguments)]
     fn split(&mut self, t0: f64, p0: DVec2, d0: DVec2, t1: f64, p1: DVec2, d1: DVec2, depth: u32) {
-        if depth >= MAX_DEPTH || p0.distance(p1) < 2.0 * MIN_PIECE {
+        let length = p0.distance(p1);
+        if depth >= MAX_DEPTH || length < 2.0 * MIN_TURN_PIECE {
             return;
         }
+        let chord = p1 - p0;
+        let bends = turn(d0, d1) > self.max_turn
+            || turn(d0, chord) > 0.5 * self.max_turn
+            || turn(chord, d1) > 0.5 * self.max_turn;
         let tm = 0.5 * (t0 + t1);
         let pm = self.segment.point(tm);
-        let chord = p1 - p0;
-        let deviation = chord.perp_dot(pm - p0).abs() / chord.length();
-        let flat = deviation <= self.options.chord_tolerance
-            && turn(d0, d1) <= self.max_turn
-            && turn(d0, chord) <= 0.5 * self.max_turn
-            && turn(chord, d1) <= 0.5 * self.max_turn;
-        if flat {
+        // Below the piece floor only a bend is split further: a short piece cannot spread it.
+        let deviates = length >= 2.0 * MIN_PIECE
+            && chord.perp_dot(pm - p0).abs() / chord.length() > self.options.chord_tolerance;
+        if !bends && !deviates {
             return;
         }
         let dm = self.segment.tangent(tm);
@@ -410,6 +432,13 @@ pub fn within_directed(from: &[DVec2], to: &[DVec2], samples_per_edge: usize, bo
 pub fn polyline_turns(path: &[DVec2]) -> Vec<f64> {
     path.windows(3).map(|w| turn(w[1] - w[0], w[2] - w[1])).collect()
 }
+
+/// Where the pen's path counts as smooth: it turns by less than [`SMOOTH_PATH_TURN_DEG`]
+/// between the chords [`SMOOTH_PATH_REACH`] px back and ahead along it ([`smooth_at_samples`]).
+/// [`crate::fitted_outline`] keeps a retained sample as a corner exactly where the path is not
+/// smooth, and `penmesh eval` judges the centreline's turns where it is.
+pub const SMOOTH_PATH_REACH: f64 = 3.0;
+pub const SMOOTH_PATH_TURN_DEG: f64 = 30.0;
 
 /// Whether the raw path is smooth at each of its samples: the chord from the point `reach` px
 /// back along the path to the sample and the chord from the sample to the point `reach` px

@@ -27,7 +27,10 @@
 
 use glam::{DVec2, DVec3};
 
-use crate::centreline::{Centreline, fit_centreline, smooth_centreline, within_directed};
+use crate::centreline::{
+    Centreline, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG, TANGENT_SCALES, fit_centreline,
+    smooth_at_samples, smooth_centreline, within_directed,
+};
 use crate::model::{Brush, Sample};
 
 /// Default cap density `I`: points per px of radius on each end cap.
@@ -218,12 +221,19 @@ pub enum KeptError {
 }
 
 /// The outline of the simplification `kept` (increasing indices into `raw`), with the smooth
-/// centreline checked against the raw samples in both directions: a segment that would leave a
-/// raw sample it spans further than the bound from the centreline, or put a tessellated point or
-/// the midpoint of a tessellated piece further than the bound from that stretch of the raw
-/// path, is flattened until neither happens (at worst to the chord, which satisfies both when
-/// every raw sample is within the bound of it, as ACUTS guarantees). With a straight
-/// centreline this is [`outline`] of the retained samples.
+/// centreline fitted to the raw samples:
+/// - a retained sample is a corner exactly where the raw path is not smooth
+///   ([`crate::centreline::SMOOTH_PATH_REACH`]), not by the chords' rule of [`outline`];
+/// - it is checked in both directions: a segment that would leave a raw sample it spans further
+///   than the bound from the centreline, or put a tessellated point or the midpoint of a
+///   tessellated piece further than the bound from that stretch of the raw path, is flattened
+///   until neither happens (at worst to the chord, which satisfies both when every raw sample is
+///   within the bound of it, as ACUTS guarantees);
+/// - a segment that fell to its chord (a kink at both its knots) gets the raw sample in the
+///   middle of its span as one more knot and the stroke is fitted again, at most
+///   `MAX_KNOT_ROUNDS` times; the last fit keeps its chords.
+///
+/// With a straight centreline this is [`outline`] of the retained samples.
 pub fn fitted_outline(
     raw: &[Sample],
     kept: &[usize],
@@ -240,18 +250,54 @@ pub fn fitted_outline(
             }
         }
     }
-    let samples: Vec<Sample> = kept.iter().map(|&i| raw[i]).collect();
-    let (mut centres, mut radii, firsts) = merged_centres(&samples, brush);
-    if let Centreline::Smooth(smooth) = &options.centreline {
-        let bound = smooth.bound;
-        (centres, radii) = fit_centreline(&centres, &radii, smooth, &mut |segment, points| {
-            let (from, to) = (kept[firsts[segment]], kept[firsts[segment + 1]]);
-            let path: Vec<DVec2> = raw[from..=to].iter().map(Sample::pos).collect();
-            within_directed(&path, points, 1, bound) && within_directed(points, &path, 2, bound)
-        });
+    let Centreline::Smooth(smooth) = &options.centreline else {
+        let samples: Vec<Sample> = kept.iter().map(|&i| raw[i]).collect();
+        let (centres, radii, _) = merged_centres(&samples, brush);
+        return Ok(offset_outline(centres, radii, options));
+    };
+    let path: Vec<DVec2> = raw.iter().map(Sample::pos).collect();
+    let smooth_path =
+        smooth_at_samples(&path, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG.to_radians());
+    let bound = smooth.bound;
+    let mut knots = kept.to_vec();
+    let mut round = 0;
+    loop {
+        let samples: Vec<Sample> = knots.iter().map(|&i| raw[i]).collect();
+        let (centres, radii, firsts) = merged_centres(&samples, brush);
+        // A knot is a corner where the pen's own path is not smooth, whatever its chords say.
+        let corners: Vec<bool> = firsts.iter().map(|&f| !smooth_path[knots[f]]).collect();
+        let mut refusals = vec![0; centres.len()];
+        let (centres, radii) =
+            fit_centreline(&centres, &radii, smooth, &corners, &mut |segment, points| {
+                let (from, to) = (knots[firsts[segment]], knots[firsts[segment + 1]]);
+                let span = &path[from..=to];
+                let ok = within_directed(span, points, 1, bound)
+                    && within_directed(points, span, 2, bound);
+                refusals[segment] += usize::from(!ok);
+                ok
+            });
+        // A segment that fell to its chord between two smooth knots turns there: give it the
+        // raw sample in the middle of its span as one more knot, and fit again.
+        let mut more = Vec::new();
+        for (segment, &refused) in refusals.iter().enumerate() {
+            if refused == TANGENT_SCALES.len() - 1 {
+                let (from, to) = (knots[firsts[segment]], knots[firsts[segment + 1]]);
+                if to - from >= 2 {
+                    more.push((from + to) / 2);
+                }
+            }
+        }
+        if more.is_empty() || round == MAX_KNOT_ROUNDS {
+            return Ok(offset_outline(centres, radii, options));
+        }
+        knots.extend(more);
+        knots.sort_unstable();
+        round += 1;
     }
-    Ok(offset_outline(centres, radii, options))
 }
+
+/// Rounds of knots added from the raw samples where a segment fell to its chord.
+const MAX_KNOT_ROUNDS: usize = 4;
 
 /// Builds the outline of a simplified stroke (LRPDP steps 1–4).
 ///

@@ -93,10 +93,12 @@ pub(super) fn mesh_table(
     rows
 }
 
-/// Where the pen's path counts as smooth for the centreline table: it turns by less than
-/// `SMOOTH_TURN_DEG` between the chords `SMOOTH_REACH_PX` back and ahead along it.
-pub(super) const SMOOTH_REACH_PX: f64 = 3.0;
-pub(super) const SMOOTH_TURN_DEG: f64 = 30.0;
+/// Where the pen's path counts as smooth for the centreline table (the definition the fitted
+/// centreline's corners follow): it turns by less than `SMOOTH_TURN_DEG` between the chords
+/// `SMOOTH_REACH_PX` back and ahead along it.
+pub(super) use penmesh::centreline::{
+    SMOOTH_PATH_REACH as SMOOTH_REACH_PX, SMOOTH_PATH_TURN_DEG as SMOOTH_TURN_DEG,
+};
 
 /// How one centreline (straight or smooth) of ACUTS's simplification looks and how faithful it
 /// is, over every stroke of a data set.
