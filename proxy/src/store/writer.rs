@@ -268,7 +268,7 @@ impl WriterTask {
                         stop: loop_stop,
                         fanout,
                         strokes: HashMap::new(),
-                        writer_id: rand::random::<i64>().abs(),
+                        writer_id: (rand::random::<u64>() >> 1) as i64,
                         trimmed_below: 0,
                         last_record: 0,
                         recover: false,
@@ -601,6 +601,8 @@ impl WriterLoop {
         }
         // The other ops in order; `Finish` and `SetStatus` move their stroke out of the log.
         let mut moved: Vec<Uuid> = Vec::new();
+        // Strokes this transaction creates: nothing of them is stored before it.
+        let mut begun: Vec<Uuid> = Vec::new();
         let mut moves: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
         for op in &planned {
             let Planned::Other(op) = op else { continue };
@@ -623,7 +625,14 @@ impl WriterLoop {
                     }
                     apply(&mut tx, op, now).await?;
                 }
-                _ => apply(&mut tx, op, now).await?,
+                WriteOp::BeginStroke { stroke, .. } => {
+                    if apply(&mut tx, op, now).await? {
+                        begun.push(*stroke);
+                    }
+                }
+                _ => {
+                    apply(&mut tx, op, now).await?;
+                }
             }
         }
         // Strokes that sat in the log long enough move too (all of them when stopping).
@@ -699,6 +708,9 @@ impl WriterLoop {
         }
         for (stroke, known) in loaded {
             self.strokes.entry(stroke).or_insert(known);
+        }
+        for stroke in begun {
+            self.strokes.entry(stroke).or_default();
         }
         let at = Instant::now();
         for (stroke, samples) in appended {
@@ -929,10 +941,11 @@ async fn insert_chunks(
     Ok(())
 }
 
-async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<()> {
+/// Applies an op other than an append or a finish. `true`: it created a stroke.
+async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<bool> {
     match op {
         WriteOp::BeginStroke { stroke, session, participant, brush, params, device } => {
-            sqlx::query(
+            let created = sqlx::query(
                 "INSERT INTO strokes (id, session_id, participant, brush, params, device, status, \
                  n_retained, created_at, updated_at) \
                  VALUES ($1, $2, $3, $4, $5, $6, 'open', 0, $7, $7) ON CONFLICT (id) DO NOTHING",
@@ -946,6 +959,7 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .bind(now)
             .execute(&mut *conn)
             .await?;
+            return Ok(created.rows_affected() == 1);
         }
         WriteOp::Append { .. } => anyhow::bail!("an append goes into the log record"),
         WriteOp::Finish { .. } => anyhow::bail!("a finish goes through `finish`"),
@@ -980,5 +994,5 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .await?;
         }
     }
-    Ok(())
+    Ok(false)
 }
