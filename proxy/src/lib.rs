@@ -28,7 +28,9 @@ pub use crate::http::READY_DB_DEADLINE;
 pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
-pub use crate::store::{CommitFaults, Fault, decode_samples as decode_stored_samples, hash_token};
+pub use crate::store::{
+    CommitFaults, Fault, decode_samples as decode_stored_samples, hash_token, stored_pieces,
+};
 pub use crate::ws::{Frame, ReadError, serve};
 
 /// Runs the proxy with `config` until it is stopped (SIGTERM, Ctrl-C), on a runtime of its own

@@ -1,11 +1,14 @@
 //! The database layer: one set of queries for SQLite and PostgreSQL through sqlx's `Any`
 //! driver, the embedded migrations, and the group-commit [`writer`].
 //!
-//! **Only this module knows how samples are laid out in the database** (little-endian `f64`
-//! quadruples `x, y, t, p` in a blob).
+//! **Only this module knows how samples are laid out in the database** (`encode_samples`, and
+//! the append log's records, [`log`]). A stroke's samples are in `stroke_chunks` and, while it is
+//! drawn, in `stroke_log`: every reader of raw samples reads both.
 
+mod log;
 mod writer;
 
+use std::collections::HashSet;
 use std::str::FromStr;
 use std::time::Duration;
 
@@ -284,12 +287,17 @@ impl Store {
         Ok(())
     }
 
-    /// At start, with SQLite (one process owns the file), strokes left `open` by a crash are
+    /// At start, with SQLite (one process owns the file), strokes left in the append log by a
+    /// crash are moved out of it ([`Store::recover_log`]), strokes left `open` are
     /// `interrupted` and participants left present have left. With PostgreSQL other replicas
     /// may be drawing them, so they stay.
     pub async fn interrupt_orphans(&self) -> anyhow::Result<u64> {
         if self.backend != Backend::Sqlite {
             return Ok(0);
+        }
+        let moved = self.recover_log().await?;
+        if moved > 0 {
+            tracing::info!(moved, "strokes left in the append log are moved to stroke_chunks");
         }
         sqlx::query("UPDATE participants SET left_at = $1 WHERE left_at IS NULL")
             .bind(now_ms())
@@ -331,7 +339,10 @@ impl Store {
             .bind(id.to_string())
             .fetch_optional(&self.pool)
             .await?;
-        row.map(|r| stroke_from_row(&r)).transpose()
+        let mut rows: Vec<StrokeRow> =
+            row.map(|r| stroke_from_row(&r)).transpose()?.into_iter().collect();
+        self.add_log_ends(&mut rows).await?;
+        Ok(rows.pop())
     }
 
     pub async fn list_strokes(&self, session: Uuid) -> anyhow::Result<Vec<StrokeRow>> {
@@ -341,18 +352,108 @@ impl Store {
         .bind(session.to_string())
         .fetch_all(&self.pool)
         .await?;
-        rows.iter().map(stroke_from_row).collect()
+        let mut rows = rows.iter().map(stroke_from_row).collect::<anyhow::Result<Vec<_>>>()?;
+        self.add_log_ends(&mut rows).await?;
+        Ok(rows)
     }
 
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
-        let rows = sqlx::query(
-            "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq",
-        )
-        .bind(stroke.to_string())
-        .fetch_all(&self.pool)
-        .await?;
-        samples_from_chunks(stroke, &rows)
+        let mut conn = self.pool.acquire().await?;
+        let status: Option<String> = sqlx::query_scalar("SELECT status FROM strokes WHERE id = $1")
+            .bind(stroke.to_string())
+            .fetch_optional(&mut *conn)
+            .await?;
+        // A finished stroke is all in `stroke_chunks` (moved by the commit that finished it).
+        let in_log = status.is_some_and(|s| s != StrokeStatus::Done.as_str());
+        let log = if in_log {
+            log::read_log(&mut conn, Some(&HashSet::from([stroke])), None).await?
+        } else {
+            log::StrokeEntries::new()
+        };
+        self.raw_samples_with(&mut conn, stroke, &log).await
+    }
+
+    /// A stroke's raw samples from its chunks and its entries in `log` (read by the caller).
+    async fn raw_samples_with(
+        &self,
+        conn: &mut AnyConnection,
+        stroke: Uuid,
+        log: &log::StrokeEntries,
+    ) -> anyhow::Result<Vec<Sample>> {
+        let rows =
+            sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
+        let mut pieces = pieces_from_chunks(stroke, &rows)?;
+        for (_, _, entry) in log.get(&stroke).into_iter().flatten() {
+            pieces.push(log::Piece { seq: entry.seq, samples: entry.samples.clone() });
+        }
+        log::assemble(stroke, pieces)
+    }
+
+    /// Where the samples of the strokes in progress among `rows` end: `n_points` from the
+    /// chunks, extended by their entries in the log (one scan of the log for all of them).
+    async fn add_log_ends(&self, rows: &mut [StrokeRow]) -> anyhow::Result<()> {
+        let open: HashSet<Uuid> =
+            rows.iter().filter(|r| r.status != StrokeStatus::Done).map(|r| r.id).collect();
+        if open.is_empty() {
+            return Ok(());
+        }
+        let mut conn = self.pool.acquire().await?;
+        let log = log::read_log(&mut conn, Some(&open), None).await?;
+        for row in rows.iter_mut() {
+            let mut entries: Vec<(u64, u64)> = log
+                .get(&row.id)
+                .into_iter()
+                .flatten()
+                .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
+                .collect();
+            entries.sort_unstable();
+            for (seq, n) in entries {
+                if seq <= row.n_points {
+                    row.n_points = row.n_points.max(seq + n);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// SQLite, at start: strokes left in the log by a process that stopped without moving them
+    /// (killed) go into `stroke_chunks`, and the log is emptied. (With PostgreSQL another
+    /// replica may be writing; readers read the log, so nothing is lost either way.)
+    pub async fn recover_log(&self) -> anyhow::Result<u64> {
+        if self.backend != Backend::Sqlite {
+            return Ok(0);
+        }
+        let mut conn = self.pool.acquire().await?;
+        let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
+        let log = log::read_log(&mut tx, None, None).await?;
+        let mut moved = 0;
+        for (stroke, entries) in log {
+            let rows =
+                sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *tx).await?;
+            let chunks = log::assemble(stroke, pieces_from_chunks(stroke, &rows)?)?;
+            let pieces =
+                entries.into_iter().map(|(_, _, e)| log::Piece { seq: e.seq, samples: e.samples });
+            let tail = log::assemble_from(stroke, chunks.len() as u64, pieces.collect())?;
+            if tail.is_empty() {
+                continue;
+            }
+            let (layout, data) = encode_samples(&tail);
+            sqlx::query(
+                "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ($1, $2, $3, $4, $5)",
+            )
+            .bind(stroke.to_string())
+            .bind(chunks.len() as i64)
+            .bind(tail.len() as i64)
+            .bind(layout)
+            .bind(data)
+            .execute(&mut *tx)
+            .await?;
+            moved += 1;
+        }
+        sqlx::query("DELETE FROM stroke_log").execute(&mut *tx).await?;
+        tx.commit().await?;
+        Ok(moved)
     }
 
     pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
@@ -457,8 +558,22 @@ impl Store {
             let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
             mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
         }
+        // The log, once, for the strokes in progress (a stroke whose row cannot be read is
+        // reported below).
+        let open: HashSet<Uuid> = strokes
+            .iter()
+            .filter_map(|r| stroke_from_row(r).ok())
+            .filter(|r| r.status != StrokeStatus::Done)
+            .map(|r| r.id)
+            .collect();
+        let mut conn = self.pool.acquire().await?;
+        let log = if open.is_empty() {
+            log::StrokeEntries::new()
+        } else {
+            log::read_log(&mut conn, Some(&open), None).await?
+        };
         for row in &strokes {
-            match self.stroke_history(session, row, &mesh_at).await {
+            match self.stroke_history(&mut conn, session, row, &mesh_at, &log).await {
                 Ok(events) => history.events.extend(events),
                 Err(err) => {
                     let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
@@ -473,9 +588,11 @@ impl Store {
     /// One stroke's part of [`Store::session_history`].
     async fn stroke_history(
         &self,
+        conn: &mut AnyConnection,
         session: Uuid,
         row: &sqlx::any::AnyRow,
         mesh_at: &std::collections::HashMap<Uuid, i64>,
+        log: &log::StrokeEntries,
     ) -> anyhow::Result<Vec<SessionEvent>> {
         let row = stroke_from_row(row)?;
         let (participant, stroke) = (row.participant, row.id);
@@ -487,7 +604,7 @@ impl Store {
         let points: Vec<Sample> = if done {
             self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
         } else {
-            let raw = self.raw_samples(stroke).await?;
+            let raw = self.raw_samples_with(conn, stroke, log).await?;
             crate::ingest::StrokeState::replay(row.params, &raw)
                 .kept()
                 .iter()
@@ -517,32 +634,53 @@ impl Store {
     }
 }
 
-/// A stroke's samples from its `stroke_chunks` rows (`seq, n, layout, data`, in `seq` order),
-/// checking they are contiguous from 0.
-pub(crate) fn samples_from_chunks(
+/// A stroke's pieces from its `stroke_chunks` rows (`seq, n, layout, data`), decoded.
+pub(crate) fn pieces_from_chunks(
     stroke: Uuid,
     rows: &[sqlx::any::AnyRow],
-) -> anyhow::Result<Vec<Sample>> {
-    let mut samples = Vec::new();
+) -> anyhow::Result<Vec<log::Piece>> {
+    let mut pieces = Vec::with_capacity(rows.len());
     for row in rows {
         let seq: i64 = row.try_get("seq")?;
         let n: i64 = row.try_get("n")?;
         let data: Vec<u8> = row.try_get("data")?;
-        anyhow::ensure!(
-            seq as usize == samples.len(),
-            "stroke {stroke}: chunk at seq {seq} follows {} samples",
-            samples.len()
-        );
         let layout: i64 = row.try_get("layout")?;
-        let chunk = decode_samples(layout, &data)
+        let samples = decode_samples(layout, &data)
             .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
         anyhow::ensure!(
-            chunk.len() as i64 == n,
+            samples.len() as i64 == n,
             "stroke {stroke}: chunk at seq {seq} has a bad length"
         );
-        samples.extend(chunk);
+        pieces.push(log::Piece { seq: seq as u64, samples });
     }
-    Ok(samples)
+    Ok(pieces)
+}
+
+/// Where a stroke's samples are stored, each piece as `(seq, n)` in `seq` order: its
+/// `stroke_chunks` rows, and its entries in the append log. For tests that look at a database
+/// directly.
+pub async fn stored_pieces(
+    pool: &AnyPool,
+    stroke: Uuid,
+) -> anyhow::Result<(Vec<(u64, u64)>, Vec<(u64, u64)>)> {
+    let mut conn = pool.acquire().await?;
+    let rows = sqlx::query("SELECT seq, n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+        .bind(stroke.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+    let mut chunks = Vec::new();
+    for row in rows {
+        chunks.push((row.try_get::<i64, _>("seq")? as u64, row.try_get::<i64, _>("n")? as u64));
+    }
+    let log = log::read_log(&mut conn, Some(&HashSet::from([stroke])), None).await?;
+    let mut entries: Vec<(u64, u64)> = log
+        .get(&stroke)
+        .into_iter()
+        .flatten()
+        .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
+        .collect();
+    entries.sort_unstable();
+    Ok((chunks, entries))
 }
 
 /// The query of a stroke's chunks that [`samples_from_chunks`] reads.

@@ -9,7 +9,11 @@
 //! fails, each request is retried in a transaction of its own, so one bad request cannot fail
 //! the others.
 //!
-//! An append is stored only where its stroke's stored samples end (`WriterLoop::ends`): one
+//! A group's appends go to the database as one record of the append log (`super::log`); a
+//! stroke's samples move into `stroke_chunks` when it ends, is interrupted, or has been in the
+//! log for `log::MOVE_AFTER`, in the transaction of that commit.
+//!
+//! An append is stored only where its stroke's stored samples end (`WriterLoop::strokes`): one
 //! that would leave a hole (an earlier append of its stroke failed) is refused, samples already
 //! stored (a commit that succeeded but reported failure, retried) are not written again. So a
 //! stroke's stored samples stay contiguous from 0, with no overlap, whatever fails.
@@ -32,15 +36,13 @@ use std::time::{Duration, Instant};
 
 use penmesh::protocol::StrokeStatus;
 use penmesh::{AcutsParams, Brush, Kept, Sample};
-use sqlx::{AnyConnection, Connection};
+use sqlx::{AnyConnection, Connection, Row};
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use super::{
-    Backend, CHUNKS_SELECT, Store, encode_indices, encode_samples, notify, now_ms,
-    samples_from_chunks,
-};
+use super::log::{self, MOVE_AFTER, Piece};
+use super::{Backend, CHUNKS_SELECT, Store, encode_indices, encode_samples, notify, now_ms};
 use crate::fanout::{Fanout, SessionEvent};
 
 /// One change to the database.
@@ -315,7 +317,12 @@ impl WriterTask {
                         max_requests: max_requests.max(1),
                         stop: loop_stop,
                         fanout,
-                        ends: HashMap::new(),
+                        strokes: HashMap::new(),
+                        writer_id: (rand::random::<u64>() >> 1) as i64,
+                        trimmed_below: 0,
+                        last_record: 0,
+                        recover: false,
+                        idle_checked: Instant::now(),
                         faults,
                     };
                     state.run().await
@@ -350,19 +357,82 @@ struct WriterLoop {
     max_requests: usize,
     stop: CancellationToken,
     fanout: Fanout,
-    /// Where the stored samples of the strokes this writer appends to end, as committed. An
-    /// append must start there (or repeat what is stored): that is what keeps every stroke
-    /// contiguous from 0 whatever failed before. Only strokes open on this replica are here
-    /// (`Finish` and `SetStatus` forget one); after a failed transaction nothing is known and
-    /// each end is read again from the database, inside the transaction that needs it.
-    ends: HashMap<Uuid, u64>,
+    /// The strokes this writer appends to, as committed: where their stored samples end (an
+    /// append must start there, or repeat what is stored: that is what keeps every stroke
+    /// contiguous from 0 whatever failed before) and which of them are only in the log. Only
+    /// strokes open on this replica are here (`Finish` and `SetStatus` move and forget one);
+    /// after a failed transaction nothing is known: the next transaction rebuilds this from
+    /// this writer's records (`recover`), and any other stroke is read again from the database
+    /// inside the transaction that needs it.
+    strokes: HashMap<Uuid, Known>,
+    /// This writer's records in `stroke_log` carry this id (a new one each start).
+    writer_id: i64,
+    /// This writer's records below this id are deleted.
+    trimmed_below: i64,
+    /// The id of this writer's latest record.
+    last_record: i64,
+    /// `strokes` must be rebuilt from the database (a transaction failed).
+    recover: bool,
+    /// When the strokes were last checked for samples in the log longer than `MOVE_AFTER`.
+    idle_checked: Instant,
     faults: Option<Arc<CommitFaults>>,
 }
+
+/// What the writer knows of a stroke, as committed.
+#[derive(Debug, Clone, Default)]
+struct Known {
+    /// `stroke_chunks` holds the samples `0..chunk_end`.
+    chunk_end: u64,
+    /// The samples after `chunk_end`, stored only in the log.
+    pending: Vec<Sample>,
+    /// The oldest of this writer's records holding some of `pending`, if any.
+    first_record: Option<i64>,
+    /// Since when `pending` is not empty.
+    since: Option<Instant>,
+}
+
+impl Known {
+    fn end(&self) -> u64 {
+        self.chunk_end + self.pending.len() as u64
+    }
+}
+
+/// Records are deleted from the front of the log when this many can go at once (a delete
+/// dirties the pages it frees; fewer, larger deletes dirty each page once).
+const TRIM_RECORDS: i64 = 64;
+/// How often the writer looks for strokes to move because they sat in the log long enough.
+const IDLE_CHECK: Duration = Duration::from_millis(100);
 
 /// An op as it will be written: an append trimmed to what is not stored yet.
 enum Planned<'a> {
     Append { stroke: Uuid, seq: u64, samples: &'a [Sample] },
     Other(&'a WriteOp),
+}
+
+/// The stroke a `Finish` or `SetStatus` closes: its samples leave the log, it leaves the writer.
+fn closes(op: &WriteOp) -> Option<Uuid> {
+    match op {
+        WriteOp::Finish { stroke, .. } | WriteOp::SetStatus { stroke, .. } => Some(*stroke),
+        _ => None,
+    }
+}
+
+/// How many of `batch`'s requests go in one transaction: up to (not including) the first that
+/// appends to a stroke an earlier request closed, so that a transaction moves a stroke out of
+/// the log after all of its appends.
+fn first_group(batch: &[WriteRequest]) -> usize {
+    let mut closed = std::collections::HashSet::new();
+    for (i, req) in batch.iter().enumerate() {
+        let reopens = req
+            .ops
+            .iter()
+            .any(|op| matches!(op, WriteOp::Append { stroke, .. } if closed.contains(stroke)));
+        if reopens && i > 0 {
+            return i;
+        }
+        closed.extend(req.ops.iter().filter_map(closes));
+    }
+    batch.len()
 }
 
 impl WriterLoop {
@@ -398,16 +468,25 @@ impl WriterLoop {
             }
         }
         self.commit_batch(&mut batch).await;
+        // And leave the log empty: every stroke's samples in `stroke_chunks`.
+        if let Err(err) = self.commit(&[], true).await {
+            tracing::warn!(error = %err, "moving the strokes out of the log at stop");
+        }
     }
 
     async fn commit_batch(&mut self, batch: &mut Vec<WriteRequest>) {
-        if batch.is_empty() {
-            return;
+        while !batch.is_empty() {
+            let k = first_group(batch);
+            let mut group: Vec<WriteRequest> = batch.drain(..k).collect();
+            self.commit_group(&mut group).await;
         }
+    }
+
+    async fn commit_group(&mut self, batch: &mut Vec<WriteRequest>) {
         let started = Instant::now();
         let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
         let all: Vec<&WriteRequest> = batch.iter().collect();
-        let result = self.commit(&all).await;
+        let result = self.commit(&all, false).await;
         metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
         metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
         metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
@@ -424,12 +503,12 @@ impl WriterLoop {
             }
             Err(err) => {
                 tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
-                // In order, each in its own transaction. The ends were forgotten with the
-                // failure, so each append is checked against what is really stored: a group
+                // In order, each in its own transaction. What the writer knew was forgotten with
+                // the failure, so each append is checked against what is really stored: a group
                 // that did commit after all makes its appends repeats (stored, nothing written),
                 // and an append after one that failed would leave a hole, so it is refused.
                 for req in batch.drain(..) {
-                    let result = match self.commit(&[&req]).await {
+                    let result = match self.commit(&[&req], false).await {
                         Ok(mut refused) => refused.pop().flatten().map_or(Ok(()), Err),
                         Err(err) => {
                             tracing::error!(error = %err, "write failed");
@@ -462,28 +541,25 @@ impl WriterLoop {
         }
     }
 
-    /// Commits `requests` in one transaction. `Ok` holds, for each request, why it was refused
-    /// (an append that would leave a hole), or `None`: committed.
+    /// Commits `requests` in one transaction (and with `move_all`, moves every stroke out of
+    /// the log). `Ok` holds, for each request, why it was refused (an append that would leave
+    /// a hole), or `None`: committed.
     async fn commit(
         &mut self,
         requests: &[&WriteRequest],
+        move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         let deadline = self.deadline;
-        let result = match tokio::time::timeout(deadline, self.try_commit(requests)).await {
-            Ok(result) => result,
-            Err(_) => {
-                // A silent connection, in an unknown state: never used again.
-                self.conn = None;
-                Err(timed_out(deadline))
-            }
-        };
+        let committed = tokio::time::timeout(deadline, self.try_commit(requests, move_all)).await;
+        let result = committed.unwrap_or_else(|_| Err(timed_out(deadline)));
         if result.is_err() {
-            // Whether anything of it is stored is unknown: read the ends again when needed.
-            self.ends.clear();
-            // Nor is the connection's state: a broken one (a database restart, a partition)
-            // may still answer a ping, and SQLite after SQLITE_FULL (a full disk) keeps a
-            // transaction sqlx cannot roll back, so that every later BEGIN fails. The next
-            // transaction opens a new connection.
+            // Whether anything of it is stored is unknown: rebuild what the writer knows.
+            self.strokes.clear();
+            self.recover = true;
+            // Nor is the connection's state: a broken one (a database restart, a partition,
+            // a deadline passed) may still answer a ping, and SQLite after SQLITE_FULL (a full
+            // disk) keeps a transaction sqlx cannot roll back, so that every later BEGIN fails.
+            // The next transaction opens a new connection.
             self.conn = None;
         }
         result
@@ -492,6 +568,7 @@ impl WriterLoop {
     async fn try_commit(
         &mut self,
         requests: &[&WriteRequest],
+        move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
         let backend = self.store.backend();
@@ -504,11 +581,17 @@ impl WriterLoop {
             }
         };
         let mut tx = conn.begin_with(self.begin).await?;
+        if self.recover {
+            // Valid whether or not this transaction commits: it is what is committed now.
+            self.strokes = recover(&mut tx, self.writer_id).await?;
+            self.recover = false;
+        }
         let now = now_ms();
-        // The ends as this transaction leaves them, and the strokes to forget once it commits
-        // (they leave this replica's connections; a stroke taken over is read again).
+        // Strokes read from the database in this transaction, the ends as it leaves them, and
+        // the strokes it closes (moved out of the log and forgotten once it commits).
+        let mut loaded: HashMap<Uuid, Known> = HashMap::new();
         let mut ends: HashMap<Uuid, u64> = HashMap::new();
-        let mut forget: Vec<Uuid> = Vec::new();
+        let mut closed: Vec<Uuid> = Vec::new();
         let mut planned: Vec<Planned> = Vec::new();
         let mut refused = Vec::with_capacity(requests.len());
         for req in requests {
@@ -518,19 +601,30 @@ impl WriterLoop {
             let mut refusal = None;
             for op in &req.ops {
                 let WriteOp::Append { stroke, seq, samples } = op else {
-                    if let WriteOp::Finish { stroke, .. } | WriteOp::SetStatus { stroke, .. } = op {
-                        forget.push(*stroke);
-                    }
+                    closed.extend(closes(op));
                     req_planned.push(Planned::Other(op));
                     continue;
                 };
-                let known =
-                    req_ends.get(stroke).or_else(|| ends.get(stroke)).copied().or_else(|| {
-                        self.ends.get(stroke).copied().filter(|_| !forget.contains(stroke))
-                    });
+                if closed.contains(stroke) {
+                    refusal = Some(WriteError::Database(format!(
+                        "samples of stroke {stroke} after its end in the same request"
+                    )));
+                    break;
+                }
+                let known = req_ends
+                    .get(stroke)
+                    .or_else(|| ends.get(stroke))
+                    .copied()
+                    .or_else(|| self.strokes.get(stroke).map(Known::end))
+                    .or_else(|| loaded.get(stroke).map(Known::end));
                 let end = match known {
                     Some(end) => end,
-                    None => stored_end(&mut tx, *stroke).await?,
+                    None => {
+                        let known = load_stroke(&mut tx, *stroke, self.writer_id).await?;
+                        let end = known.end();
+                        loaded.insert(*stroke, known);
+                        end
+                    }
                 };
                 let upto = seq + samples.len() as u64;
                 if *seq > end {
@@ -552,20 +646,100 @@ impl WriterLoop {
             }
             refused.push(refusal);
         }
-        // Runs of consecutive appends go in as multi-row statements (see `append_all`); every
-        // other op keeps its place in the order.
-        let mut appends: Vec<(Uuid, u64, &[Sample])> = Vec::new();
+        // This transaction's appends, by stroke, for the moves.
+        let mut appended: HashMap<Uuid, Vec<Sample>> = HashMap::new();
+        let mut record: Vec<(Uuid, u64, &[Sample])> = Vec::new();
         for op in &planned {
+            if let Planned::Append { stroke, seq, samples } = op {
+                appended.entry(*stroke).or_default().extend_from_slice(samples);
+                record.push((*stroke, *seq, samples));
+            }
+        }
+        // The other ops in order; `Finish` and `SetStatus` move their stroke out of the log.
+        let mut moved: Vec<Uuid> = Vec::new();
+        // Strokes this transaction creates: nothing of them is stored before it.
+        let mut begun: Vec<Uuid> = Vec::new();
+        let mut moves: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
+        for op in &planned {
+            let Planned::Other(op) = op else { continue };
             match op {
-                Planned::Append { stroke, seq, samples } => appends.push((*stroke, *seq, samples)),
-                Planned::Other(op) => {
-                    append_all(&mut tx, backend, &appends).await?;
-                    appends.clear();
+                WriteOp::Finish { stroke, kept } => {
+                    let base = match self.strokes.get(stroke).or_else(|| loaded.get(stroke)) {
+                        Some(known) => known.clone(),
+                        None => load_stroke(&mut tx, *stroke, self.writer_id).await?,
+                    };
+                    let tail = appended.get(stroke).map(Vec::as_slice).unwrap_or_default();
+                    finish(&mut tx, backend, *stroke, &base, tail, kept, now).await?;
+                }
+                WriteOp::SetStatus { stroke, .. } => {
+                    if let Some(known) = self.strokes.get(stroke).or_else(|| loaded.get(stroke)) {
+                        let mut samples = known.pending.clone();
+                        samples.extend(appended.get(stroke).into_iter().flatten());
+                        if !samples.is_empty() {
+                            moves.push((*stroke, known.chunk_end, samples));
+                        }
+                    }
+                    apply(&mut tx, op, now).await?;
+                }
+                WriteOp::BeginStroke { stroke, .. } => {
+                    if apply(&mut tx, op, now).await? {
+                        begun.push(*stroke);
+                    }
+                }
+                _ => {
                     apply(&mut tx, op, now).await?;
                 }
             }
         }
-        append_all(&mut tx, backend, &appends).await?;
+        // Strokes that sat in the log long enough move too (all of them when stopping).
+        let check_idle = move_all || self.idle_checked.elapsed() >= IDLE_CHECK;
+        if check_idle {
+            let due = |k: &Known| move_all || k.since.is_some_and(|t| t.elapsed() >= MOVE_AFTER);
+            for (stroke, known) in self.strokes.iter().chain(&loaded) {
+                if closed.contains(stroke) || !due(known) {
+                    continue;
+                }
+                let mut samples = known.pending.clone();
+                samples.extend(appended.get(stroke).into_iter().flatten());
+                moved.push(*stroke);
+                moves.push((*stroke, known.chunk_end, samples));
+            }
+        }
+        let rows: Vec<(Uuid, u64, &[Sample])> =
+            moves.iter().map(|(s, seq, samples)| (*s, *seq, samples.as_slice())).collect();
+        insert_chunks(&mut tx, backend, &rows).await?;
+        // The appends: one record.
+        let record_id = if record.is_empty() {
+            None
+        } else {
+            let id: i64 = sqlx::query_scalar(
+                "INSERT INTO stroke_log (writer, data) VALUES ($1, $2) RETURNING id",
+            )
+            .bind(self.writer_id)
+            .bind(log::encode_record(&record))
+            .fetch_one(&mut *tx)
+            .await?;
+            Some(id)
+        };
+        // The records still needed start at the oldest one holding a sample not moved.
+        let still_in_log = |stroke: &Uuid| !closed.contains(stroke) && !moved.contains(stroke);
+        let oldest_needed = self
+            .strokes
+            .iter()
+            .chain(&loaded)
+            .filter(|(stroke, _)| still_in_log(stroke))
+            .filter_map(|(_, known)| known.first_record)
+            .chain(record_id.filter(|_| appended.keys().any(still_in_log)))
+            .min();
+        let low = oldest_needed.unwrap_or(record_id.unwrap_or(self.last_record) + 1);
+        let trim = low - self.trimmed_below >= TRIM_RECORDS || move_all;
+        if trim {
+            sqlx::query("DELETE FROM stroke_log WHERE writer = $1 AND id < $2")
+                .bind(self.writer_id)
+                .bind(low)
+                .execute(&mut *tx)
+                .await?;
+        }
         if backend == Backend::Postgres {
             let events: Vec<SessionEvent> = requests
                 .iter()
@@ -584,9 +758,41 @@ impl WriterLoop {
         if fault == Some(Fault::FailAfterCommit) {
             anyhow::bail!("injected failure after COMMIT");
         }
-        self.ends.extend(ends);
-        for stroke in forget {
-            self.ends.remove(&stroke);
+        // What is committed now.
+        if check_idle {
+            self.idle_checked = Instant::now();
+        }
+        for (stroke, known) in loaded {
+            self.strokes.entry(stroke).or_insert(known);
+        }
+        for stroke in begun {
+            self.strokes.entry(stroke).or_default();
+        }
+        let at = Instant::now();
+        for (stroke, samples) in appended {
+            let known = self.strokes.entry(stroke).or_default();
+            if known.pending.is_empty() {
+                known.first_record = record_id;
+                known.since = Some(at);
+            }
+            known.pending.extend(samples);
+        }
+        for stroke in moved {
+            if let Some(known) = self.strokes.get_mut(&stroke) {
+                known.chunk_end = known.end();
+                known.pending = Vec::new();
+                known.first_record = None;
+                known.since = None;
+            }
+        }
+        for stroke in closed {
+            self.strokes.remove(&stroke);
+        }
+        if let Some(id) = record_id {
+            self.last_record = id;
+        }
+        if trim {
+            self.trimmed_below = low;
         }
         Ok(refused)
     }
@@ -596,21 +802,132 @@ fn timed_out(deadline: Duration) -> anyhow::Error {
     anyhow::anyhow!("the database did not answer within {} ms", deadline.as_millis())
 }
 
-/// Where the stored samples of `stroke` end (its chunks are contiguous from 0).
-async fn stored_end(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<u64> {
-    let end: Option<i64> = sqlx::query_scalar(
-        "SELECT seq + n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq DESC LIMIT 1",
+/// Where `stroke_chunks` holds the samples of `stroke` up to (its rows are contiguous from 0;
+/// rows may overlap where two writers moved the same samples).
+async fn chunk_end(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<u64> {
+    let rows = sqlx::query("SELECT seq, n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
+        .bind(stroke.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+    let mut end = 0u64;
+    for row in rows {
+        let (seq, n) = (row.try_get::<i64, _>("seq")? as u64, row.try_get::<i64, _>("n")? as u64);
+        anyhow::ensure!(seq <= end, "stroke {stroke}: chunk at seq {seq} follows {end} samples");
+        end = end.max(seq + n);
+    }
+    Ok(end)
+}
+
+/// What is stored of `stroke`, read from the database: its chunks' end and the samples after
+/// it in the log (any writer's). A stroke with no row yet is new: nothing is stored.
+async fn load_stroke(conn: &mut AnyConnection, stroke: Uuid, writer: i64) -> anyhow::Result<Known> {
+    let exists: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM strokes WHERE id = $1")
+        .bind(stroke.to_string())
+        .fetch_one(&mut *conn)
+        .await?;
+    if exists == 0 {
+        return Ok(Known::default());
+    }
+    let chunk_end = chunk_end(conn, stroke).await?;
+    let wanted = std::collections::HashSet::from([stroke]);
+    let entries =
+        log::read_log(conn, Some(&wanted), None).await?.remove(&stroke).unwrap_or_default();
+    known_from(stroke, chunk_end, entries, writer)
+}
+
+/// A stroke's state from its chunks' end and its log entries (id and writer of the record).
+fn known_from(
+    stroke: Uuid,
+    chunk_end: u64,
+    entries: Vec<(i64, i64, log::Entry)>,
+    writer: i64,
+) -> anyhow::Result<Known> {
+    let beyond = |(_, _, e): &&(i64, i64, log::Entry)| e.seq + e.samples.len() as u64 > chunk_end;
+    let first_record =
+        entries.iter().filter(beyond).filter(|(_, w, _)| *w == writer).map(|(id, _, _)| *id).min();
+    let pieces = entries.into_iter().map(|(_, _, e)| Piece { seq: e.seq, samples: e.samples });
+    let pending = log::assemble_from(stroke, chunk_end, pieces.collect())?;
+    let since = (!pending.is_empty()).then(Instant::now);
+    Ok(Known { chunk_end, pending, first_record, since })
+}
+
+/// After a failed transaction: every stroke with samples in this writer's records, as stored.
+async fn recover(conn: &mut AnyConnection, writer: i64) -> anyhow::Result<HashMap<Uuid, Known>> {
+    let mut strokes = HashMap::new();
+    for (stroke, entries) in log::read_log(conn, None, Some(writer)).await? {
+        let end = chunk_end(conn, stroke).await?;
+        strokes.insert(stroke, known_from(stroke, end, entries, writer)?);
+    }
+    Ok(strokes)
+}
+
+/// Stores the simplified stroke, marks it `done`, and leaves its samples as one row of
+/// `stroke_chunks`: a row per batch costs its key twice (table and index) for two or three
+/// samples, and a whole stroke codes in fewer bytes a sample than its pieces.
+async fn finish(
+    conn: &mut AnyConnection,
+    backend: Backend,
+    stroke: Uuid,
+    base: &Known,
+    tail: &[Sample],
+    kept: &[Kept],
+    now: i64,
+) -> anyhow::Result<()> {
+    // Already one row, and nothing in the log: nothing to move.
+    let mut rewrite = true;
+    let mut samples = Vec::new();
+    if base.chunk_end > 0 {
+        let rows =
+            sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
+        rewrite = rows.len() > 1 || !base.pending.is_empty() || !tail.is_empty();
+        if rewrite {
+            samples = log::assemble(stroke, super::pieces_from_chunks(stroke, &rows)?)?;
+            anyhow::ensure!(
+                samples.len() as u64 == base.chunk_end,
+                "stroke {stroke}: its chunks end at {}, not {}",
+                samples.len(),
+                base.chunk_end
+            );
+            sqlx::query("DELETE FROM stroke_chunks WHERE stroke_id = $1")
+                .bind(stroke.to_string())
+                .execute(&mut *conn)
+                .await?;
+        }
+    }
+    samples.extend_from_slice(&base.pending);
+    samples.extend_from_slice(tail);
+    if rewrite && !samples.is_empty() {
+        insert_chunks(conn, backend, &[(stroke, 0, &samples)]).await?;
+    }
+    let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
+    let kept_samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
+    let (layout, data) = encode_samples(&kept_samples);
+    sqlx::query(
+        "INSERT INTO simplified (stroke_id, indices, layout, data) VALUES ($1, $2, $3, $4) \
+         ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, \
+         layout = excluded.layout, data = excluded.data",
     )
     .bind(stroke.to_string())
-    .fetch_optional(&mut *conn)
+    .bind(encode_indices(&indices))
+    .bind(layout)
+    .bind(data)
+    .execute(&mut *conn)
     .await?;
-    Ok(end.unwrap_or(0) as u64)
+    sqlx::query(
+        "UPDATE strokes SET status = 'done', n_retained = $1, updated_at = $2 WHERE id = $3",
+    )
+    .bind(kept.len() as i64)
+    .bind(now)
+    .bind(stroke.to_string())
+    .execute(&mut *conn)
+    .await?;
+    Ok(())
 }
 
 /// Most rows per multi-row `INSERT`. A group commit is a chain of round trips to the database
 /// (with SQLite, to sqlx's worker thread), and when the cores are busy each round trip waits
 /// for the scheduler, twice: under 500 pens a commit of 14 statements took 13 ms while SQLite
-/// itself was busy a quarter of that. So a commit's appends go in as few statements as SQLite's
+/// itself was busy a quarter of that. So a commit's moves go in as few statements as SQLite's
 /// parameter limit allows (5 parameters per row, at most 32,766 per statement).
 const MAX_ROWS_PER_STATEMENT: usize = 1024;
 /// Statements of up to this many rows (and of exactly [`MAX_ROWS_PER_STATEMENT`]) stay in the
@@ -618,14 +935,12 @@ const MAX_ROWS_PER_STATEMENT: usize = 1024;
 /// prepared for one use, so that they do not push the common shapes out of the cache.
 const CACHED_ROWS: usize = 16;
 
-/// A run of appends as multi-row `INSERT`s into `stroke_chunks` (see
-/// [`MAX_ROWS_PER_STATEMENT`]), and nothing else: a stroke's `n_points` is read from its chunks
-/// (`STROKE_SELECT`). The batches of one stroke that follow each other in the run (a
-/// connection's batches are contiguous, see `ingest`) become one row.
+/// Rows of `stroke_chunks` (stroke, seq of the first sample, samples) as multi-row `INSERT`s
+/// (see [`MAX_ROWS_PER_STATEMENT`]); pieces of one stroke that follow each other become one row.
 ///
 /// SQLite gets positional `?` placeholders: sqlx's SQLite driver looks each numbered `$N` up by
 /// name among all the statement's parameters, which is quadratic in their number.
-async fn append_all(
+async fn insert_chunks(
     conn: &mut AnyConnection,
     backend: Backend,
     appends: &[(Uuid, u64, &[Sample])],
@@ -668,7 +983,7 @@ async fn append_all(
                 }
             }
         }
-        // No `ON CONFLICT`: the writer only writes what is not stored (`WriterLoop::ends`), so
+        // No `ON CONFLICT`: the writer only writes what is not stored (`WriterLoop::strokes`), so
         // a conflict is a wrong end, and failing makes the retry read the ends again.
         let cached = chunk.len() <= CACHED_ROWS || chunk.len() == MAX_ROWS_PER_STATEMENT;
         let mut query = sqlx::query(&sql).persistent(cached);
@@ -686,10 +1001,11 @@ async fn append_all(
     Ok(())
 }
 
-async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<()> {
+/// Applies an op other than an append or a finish. `true`: it created a stroke.
+async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<bool> {
     match op {
         WriteOp::BeginStroke { stroke, session, participant, brush, params, device } => {
-            sqlx::query(
+            let created = sqlx::query(
                 "INSERT INTO strokes (id, session_id, participant, brush, params, device, status, \
                  n_retained, created_at, updated_at) \
                  VALUES ($1, $2, $3, $4, $5, $6, 'open', 0, $7, $7) ON CONFLICT (id) DO NOTHING",
@@ -703,55 +1019,10 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .bind(now)
             .execute(&mut *conn)
             .await?;
+            return Ok(created.rows_affected() == 1);
         }
-        WriteOp::Append { .. } => anyhow::bail!("an append must go through append_all"),
-        WriteOp::Finish { stroke, kept } => {
-            // The stroke's batches become one row of one compact batch: a row per batch costs
-            // its key twice (table and index) for two or three samples, and a whole stroke
-            // codes in fewer bytes a sample than its pieces.
-            let rows =
-                sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
-            if rows.len() > 1 {
-                let samples = samples_from_chunks(*stroke, &rows)?;
-                sqlx::query("DELETE FROM stroke_chunks WHERE stroke_id = $1")
-                    .bind(stroke.to_string())
-                    .execute(&mut *conn)
-                    .await?;
-                let (layout, data) = encode_samples(&samples);
-                sqlx::query(
-                    "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) \
-                     VALUES ($1, 0, $2, $3, $4)",
-                )
-                .bind(stroke.to_string())
-                .bind(samples.len() as i64)
-                .bind(layout)
-                .bind(data)
-                .execute(&mut *conn)
-                .await?;
-            }
-            let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
-            let samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
-            let (layout, data) = encode_samples(&samples);
-            sqlx::query(
-                "INSERT INTO simplified (stroke_id, indices, layout, data) VALUES ($1, $2, $3, $4) \
-                 ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, \
-                 layout = excluded.layout, data = excluded.data",
-            )
-            .bind(stroke.to_string())
-            .bind(encode_indices(&indices))
-            .bind(layout)
-            .bind(data)
-            .execute(&mut *conn)
-            .await?;
-            sqlx::query(
-                "UPDATE strokes SET status = 'done', n_retained = $1, updated_at = $2 WHERE id = $3",
-            )
-            .bind(kept.len() as i64)
-            .bind(now)
-            .bind(stroke.to_string())
-            .execute(&mut *conn)
-            .await?;
-        }
+        WriteOp::Append { .. } => anyhow::bail!("an append goes into the log record"),
+        WriteOp::Finish { .. } => anyhow::bail!("a finish goes through `finish`"),
         WriteOp::Join { participant, session, name, replica } => {
             sqlx::query(
                 "INSERT INTO participants (id, session_id, name, joined_at, replica_key) \
@@ -783,7 +1054,7 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .await?;
         }
     }
-    Ok(())
+    Ok(false)
 }
 
 #[cfg(test)]

@@ -138,12 +138,15 @@ async fn a_resent_batch_is_acked_again_and_stored_once() {
     ws.points(stroke, 10, &samples[10..]).await;
     ws.wait_ack(stroke, 30).await;
     assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
-    let rows = penmesh_e2e::count_rows(
-        &proxy.db,
-        &format!("SELECT COUNT(*) FROM stroke_chunks WHERE stroke_id = '{stroke}'"),
-    )
-    .await;
-    assert_eq!(rows, 2);
+    // Stored once: the chunk rows hold each sample at most once, and so do the log entries
+    // (a sample moved into a chunk stays in its log record until the record is deleted).
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(&proxy.db.url).await.unwrap();
+    let (chunks, log) = penmesh_e2e::penmesh_proxy::stored_pieces(&pool, stroke).await.unwrap();
+    pool.close().await;
+    let total = |pieces: &[(u64, u64)]| pieces.iter().map(|p| p.1).sum::<u64>();
+    assert!(total(&chunks) <= 30 && total(&log) <= 30, "chunks {chunks:?}, log {log:?}");
+    assert!(total(&chunks) == 30 || total(&log) == 30, "chunks {chunks:?}, log {log:?}");
 }
 
 /// A client that vanished without a FIN (it reads and answers nothing, its socket stays open):

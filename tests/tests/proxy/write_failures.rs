@@ -7,11 +7,10 @@ use std::time::Duration;
 
 use penmesh::Sample;
 use penmesh::protocol::{ErrorCode, ServerMessage, StrokeId, StrokeStatus};
-use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault, stored_pieces};
 use penmesh_e2e::{
     TestDatabase, TestProxy, TestSession, WsClient, spawn_faulty_proxy_on, stroke_samples,
 };
-use sqlx::Row;
 use uuid::Uuid;
 
 const BATCH: usize = 4;
@@ -47,21 +46,21 @@ async fn answers(ws: &mut WsClient, stroke: StrokeId) -> (u64, Vec<ErrorCode>) {
     (acked, errors)
 }
 
-/// The stored chunks `(seq, n)` of a stroke, read straight from the database.
-async fn chunks(db: &TestDatabase, stroke: StrokeId) -> Vec<(i64, i64)> {
+/// Where a stroke's samples are stored, read straight from the database: its chunk rows and
+/// its entries in the append log, each `(seq, n)`.
+async fn pieces(db: &TestDatabase, stroke: StrokeId) -> (Vec<(u64, u64)>, Vec<(u64, u64)>) {
     sqlx::any::install_default_drivers();
     let pool = sqlx::AnyPool::connect(&db.url).await.expect("the test reads the database");
-    let rows = sqlx::query("SELECT seq, n FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq")
-        .bind(stroke.to_string())
-        .fetch_all(&pool)
-        .await
-        .unwrap();
+    let pieces = stored_pieces(&pool, stroke).await.unwrap();
     pool.close().await;
-    rows.iter().map(|r| (r.get::<i64, _>("seq"), r.get::<i64, _>("n"))).collect()
+    pieces
 }
 
-/// The invariant: the stored chunks are contiguous from 0 with no overlap, they hold every
+/// The invariant: the stored samples are contiguous from 0 with no overlap, they hold every
 /// acknowledged sample, and they are exactly the samples sent. Returns where they end.
+/// (The chunk rows are contiguous from 0; the log entries are contiguous among themselves and
+/// start at or before the chunks' end: a sample moved into a chunk stays in its log record
+/// until the record is deleted, the one copy the layout allows.)
 async fn assert_stored_prefix(
     proxy: &TestProxy,
     session: &TestSession,
@@ -69,13 +68,25 @@ async fn assert_stored_prefix(
     sent: &[Sample],
     acked: u64,
 ) -> u64 {
+    let (chunks, log) = pieces(&proxy.db, stroke).await;
     let mut end = 0;
-    for (seq, n) in chunks(&proxy.db, stroke).await {
+    for (seq, n) in chunks {
         assert_eq!(seq, end, "stroke {stroke}: a chunk at seq {seq} after {end} stored samples");
         assert!(n > 0, "stroke {stroke}: an empty chunk at seq {seq}");
         end += n;
     }
-    let end = end as u64;
+    let mut log_end = log.first().map(|&(seq, _)| seq);
+    assert!(
+        log_end.is_none_or(|first| first <= end),
+        "stroke {stroke}: the log starts at {log_end:?}, past the {end} samples in chunks"
+    );
+    for (seq, n) in log {
+        let at = log_end.expect("set from the first entry");
+        assert_eq!(seq, at, "stroke {stroke}: a log entry at seq {seq} after one ending at {at}");
+        assert!(n > 0, "stroke {stroke}: an empty log entry at seq {seq}");
+        log_end = Some(seq + n);
+    }
+    let end = end.max(log_end.unwrap_or(0));
     assert!(acked <= end, "stroke {stroke}: acknowledged up to {acked}, stored up to {end}");
     assert_eq!(proxy.raw_samples(session, stroke).await, sent[..end as usize].to_vec());
     end
@@ -207,12 +218,15 @@ async fn an_unreadable_stroke_is_reported_and_does_not_hide_the_others() {
     }
     sqlx::any::install_default_drivers();
     let pool = sqlx::AnyPool::connect(&proxy.db.url).await.unwrap();
-    sqlx::query("UPDATE stroke_chunks SET data = $1 WHERE stroke_id = $2")
-        .bind(vec![1u8, 2, 3])
-        .bind(bad.to_string())
-        .execute(&pool)
-        .await
-        .unwrap();
+    // A chunk row that does not decode (the samples are in the log while the stroke is drawn).
+    sqlx::query(
+        "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ($1, 0, 20, 1, $2)",
+    )
+    .bind(bad.to_string())
+    .bind(vec![1u8, 2, 3])
+    .execute(&pool)
+    .await
+    .unwrap();
     pool.close().await;
 
     // Act: someone joins the session.
