@@ -190,7 +190,7 @@ impl Connection {
                 Err(ConnError::refused(
                     ErrorCode::StrokeConflict,
                     // Says no more than that the id is taken (not where, nor anything of the
-                    // stroke): ids are global, see docs/reliability-limits.md.
+                    // stroke): ids are global, see docs/reliability.md.
                     format!("stroke id {stroke} is taken; choose a new random id"),
                     Some(stroke),
                 ))
