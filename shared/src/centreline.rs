@@ -445,30 +445,48 @@ pub const SMOOTH_PATH_TURN_DEG: f64 = 30.0;
 /// ahead turn by less than `max_turn` (radians). Samples within `reach` of an end are not smooth
 /// (there is no path on one side to judge by).
 pub fn smooth_at_samples(raw: &[DVec2], reach: f64, max_turn: f64) -> Vec<bool> {
-    let mut arc = Vec::with_capacity(raw.len());
-    let mut total = 0.0;
-    for (k, p) in raw.iter().enumerate() {
-        if k > 0 {
-            total += p.distance(raw[k - 1]);
+    let path = PathArc::new(raw);
+    (0..raw.len()).map(|k| path.is_smooth_at(k, reach, max_turn)).collect()
+}
+
+/// A raw path with its arc length at each sample, to judge smoothness at single samples
+/// (`fitted_outline` asks only at its knots, a few dozen of a thousand samples).
+pub(crate) struct PathArc<'a> {
+    raw: &'a [DVec2],
+    arc: Vec<f64>,
+}
+
+impl<'a> PathArc<'a> {
+    pub(crate) fn new(raw: &'a [DVec2]) -> PathArc<'a> {
+        let mut arc = Vec::with_capacity(raw.len());
+        let mut total = 0.0;
+        for (k, p) in raw.iter().enumerate() {
+            if k > 0 {
+                total += p.distance(raw[k - 1]);
+            }
+            arc.push(total);
         }
-        arc.push(total);
+        PathArc { raw, arc }
     }
-    let at_arc = |s: f64| -> DVec2 {
-        // The point of the path at arc length s (0 <= s <= total).
+
+    /// The point of the path at arc length `s` (0 <= s <= total).
+    fn at_arc(&self, s: f64) -> DVec2 {
+        let (raw, arc) = (self.raw, &self.arc);
         let k = arc.partition_point(|&a| a < s).clamp(1, raw.len() - 1);
         let span = arc[k] - arc[k - 1];
         let t = if span > 0.0 { (s - arc[k - 1]) / span } else { 0.0 };
         raw[k - 1].lerp(raw[k], t)
-    };
-    (0..raw.len())
-        .map(|k| {
-            if arc[k] < reach || arc[k] + reach > total {
-                return false;
-            }
-            let (back, ahead) = (at_arc(arc[k] - reach), at_arc(arc[k] + reach));
-            turn(raw[k] - back, ahead - raw[k]) < max_turn
-        })
-        .collect()
+    }
+
+    /// [`smooth_at_samples`] at sample `k` alone.
+    pub(crate) fn is_smooth_at(&self, k: usize, reach: f64, max_turn: f64) -> bool {
+        let total = self.arc.last().copied().unwrap_or(0.0);
+        if self.arc[k] < reach || self.arc[k] + reach > total {
+            return false;
+        }
+        let (back, ahead) = (self.at_arc(self.arc[k] - reach), self.at_arc(self.arc[k] + reach));
+        turn(self.raw[k] - back, ahead - self.raw[k]) < max_turn
+    }
 }
 
 #[cfg(test)]

@@ -29,7 +29,7 @@ use glam::{DVec2, DVec3};
 
 use crate::centreline::{
     Centreline, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG, TANGENT_SCALES, fit_centreline,
-    smooth_at_samples, smooth_centreline, within_directed,
+    PathArc, smooth_centreline, within_directed,
 };
 use crate::model::{Brush, Sample};
 
@@ -256,8 +256,9 @@ pub fn fitted_outline(
         return Ok(offset_outline(centres, radii, options));
     };
     let path: Vec<DVec2> = raw.iter().map(Sample::pos).collect();
-    let smooth_path =
-        smooth_at_samples(&path, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG.to_radians());
+    let path_arc = PathArc::new(&path);
+    let max_turn = SMOOTH_PATH_TURN_DEG.to_radians();
+    let smooth_path = |k: usize| path_arc.is_smooth_at(k, SMOOTH_PATH_REACH, max_turn);
     let bound = smooth.bound;
     let mut knots = kept.to_vec();
     let mut round = 0;
@@ -265,7 +266,7 @@ pub fn fitted_outline(
         let samples: Vec<Sample> = knots.iter().map(|&i| raw[i]).collect();
         let (centres, radii, firsts) = merged_centres(&samples, brush);
         // A knot is a corner where the pen's own path is not smooth, whatever its chords say.
-        let corners: Vec<bool> = firsts.iter().map(|&f| !smooth_path[knots[f]]).collect();
+        let corners: Vec<bool> = firsts.iter().map(|&f| !smooth_path(knots[f])).collect();
         let mut refusals = vec![0; centres.len()];
         let (centres, radii) =
             fit_centreline(&centres, &radii, smooth, &corners, &mut |segment, points| {
