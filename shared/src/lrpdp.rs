@@ -28,8 +28,8 @@
 use glam::{DVec2, DVec3};
 
 use crate::centreline::{
-    Centreline, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG, TANGENT_SCALES, fit_centreline,
-    PathArc, smooth_centreline, within_directed,
+    Centreline, PathArc, SMOOTH_PATH_REACH, SMOOTH_PATH_TURN_DEG, TANGENT_SCALES, fit_centreline,
+    smooth_centreline, within_directed,
 };
 use crate::model::{Brush, Sample};
 

