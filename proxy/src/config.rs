@@ -332,6 +332,16 @@ impl Config {
     /// Refuses settings that cannot work, naming the setting, so that a bad value stops the
     /// proxy at start-up instead of refusing every stroke later.
     pub fn check(&self) -> anyhow::Result<()> {
+        // A zero period or deadline would time out every wait, or ping without pause.
+        for (value, setting) in [
+            (self.heartbeat_ms, "--heartbeat-ms (PENMESH_HEARTBEAT_MS)"),
+            (self.db_timeout_ms, "--db-timeout-ms (PENMESH_DB_TIMEOUT_MS)"),
+            (self.listener_heartbeat_ms, "--listener-heartbeat-ms (PENMESH_LISTENER_HEARTBEAT_MS)"),
+            (self.header_timeout_secs, "--header-timeout-secs (PENMESH_HEADER_TIMEOUT_SECS)"),
+            (self.request_timeout_secs, "--request-timeout-secs (PENMESH_REQUEST_TIMEOUT_SECS)"),
+        ] {
+            anyhow::ensure!(value > 0, "bad setting {setting}: must be above 0");
+        }
         let params = self.default_params();
         params.validate().map_err(|e| {
             let setting = match e.name {
@@ -485,6 +495,11 @@ mod tests {
             ("--tolerance", "NaN", "PENMESH_TOLERANCE"),
             ("--angle-deg", "91", "PENMESH_ANGLE_DEG"),
             ("--pressure-tolerance", "-0.5", "PENMESH_PRESSURE_TOLERANCE"),
+            ("--heartbeat-ms", "0", "PENMESH_HEARTBEAT_MS"),
+            ("--db-timeout-ms", "0", "PENMESH_DB_TIMEOUT_MS"),
+            ("--listener-heartbeat-ms", "0", "PENMESH_LISTENER_HEARTBEAT_MS"),
+            ("--header-timeout-secs", "0", "PENMESH_HEADER_TIMEOUT_SECS"),
+            ("--request-timeout-secs", "0", "PENMESH_REQUEST_TIMEOUT_SECS"),
         ] {
             let setting = format!("{flag}={value}");
             let config = load_without_env(&["penmesh-proxy", &setting]).unwrap();

@@ -2,7 +2,7 @@
 //! fan-out, the per-session connection counts and the registry of strokes held by live
 //! connections (with PostgreSQL backed by advisory locks, so it holds across replicas).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -208,35 +208,16 @@ impl Claims {
 
     pub fn release(&self, stroke: StrokeId, conn: u64) {
         if self.forget(stroke, conn) {
-            self.unlock(vec![stroke]);
+            self.unlock(stroke);
         }
     }
 
-    /// Lets go of every stroke `conn` holds.
-    fn release_all(&self, conn: u64) {
-        let mut held = self.held.lock().expect("claims lock");
-        let strokes: Vec<StrokeId> =
-            held.iter().filter(|(_, holder)| **holder == conn).map(|(s, _)| *s).collect();
-        for stroke in &strokes {
-            held.remove(stroke);
-        }
-        drop(held);
-        if !strokes.is_empty() {
-            self.released.notify_waiters();
-            self.unlock(strokes);
-        }
-    }
-
-    /// Gives the database locks of `strokes` back (PostgreSQL), in the background.
-    fn unlock(&self, strokes: Vec<StrokeId>) {
+    /// Gives the stroke's database lock back (PostgreSQL), in the background.
+    fn unlock(&self, stroke: StrokeId) {
         let Some(locks) = self.locks.clone() else { return };
         // Also called while a panicking task unwinds: only spawn where a runtime runs.
         if let Ok(runtime) = tokio::runtime::Handle::try_current() {
-            runtime.spawn(async move {
-                for stroke in strokes {
-                    locks.unlock(stroke).await;
-                }
-            });
+            runtime.spawn(async move { locks.unlock(stroke).await });
         }
     }
 }
@@ -247,25 +228,34 @@ impl Claims {
 pub struct ConnectionClaims {
     state: AppState,
     conn: u64,
+    held: HashSet<StrokeId>,
 }
 
 impl ConnectionClaims {
     pub fn new(state: AppState, conn: u64) -> ConnectionClaims {
-        ConnectionClaims { state, conn }
+        ConnectionClaims { state, conn, held: HashSet::new() }
     }
 
     /// Takes `stroke` for this connection ([`Claims::claim`]).
-    pub async fn claim(&self, stroke: StrokeId, wait: Duration) -> bool {
-        self.state.claims.claim(stroke, self.conn, wait).await
+    pub async fn claim(&mut self, stroke: StrokeId, wait: Duration) -> bool {
+        let taken = self.state.claims.claim(stroke, self.conn, wait).await;
+        if taken {
+            self.held.insert(stroke);
+        }
+        taken
     }
 
-    pub fn release(&self, stroke: StrokeId) {
-        self.state.claims.release(stroke, self.conn);
+    pub fn release(&mut self, stroke: StrokeId) {
+        if self.held.remove(&stroke) {
+            self.state.claims.release(stroke, self.conn);
+        }
     }
 }
 
 impl Drop for ConnectionClaims {
     fn drop(&mut self) {
-        self.state.claims.release_all(self.conn);
+        for stroke in self.held.drain() {
+            self.state.claims.release(stroke, self.conn);
+        }
     }
 }

@@ -197,7 +197,7 @@ impl Store {
             SqliteSync::Normal => "NORMAL",
             SqliteSync::Full => "FULL",
         };
-        let deadline = Duration::from_millis(config.db_timeout_ms.max(1));
+        let deadline = Duration::from_millis(config.db_timeout_ms);
         let pool = AnyPoolOptions::new()
             .max_connections(config.db_max_connections.max(1))
             .acquire_timeout(deadline)

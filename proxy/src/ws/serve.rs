@@ -128,7 +128,7 @@ impl Heartbeat {
     const MISSED: u32 = 3;
 
     fn new(period: Duration) -> Heartbeat {
-        Heartbeat { period: period.max(Duration::from_millis(100)) }
+        Heartbeat { period }
     }
 
     /// The next time to look at a client last heard at `heard`.
