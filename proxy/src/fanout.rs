@@ -38,6 +38,11 @@ pub struct SessionEvent {
     pub session: Uuid,
     #[serde(flatten)]
     pub kind: EventKind,
+    /// The connection of this replica that caused the event, if any: the fan-out does not
+    /// hand an event back to its own connection (whose client has it already), which would
+    /// only wake that connection to drop it. Local to a replica, so never sent to the others.
+    #[serde(skip)]
+    pub origin: Option<u64>,
 }
 
 /// What happened. Stroke events name the participant who began the stroke.
@@ -78,7 +83,12 @@ pub enum EventKind {
 
 impl SessionEvent {
     pub fn new(session: Uuid, kind: EventKind) -> SessionEvent {
-        SessionEvent { session, kind }
+        SessionEvent { session, kind, origin: None }
+    }
+
+    /// The event, caused by connection `origin` of this replica.
+    pub fn from_connection(origin: u64, session: Uuid, kind: EventKind) -> SessionEvent {
+        SessionEvent { session, kind, origin: Some(origin) }
     }
 
     /// The `NOTIFY` payloads of this event: JSON, each under [`MAX_NOTIFY_BYTES`]. A
@@ -228,6 +238,8 @@ const GAP: u8 = 2;
 #[derive(Debug)]
 struct Subscriber {
     id: u64,
+    /// The connection subscribed (see [`SessionEvent::origin`]).
+    connection: Option<u64>,
     tx: mpsc::Sender<Arc<Published>>,
     lag: Arc<AtomicU8>,
 }
@@ -255,14 +267,21 @@ pub struct Subscription {
 }
 
 impl Fanout {
-    /// Subscribes to `session`'s events with a queue of `capacity` events.
-    pub fn subscribe(&self, session: Uuid, capacity: usize) -> Subscription {
+    /// Subscribes to `session`'s events with a queue of `capacity` events, for `connection`:
+    /// events that connection caused are not handed back to it.
+    pub fn subscribe(
+        &self,
+        session: Uuid,
+        capacity: usize,
+        connection: Option<u64>,
+    ) -> Subscription {
         let (tx, rx) = mpsc::channel(capacity.max(1));
         let lag = Arc::new(AtomicU8::new(LIVE));
         let mut registry = self.registry.lock().expect("fanout lock");
         registry.next_id += 1;
         let id = registry.next_id;
-        registry.sessions.entry(session).or_default().push(Subscriber { id, tx, lag: lag.clone() });
+        let subscriber = Subscriber { id, connection, tx, lag: lag.clone() };
+        registry.sessions.entry(session).or_default().push(subscriber);
         Subscription { fanout: self.clone(), session, id, rx, lag }
     }
 
@@ -272,15 +291,25 @@ impl Fanout {
         let session = event.session;
         let mut registry = self.registry.lock().expect("fanout lock");
         let Some(subscribers) = registry.sessions.get_mut(&session) else { return };
+        let origin = event.origin;
+        let is_origin = |s: &Subscriber| origin.is_some() && s.connection == origin;
+        if subscribers.iter().all(is_origin) {
+            return; // Only the connection that caused it listens: nobody to tell.
+        }
         let event = Arc::new(Published::new(event));
-        subscribers.retain(|s| match s.tx.try_send(event.clone()) {
-            Ok(()) => true,
-            Err(mpsc::error::TrySendError::Full(_)) => {
-                metrics::counter!("penmesh_fanout_lagged_total").increment(1);
-                s.lag.store(OVERFLOW, Ordering::Release);
-                false
+        subscribers.retain(|s| {
+            if is_origin(s) {
+                return true;
             }
-            Err(mpsc::error::TrySendError::Closed(_)) => false,
+            match s.tx.try_send(event.clone()) {
+                Ok(()) => true,
+                Err(mpsc::error::TrySendError::Full(_)) => {
+                    metrics::counter!("penmesh_fanout_lagged_total").increment(1);
+                    s.lag.store(OVERFLOW, Ordering::Release);
+                    false
+                }
+                Err(mpsc::error::TrySendError::Closed(_)) => false,
+            }
         });
         if subscribers.is_empty() {
             registry.sessions.remove(&session);
@@ -538,13 +567,33 @@ mod tests {
     async fn a_full_queue_lags_its_subscriber_only() {
         let fanout = Fanout::default();
         let session = Uuid::nil();
-        let mut slow = fanout.subscribe(session, 2);
-        let mut fast = fanout.subscribe(session, 100);
+        let mut slow = fanout.subscribe(session, 2, None);
+        let mut fast = fanout.subscribe(session, 100, None);
         for i in 0..5 {
             fanout.dispatch(retained(Uuid::nil(), i, 1));
             fast.recv().await.unwrap();
         }
         assert_eq!(slow.recv().await.unwrap_err(), Lag::Overflow);
         assert_eq!(fanout.backlog(session), (0, 100));
+    }
+
+    #[tokio::test]
+    async fn an_event_is_not_handed_back_to_the_connection_that_caused_it() {
+        let fanout = Fanout::default();
+        let session = Uuid::nil();
+        let mut drawer = fanout.subscribe(session, 10, Some(1));
+        let mut peer = fanout.subscribe(session, 10, Some(2));
+        let mut theirs = retained(Uuid::new_v4(), 0, 1);
+        theirs.origin = Some(1);
+        fanout.dispatch(theirs.clone());
+        fanout.dispatch(begin(Uuid::new_v4())); // no origin (a mesh upload, another replica)
+        assert_eq!(peer.recv().await.unwrap().event, theirs);
+        assert_eq!(peer.queued(), 1);
+        assert_eq!(drawer.queued(), 1, "only the event it did not cause");
+        assert!(drawer.recv().await.unwrap().event.origin.is_none());
+        // Alone in its session, the drawer's events are not even published.
+        drop(peer);
+        fanout.dispatch(theirs);
+        assert_eq!((drawer.queued(), fanout.n_sessions()), (0, 1));
     }
 }

@@ -42,7 +42,7 @@ use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
 use super::log::{self, MOVE_AFTER, Piece};
-use super::{Backend, CHUNKS_SELECT, Store, encode_indices, encode_samples, notify, now_ms};
+use super::{Backend, Store, encode_indices, encode_samples, notify, now_ms};
 use crate::fanout::{Fanout, SessionEvent};
 
 /// One change to the database.
@@ -861,9 +861,11 @@ async fn recover(conn: &mut AnyConnection, writer: i64) -> anyhow::Result<HashMa
     Ok(strokes)
 }
 
-/// Stores the simplified stroke, marks it `done`, and leaves its samples as one row of
-/// `stroke_chunks`: a row per batch costs its key twice (table and index) for two or three
-/// samples, and a whole stroke codes in fewer bytes a sample than its pieces.
+/// Stores the simplified stroke, marks it `done`, and moves the rest of its samples (those
+/// after its chunks: in the log, and this transaction's) into `stroke_chunks` as one row. A
+/// stroke is one row when drawn in under [`MOVE_AFTER`], one more per [`MOVE_AFTER`] of
+/// drawing otherwise. The rows already stored are not read back and rewritten into one: that
+/// wrote every sample of a longer stroke twice, for a few bytes of row header saved.
 async fn finish(
     conn: &mut AnyConnection,
     backend: Backend,
@@ -873,31 +875,10 @@ async fn finish(
     kept: &[Kept],
     now: i64,
 ) -> anyhow::Result<()> {
-    // Already one row, and nothing in the log: nothing to move.
-    let mut rewrite = true;
-    let mut samples = Vec::new();
-    if base.chunk_end > 0 {
-        let rows =
-            sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
-        rewrite = rows.len() > 1 || !base.pending.is_empty() || !tail.is_empty();
-        if rewrite {
-            samples = log::assemble(stroke, super::pieces_from_chunks(stroke, &rows)?)?;
-            anyhow::ensure!(
-                samples.len() as u64 == base.chunk_end,
-                "stroke {stroke}: its chunks end at {}, not {}",
-                samples.len(),
-                base.chunk_end
-            );
-            sqlx::query("DELETE FROM stroke_chunks WHERE stroke_id = $1")
-                .bind(stroke.to_string())
-                .execute(&mut *conn)
-                .await?;
-        }
-    }
-    samples.extend_from_slice(&base.pending);
+    let mut samples = base.pending.clone();
     samples.extend_from_slice(tail);
-    if rewrite && !samples.is_empty() {
-        insert_chunks(conn, backend, &[(stroke, 0, &samples)]).await?;
+    if !samples.is_empty() {
+        insert_chunks(conn, backend, &[(stroke, base.chunk_end, &samples)]).await?;
     }
     let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
     let kept_samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();

@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use futures_util::future::BoxFuture;
 use futures_util::stream::FuturesOrdered;
+use penmesh::Kept;
 use penmesh::protocol::{ErrorMessage, ParticipantId, ServerMessage, StrokeId};
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -18,11 +19,20 @@ use crate::ingest::StrokeState;
 use crate::state::{AppState, ConnectionClaims, SessionGuard};
 use crate::store::WriteError;
 
-/// What to send once a write request commits.
+/// What to send once a write request commits. The retained samples the request's batch
+/// decided go out with its answer, in the same write to the socket: one write per batch, as
+/// the client sends one, and what the client is shown is stored, as for the peers.
 #[derive(Debug)]
 pub(super) enum AfterCommit {
-    Ack { stroke: StrokeId, upto_seq: u64 },
-    Done { stroke: StrokeId, n_retained: u64 },
+    Ack { stroke: StrokeId, upto_seq: u64, retained: Decided },
+    Done { stroke: StrokeId, n_retained: u64, retained: Decided },
+}
+
+/// Retained samples `first..first + kept.len()` of a stroke, decided by one request.
+#[derive(Debug, Default)]
+pub(super) struct Decided {
+    pub first: u64,
+    pub kept: Vec<Kept>,
 }
 
 pub(super) type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommit)>;

@@ -91,7 +91,7 @@ impl Connection {
         }
         metrics::counter!("penmesh_fanout_syncs_total").increment(1);
         let capacity = self.state.config.outgoing_queue;
-        self.events = Some(self.state.fanout.subscribe(self.session, capacity));
+        self.events = Some(self.state.fanout.subscribe(self.session, capacity, Some(self.id)));
         let history = match self.state.store.session_history(self.session).await {
             Ok(history) => history,
             Err(err) => {

@@ -37,21 +37,34 @@ pub async fn serve<Si, St, E>(
     metrics::counter!("penmesh_ws_connections_total").increment(1);
     tracing::debug!(connection = conn.id, %session, "connected");
     let idle = Duration::from_secs(state.config.idle_timeout_secs);
-    let heartbeat = Heartbeat::new(Duration::from_millis(state.config.heartbeat_ms));
+    let mut heartbeat = Heartbeat::new(Duration::from_millis(state.config.heartbeat_ms));
     let mut last_heard = Instant::now();
     let mut last_message = last_heard;
     let shutdown = state.shutdown.clone();
+    let mut shutting_down = std::pin::pin!(shutdown.cancelled());
+    // One timer for the heartbeat and the idle timeout, moved only when it fired or must fire
+    // sooner: a new timer per frame (a timer-wheel entry made and cleared each time) cost more
+    // than the rest of the loop's bookkeeping. It may fire early (the client spoke since it
+    // was set); the branch looks at the clock and sets it again.
+    let mut watch = std::pin::pin!(tokio::time::sleep_until(last_message + idle));
     // A quarter of the outgoing queue stays free for the connection's own answers.
     let reserve = state.config.outgoing_queue.max(1) / 4;
     let slow_reader = Duration::from_millis(state.config.slow_reader_ms);
     while conn.end.is_none() {
         let behind = conn.outgoing.is_behind();
         let can_read = !behind && conn.pending.len() < state.config.max_inflight.max(1);
+        // A connection that waits for its commits does not hear its client, which is not the
+        // client's silence: the heartbeat counts only while reading.
+        let idle_at = last_message + idle;
+        let wake = if can_read { heartbeat.due(last_heard).min(idle_at) } else { idle_at };
+        if watch.is_elapsed() || watch.deadline() > wake {
+            watch.as_mut().reset(wake);
+        }
         let can_forward =
             !behind && conn.events.is_some() && conn.outgoing.has_room_beyond(reserve);
         tokio::select! {
             biased;
-            _ = shutdown.cancelled() => conn.fail(ConnError::fatal(
+            _ = &mut shutting_down => conn.fail(ConnError::fatal(
                 ErrorCode::ShuttingDown,
                 "the proxy is shutting down; resume later",
                 End::Close(close_code::GOING_AWAY, "shutting down".into()),
@@ -86,22 +99,23 @@ pub async fn serve<Si, St, E>(
                     }
                 }
             }
-            // Checked only while reading: a connection that waits for its commits does not
-            // hear its client, which is not the client's silence.
-            _ = tokio::time::sleep_until(heartbeat.next(last_heard)), if can_read => {
-                if heartbeat.is_dead(last_heard) {
+            _ = &mut watch => {
+                let now = Instant::now();
+                if now >= last_message + idle {
+                    conn.fail(ConnError::fatal(
+                        ErrorCode::IdleTimeout,
+                        format!("nothing received for {} s", idle.as_secs()),
+                        End::Close(close_code::NORMAL, "idle timeout".into()),
+                    ));
+                } else if can_read && heartbeat.is_dead(last_heard, now) {
                     tracing::info!(connection = conn.id, "no answer to the heartbeat: the client is gone");
                     metrics::counter!("penmesh_ws_heartbeat_disconnects_total").increment(1);
                     conn.end_with(End::Gone);
-                } else {
+                } else if can_read && now >= heartbeat.due(last_heard) {
+                    heartbeat.pinged = Some(now);
                     conn.send_frame(Frame::Ping(Vec::new()));
                 }
             }
-            _ = tokio::time::sleep_until(last_message + idle) => conn.fail(ConnError::fatal(
-                ErrorCode::IdleTimeout,
-                format!("nothing received for {} s", idle.as_secs()),
-                End::Close(close_code::NORMAL, "idle timeout".into()),
-            )),
         }
     }
     conn.wind_down().await;
@@ -122,24 +136,27 @@ pub async fn serve<Si, St, E>(
 #[derive(Debug, Clone, Copy)]
 struct Heartbeat {
     period: Duration,
+    /// When the last ping went out.
+    pinged: Option<Instant>,
 }
 
 impl Heartbeat {
     const MISSED: u32 = 3;
 
     fn new(period: Duration) -> Heartbeat {
-        Heartbeat { period }
+        Heartbeat { period, pinged: None }
     }
 
-    /// The next time to look at a client last heard at `heard`.
-    fn next(&self, heard: Instant) -> Instant {
-        let silent = Instant::now().saturating_duration_since(heard);
-        let periods = (silent.as_nanos() / self.period.as_nanos()) as u32 + 1;
-        heard + self.period * periods.min(Self::MISSED)
+    /// When to look next at a client last heard at `heard`: a ping is due a period after it was
+    /// heard or last pinged, whichever is later; it is gone [`Heartbeat::MISSED`] periods after
+    /// it was heard.
+    fn due(&self, heard: Instant) -> Instant {
+        let since = self.pinged.map_or(heard, |pinged| pinged.max(heard));
+        (since + self.period).min(heard + self.period * Self::MISSED)
     }
 
-    fn is_dead(&self, heard: Instant) -> bool {
-        Instant::now().saturating_duration_since(heard) >= self.period * Self::MISSED
+    fn is_dead(&self, heard: Instant, now: Instant) -> bool {
+        now.saturating_duration_since(heard) >= self.period * Self::MISSED
     }
 }
 
@@ -278,7 +295,11 @@ impl Connection {
                     name: name.clone(),
                     replica: self.state.claims.replica_key(),
                 }],
-                vec![SessionEvent::new(session, EventKind::Joined { participant, name })],
+                vec![SessionEvent::from_connection(
+                    self.id,
+                    session,
+                    EventKind::Joined { participant, name },
+                )],
             )
             .await;
         match joined {

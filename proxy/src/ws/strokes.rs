@@ -11,7 +11,7 @@ use penmesh::protocol::{
 };
 use penmesh::{Kept, Sample};
 
-use super::connection::{AfterCommit, Connection};
+use super::connection::{AfterCommit, Connection, Decided};
 use super::error::ConnError;
 use crate::fanout::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
@@ -212,7 +212,8 @@ impl Connection {
             }
             None => {
                 let (session, participant) = (self.session, self.participant);
-                let event = SessionEvent::new(
+                let event = SessionEvent::from_connection(
+                    self.id,
                     session,
                     EventKind::StrokeBegin { participant, stroke, brush: begin.brush },
                 );
@@ -235,7 +236,8 @@ impl Connection {
                 self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
                 self.strokes.insert(stroke, StrokeState::new(params));
-                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq: 0 });
+                let after = AfterCommit::Ack { stroke, upto_seq: 0, retained: Decided::default() };
+                self.queue_write(pending, after);
                 Ok(())
             }
         }
@@ -297,14 +299,14 @@ impl Connection {
             }
             Accepted::New { seq, samples, kept, first_kept } => {
                 let upto_seq = seq + samples.len() as u64;
-                self.send_retained(stroke, first_kept, &kept);
                 let events = self.retained_event(stroke, first_kept, &kept).into_iter().collect();
                 let pending = self
                     .state
                     .writer
                     .submit_with(vec![WriteOp::Append { stroke, seq, samples }], events)
                     .await;
-                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq });
+                let retained = Decided { first: first_kept, kept };
+                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq, retained });
             }
         }
         Ok(())
@@ -329,33 +331,37 @@ impl Connection {
         self.strokes.remove(&stroke);
         self.finishing.insert(stroke);
         let mut events = Vec::new();
+        let mut retained = Decided::default();
         if let Some((index, k)) = last {
-            self.send_retained(stroke, index, &[k]);
             events.extend(self.retained_event(stroke, index, &[k]));
+            retained = Decided { first: index, kept: vec![k] };
         }
         let n_retained = kept.len() as u64;
         let participant = self.owner(stroke);
-        events.push(SessionEvent::new(
+        events.push(SessionEvent::from_connection(
+            self.id,
             self.session,
             EventKind::StrokeDone { participant, stroke, n_retained },
         ));
         let pending =
             self.state.writer.submit_with(vec![WriteOp::Finish { stroke, kept }], events).await;
-        self.queue_write(pending, AfterCommit::Done { stroke, n_retained });
+        self.queue_write(pending, AfterCommit::Done { stroke, n_retained, retained });
         Ok(())
     }
 
     /// The answer to a committed (or failed) write.
     pub(super) fn after_commit(&mut self, result: Result<(), WriteError>, after: AfterCommit) {
         match (result, after) {
-            (Ok(()), AfterCommit::Ack { stroke, upto_seq }) => {
+            (Ok(()), AfterCommit::Ack { stroke, upto_seq, retained }) => {
                 if let Some(state) = self.strokes.get_mut(&stroke) {
                     state.committed_seq = state.committed_seq.max(upto_seq);
                 }
+                self.send_retained(stroke, retained.first, &retained.kept);
                 self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
             }
-            (Ok(()), AfterCommit::Done { stroke, n_retained }) => {
+            (Ok(()), AfterCommit::Done { stroke, n_retained, retained }) => {
                 self.stroke_done(stroke);
+                self.send_retained(stroke, retained.first, &retained.kept);
                 self.send(ServerMessage::StrokeDone(done_message(stroke, n_retained)));
             }
             (Err(err), after) => {
@@ -419,7 +425,8 @@ impl Connection {
         }
         let participant = self.owner(stroke);
         let points = kept.iter().map(|k| k.sample).collect();
-        Some(SessionEvent::new(
+        Some(SessionEvent::from_connection(
+            self.id,
             self.session,
             EventKind::Retained { participant, stroke, first, points },
         ))
