@@ -246,6 +246,10 @@ impl Connection {
                 End::Close(close_code::POLICY, "resume list too long".into()),
             ));
         }
+        if let Some(key) = &hello.key {
+            self.participant = crate::identity::participant_of(self.session, "hello.key", key)
+                .map_err(|why| ConnError::refused(ErrorCode::Malformed, why, None))?;
+        }
         self.hello = true;
         tracing::debug!(connection = self.id, client = %hello.client, "hello");
         let (resume, resent) = self.resume_strokes(hello.resume).await;
@@ -267,18 +271,22 @@ impl Connection {
             .chars()
             .take(200)
             .collect();
-        let (participant, session) = (self.participant, self.session);
+        let (participant, session, connection) = (self.participant, self.session, self.presence);
         let joined = self
             .state
             .writer
             .write_with(
                 vec![WriteOp::Join {
+                    connection,
                     participant,
                     session,
                     name: name.clone(),
                     replica: self.state.claims.replica_key(),
                 }],
-                vec![SessionEvent::new(session, EventKind::Joined { participant, name })],
+                vec![SessionEvent::new(
+                    session,
+                    EventKind::Joined { participant, connection, name },
+                )],
             )
             .await;
         match joined {
@@ -323,13 +331,16 @@ impl Connection {
         self.strokes.clear();
         self.events = None;
         if self.joined {
-            let participant = self.participant;
+            let (participant, connection) = (self.participant, self.presence);
             let left = self
                 .state
                 .writer
                 .write_with(
-                    vec![WriteOp::Leave { participant }],
-                    vec![SessionEvent::new(self.session, EventKind::Left { participant })],
+                    vec![WriteOp::Leave { connection }],
+                    vec![SessionEvent::new(
+                        self.session,
+                        EventKind::Left { participant, connection },
+                    )],
                 )
                 .await;
             if let Err(err) = left {
@@ -432,6 +443,7 @@ mod tests {
             client: "unit".into(),
             name: None,
             resume: vec![],
+            key: None,
         })))
     }
 
