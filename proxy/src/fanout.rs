@@ -141,9 +141,10 @@ impl SessionEvent {
     /// The message that tells a client of this event.
     pub fn message(&self) -> ServerMessage {
         match &self.kind {
-            EventKind::Joined { participant, name, .. } => {
-                ServerMessage::PeerJoined(PeerJoined { participant: *participant, name: name.clone() })
-            }
+            EventKind::Joined { participant, name, .. } => ServerMessage::PeerJoined(PeerJoined {
+                participant: *participant,
+                name: name.clone(),
+            }),
             EventKind::Left { participant, .. } => {
                 ServerMessage::PeerLeft(PeerLeft { participant: *participant })
             }

@@ -9,9 +9,9 @@ use std::time::Duration;
 use futures_util::{SinkExt, StreamExt};
 use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, ErrorMessage, Hello, KEY_HEADER, PROTOCOL_VERSION, PointBatch, Points,
-    ServerMessage, StrokeBegin, StrokeEnd, StrokeId, Welcome, decode_server, decode_server_json,
-    encode_client, encode_client_json,
+    ClientMessage, ErrorCode, ErrorMessage, Hello, KEY_HEADER, PROTOCOL_VERSION, PointBatch,
+    Points, ServerMessage, StrokeBegin, StrokeEnd, StrokeId, Welcome, decode_server,
+    decode_server_json, encode_client, encode_client_json,
 };
 use penmesh_proxy::{AppState, Application, Config};
 use tokio::net::TcpStream;

@@ -1043,8 +1043,8 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             )
             .bind(now)
             .bind(connection.to_string())
-                .execute(&mut *conn)
-                .await?;
+            .execute(&mut *conn)
+            .await?;
         }
         WriteOp::SetStatus { stroke, status } => {
             sqlx::query(

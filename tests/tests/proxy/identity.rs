@@ -106,10 +106,7 @@ async fn a_stranger_with_the_token_cannot_resume_or_continue_anothers_stroke() {
     let mut ws = proxy.connect(&a).await;
     let welcome = ws.hello(vec![stroke]).await;
     assert_eq!(info["participant"], welcome.participant.to_string());
-    assert_eq!(
-        (welcome.resume[0].status, welcome.resume[0].next_seq),
-        (StrokeStatus::Open, 30)
-    );
+    assert_eq!((welcome.resume[0].status, welcome.resume[0].next_seq), (StrokeStatus::Open, 30));
     ws.points(stroke, 30, &stroke_samples(40)[30..]).await;
     ws.wait_ack(stroke, 40).await;
     ws.end(stroke, 40).await;
@@ -128,7 +125,9 @@ async fn only_the_drawer_may_store_or_build_a_strokes_mesh() {
     let stranger = a.stranger();
     let call = |method: &str, key: Option<&str>| {
         let request = match method {
-            "PUT" => proxy.http.put(proxy.url(&format!("/v1/strokes/{stroke}/mesh"))).body(glb.clone()),
+            "PUT" => {
+                proxy.http.put(proxy.url(&format!("/v1/strokes/{stroke}/mesh"))).body(glb.clone())
+            }
             _ => proxy.http.post(proxy.url(&format!("/v1/strokes/{stroke}/mesh/build"))),
         }
         .bearer_auth(&a.token);
@@ -140,9 +139,27 @@ async fn only_the_drawer_may_store_or_build_a_strokes_mesh() {
     // (who, x-penmesh-key, status, error, a piece of the message)
     let cases = [
         ("no key", None, 403, "forbidden", KEY_HEADER),
-        ("another participant's key", Some(stranger.key.as_str()), 403, "forbidden", "another participant"),
-        ("a key too short", Some("0123456789abcdef"), 400, "bad_request", "x-penmesh-key is 16 characters"),
-        ("a key with a '/'", Some("0123456789abcdef/0123456789abcdef"), 400, "bad_request", "x-penmesh-key holds '/'"),
+        (
+            "another participant's key",
+            Some(stranger.key.as_str()),
+            403,
+            "forbidden",
+            "another participant",
+        ),
+        (
+            "a key too short",
+            Some("0123456789abcdef"),
+            400,
+            "bad_request",
+            "x-penmesh-key is 16 characters",
+        ),
+        (
+            "a key with a '/'",
+            Some("0123456789abcdef/0123456789abcdef"),
+            400,
+            "bad_request",
+            "x-penmesh-key holds '/'",
+        ),
     ];
     for (who, key, status, error, needle) in cases {
         for method in ["PUT", "POST"] {
@@ -259,8 +276,7 @@ async fn a_participant_on_two_connections_joins_once_and_leaves_with_the_last() 
     // Its leave is stored; then the second connection draws, so the watcher has heard
     // everything up to the leave once the stroke's begin arrives.
     let start = std::time::Instant::now();
-    while count_rows(&proxy.db, "SELECT COUNT(*) FROM participants WHERE left_at IS NOT NULL")
-        .await
+    while count_rows(&proxy.db, "SELECT COUNT(*) FROM participants WHERE left_at IS NOT NULL").await
         < 1
     {
         assert!(start.elapsed() < TIMEOUT, "the first connection's leave is never stored");

@@ -15,7 +15,7 @@ use sqlx::Row;
 use uuid::Uuid;
 
 /// The connection of the old database's participant row.
-const OLD_CONNECTION: Uuid = Uuid::from_u128(0x0123_4567_89ab_4def_8123_456789abcdef);
+const OLD_CONNECTION: Uuid = Uuid::from_u128(0x0123_4567_89ab_4def_8123_4567_89ab_cdef);
 
 /// The last migration of the version that stored `f64` samples.
 const LAST_OLD_MIGRATION: i64 = 20261122000000;

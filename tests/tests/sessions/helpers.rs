@@ -233,7 +233,12 @@ pub fn samples_for(k: usize, n: usize) -> Vec<Sample> {
 }
 
 /// Stores a mesh for a done stroke over HTTP.
-pub async fn put_mesh(proxy: &TestProxy, drawer: &Participant, session: &TestSession, stroke: StrokeId) {
+pub async fn put_mesh(
+    proxy: &TestProxy,
+    drawer: &Participant,
+    session: &TestSession,
+    stroke: StrokeId,
+) {
     let drawer = TestSession { key: drawer.key.clone(), ..session.clone() };
     let response =
         proxy.put_mesh(&drawer, stroke, penmesh_e2e::minimal_glb(3, 3)).send().await.unwrap();

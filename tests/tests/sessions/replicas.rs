@@ -72,7 +72,8 @@ async fn a_replica_killed_mid_stroke_is_resumed_on_the_other_and_everyone_ends_e
     let db = a.kill();
     let key = drawer.key.clone();
     drop(drawer);
-    let mut drawer = Participant::join_resuming(&b, &session, "drawer again", &key, vec![cut]).await;
+    let mut drawer =
+        Participant::join_resuming(&b, &session, "drawer again", &key, vec![cut]).await;
     assert_eq!(drawer.welcome.participant, old_drawer, "the same key: the same participant");
     let resume = drawer.welcome.resume[0].clone();
     assert_eq!(resume.status, StrokeStatus::Open, "{resume:?}");
