@@ -18,6 +18,9 @@ pub const DEFAULT_RETRY_SECS: u64 = 30;
 pub struct DrawOptions {
     /// Display name, also the GLB author and file name prefix.
     pub name: String,
+    /// The participant key (`Hello.key`, and `x-penmesh-key` of the mesh upload): made once,
+    /// so that a reconnect resumes this person's strokes and only this person may.
+    pub key: String,
     pub brush: Brush,
     /// Stage-1 resampling distance `l_eps`.
     pub resample: f64,
@@ -40,6 +43,7 @@ impl DrawOptions {
     pub fn new(name: impl Into<String>) -> DrawOptions {
         DrawOptions {
             name: name.into(),
+            key: crate::wire::new_participant_key(),
             brush: Brush::default(),
             resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
             batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),

@@ -138,7 +138,7 @@ pub async fn reconstruct(
             .put(&url)
             .bearer_auth(&endpoint.token)
             .header("content-type", "model/gltf-binary")
-            .header("x-penmesh-uploader", options.name.as_str())
+            .header(penmesh::protocol::KEY_HEADER, options.key.as_str())
             .body(glb.clone())
             .send()
             .await?;

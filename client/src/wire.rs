@@ -89,13 +89,26 @@ pub fn decode_frame(frame: Message) -> Option<anyhow::Result<ServerMessage>> {
     }
 }
 
-/// The first message of a connection.
-pub fn hello(client: &str, name: Option<String>, resume: Vec<StrokeId>) -> ClientMessage {
+/// A new participant key (`Hello.key`): 32 hex digits of 128 random bits from the operating
+/// system's generator. Made once per person drawing and kept for the process, so every
+/// reconnect is the same participant.
+pub fn new_participant_key() -> String {
+    format!("{:032x}", rand::random::<u128>())
+}
+
+/// The first message of a connection, as the participant of `key`.
+pub fn hello(
+    client: &str,
+    name: Option<String>,
+    resume: Vec<StrokeId>,
+    key: Option<String>,
+) -> ClientMessage {
     ClientMessage::Hello(Hello {
         protocol: PROTOCOL_VERSION,
         client: format!("{client}/{}", env!("CARGO_PKG_VERSION")),
         name,
         resume,
+        key,
     })
 }
 

@@ -397,18 +397,17 @@ async fn reap(store: &Store) -> anyhow::Result<usize> {
            AND l.database = (SELECT oid FROM pg_database WHERE datname = current_database()) \
            AND l.classid::bigint = (participants.replica_key >> 32) \
            AND l.objid::bigint = (participants.replica_key & 4294967295)) \
-         RETURNING id, session_id",
+         RETURNING connection, participant, session_id",
     )
     .bind(crate::store::now_ms())
     .fetch_all(&mut *tx)
     .await?;
     let mut events = Vec::with_capacity(rows.len());
     for row in &rows {
-        let participant: String = row.try_get("id")?;
-        let session: String = row.try_get("session_id")?;
+        let uuid = |column| anyhow::Ok(Uuid::parse_str(&row.try_get::<String, _>(column)?)?);
         events.push(SessionEvent::new(
-            Uuid::parse_str(&session)?,
-            EventKind::Left { participant: Uuid::parse_str(&participant)? },
+            uuid("session_id")?,
+            EventKind::Left { participant: uuid("participant")?, connection: uuid("connection")? },
         ));
     }
     if !events.is_empty() {

@@ -26,8 +26,8 @@ use tokio::sync::mpsc;
 use uuid::Uuid;
 
 /// Version of the `NOTIFY` payloads replicas exchange (a second protocol, between proxies):
-/// bump it when [`SessionEvent`]'s JSON changes.
-pub const NOTIFY_VERSION: u16 = 1;
+/// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
+pub const NOTIFY_VERSION: u16 = 2;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -45,16 +45,20 @@ pub struct SessionEvent {
     pub origin: Option<u64>,
 }
 
-/// What happened. Stroke events name the participant who began the stroke.
+/// What happened. Stroke events name the participant who began the stroke. Presence events
+/// name the connection too: one participant may be on several at once (its reconnect can say
+/// hello before the old connection's end is noticed), and is present while any of them is.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "event", rename_all = "snake_case")]
 pub enum EventKind {
     Joined {
         participant: ParticipantId,
+        connection: Uuid,
         name: String,
     },
     Left {
         participant: ParticipantId,
+        connection: Uuid,
     },
     StrokeBegin {
         participant: ParticipantId,
@@ -147,11 +151,11 @@ impl SessionEvent {
     /// The message that tells a client of this event.
     pub fn message(&self) -> ServerMessage {
         match &self.kind {
-            EventKind::Joined { participant, name } => ServerMessage::PeerJoined(PeerJoined {
+            EventKind::Joined { participant, name, .. } => ServerMessage::PeerJoined(PeerJoined {
                 participant: *participant,
                 name: name.clone(),
             }),
-            EventKind::Left { participant } => {
+            EventKind::Left { participant, .. } => {
                 ServerMessage::PeerLeft(PeerLeft { participant: *participant })
             }
             EventKind::StrokeBegin { participant, stroke, brush } => {
@@ -392,7 +396,9 @@ impl Drop for Subscription {
 #[derive(Debug, Default)]
 pub struct PeerView {
     strokes: HashMap<StrokeId, StrokeView>,
-    present: HashSet<ParticipantId>,
+    /// The connections of each participant present: `PeerJoined` when the first appears,
+    /// `PeerLeft` when the last goes (the name is the first connection's).
+    present: HashMap<ParticipantId, HashSet<Uuid>>,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -420,16 +426,20 @@ impl PeerView {
     /// Decides what the client gets for `event`, and records it as received.
     pub fn admit(&mut self, event: &SessionEvent) -> Admit {
         match &event.kind {
-            EventKind::Joined { participant, .. } => {
-                if !self.present.insert(*participant) {
-                    return Admit::Skip;
-                }
-                Admit::Whole
+            EventKind::Joined { participant, connection, .. } => {
+                let connections = self.present.entry(*participant).or_default();
+                let first = connections.is_empty();
+                connections.insert(*connection);
+                if first { Admit::Whole } else { Admit::Skip }
             }
-            EventKind::Left { participant } => {
-                if !self.present.remove(participant) {
+            EventKind::Left { participant, connection } => {
+                let Some(connections) = self.present.get_mut(participant) else {
+                    return Admit::Skip;
+                };
+                if !connections.remove(connection) || !connections.is_empty() {
                     return Admit::Skip;
                 }
+                self.present.remove(participant);
                 Admit::Whole
             }
             EventKind::StrokeBegin { stroke, .. } => {
@@ -542,6 +552,33 @@ mod tests {
             other => panic!("{other:?}"),
         }
         assert_eq!(view.admit(&retained(stroke, 9, 1)), Admit::Gap);
+    }
+
+    fn joined(participant: Uuid, connection: Uuid) -> SessionEvent {
+        SessionEvent::new(
+            Uuid::nil(),
+            EventKind::Joined { participant, connection, name: "p".into() },
+        )
+    }
+
+    fn left(participant: Uuid, connection: Uuid) -> SessionEvent {
+        SessionEvent::new(Uuid::nil(), EventKind::Left { participant, connection })
+    }
+
+    /// One participant on two connections (a reconnect whose new connection says hello before
+    /// the old one's end is noticed): joined once, and left only when the last one leaves.
+    #[test]
+    fn a_participant_is_present_while_any_of_its_connections_is() {
+        let (p, first, second) = (Uuid::new_v4(), Uuid::new_v4(), Uuid::new_v4());
+        let mut view = PeerView::default();
+        assert_eq!(view.admit(&joined(p, first)), Admit::Whole);
+        assert_eq!(view.admit(&joined(p, first)), Admit::Skip, "a repeat (history and live)");
+        assert_eq!(view.admit(&joined(p, second)), Admit::Skip, "already present");
+        assert_eq!(view.admit(&left(p, first)), Admit::Skip, "still on the second connection");
+        assert_eq!(view.admit(&left(p, first)), Admit::Skip);
+        assert_eq!(view.admit(&left(p, second)), Admit::Whole);
+        assert_eq!(view.admit(&left(p, second)), Admit::Skip, "not present");
+        assert_eq!(view.admit(&joined(p, Uuid::new_v4())), Admit::Whole, "back");
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! HTTP handlers, the bearer-token check, and the one [`AppError`] every handler returns.
 //!
 //! Sessions are private: a missing or wrong token gets 401 whether or not the session exists.
-//! Strokes are found by id and must belong to the token's session (404 otherwise).
+//! Strokes are found by id and must belong to the token's session (404 otherwise). What only a
+//! stroke's drawer may do (store or build its mesh) also needs the drawer's participant key in
+//! the `x-penmesh-key` header (403 otherwise; see `crate::identity`).
 
 use axum::Json;
 use std::net::SocketAddr;
@@ -9,7 +11,9 @@ use std::net::SocketAddr;
 use axum::extract::{ConnectInfo, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use penmesh::protocol::{PointBatch, Retained, ServerMessage, encode_server};
+use penmesh::protocol::{
+    KEY_HEADER, ParticipantId, PointBatch, Retained, ServerMessage, encode_server,
+};
 use rand::RngCore;
 use uuid::Uuid;
 
@@ -18,6 +22,7 @@ pub(crate) use penmesh::protocol::{
 };
 
 use crate::fanout::{EventKind, SessionEvent};
+use crate::identity::{KeyError, request_participant};
 use crate::state::AppState;
 use crate::store::{Backend, MeshRow, StrokeRow, hash_token, now_ms};
 
@@ -26,6 +31,9 @@ use crate::store::{Backend, MeshRow, StrokeRow, hash_token, now_ms};
 pub enum AppError {
     #[error("missing or wrong session token")]
     Unauthorized,
+    /// The token is right, but the request is not the stroke's drawer's.
+    #[error("{0}")]
+    Forbidden(String),
     #[error("{0}")]
     NotFound(String),
     #[error("{0}")]
@@ -50,6 +58,7 @@ impl IntoResponse for AppError {
     fn into_response(self) -> Response {
         let (status, code) = match &self {
             AppError::Unauthorized => (StatusCode::UNAUTHORIZED, "unauthorized"),
+            AppError::Forbidden(_) => (StatusCode::FORBIDDEN, "forbidden"),
             AppError::NotFound(_) => (StatusCode::NOT_FOUND, "not_found"),
             AppError::BadRequest(_) => (StatusCode::BAD_REQUEST, "bad_request"),
             AppError::Conflict(_) => (StatusCode::CONFLICT, "conflict"),
@@ -122,6 +131,35 @@ pub(crate) async fn authorized_stroke(
     let id = Uuid::parse_str(id).map_err(|_| not_found())?;
     let row = state.store.stroke(id).await?.ok_or_else(not_found)?;
     if row.session_id == session { Ok(row) } else { Err(not_found()) }
+}
+
+/// The stroke `id` of the token's session when the request speaks for its drawer (the
+/// participant of its `x-penmesh-key`), and that participant; before any body is read.
+pub(crate) async fn owned_stroke(
+    state: &AppState,
+    headers: &HeaderMap,
+    id: &str,
+) -> Result<(StrokeRow, ParticipantId), AppError> {
+    let row = authorized_stroke(state, headers, id).await?;
+    let participant = match request_participant(row.session_id, headers) {
+        Ok(participant) => participant,
+        Err(KeyError::Missing) => {
+            return Err(AppError::Forbidden(format!(
+                "only the drawer of stroke {} may store or build its mesh: send its participant \
+                 key (its hello.key) in the {KEY_HEADER} header",
+                row.id
+            )));
+        }
+        Err(KeyError::Malformed(why)) => return Err(AppError::BadRequest(why)),
+    };
+    if participant != row.participant {
+        return Err(AppError::Forbidden(format!(
+            "stroke {} was drawn by another participant: only its drawer may store or build its \
+             mesh",
+            row.id
+        )));
+    }
+    Ok((row, participant))
 }
 
 fn wants_binary(headers: &HeaderMap) -> bool {
@@ -251,13 +289,16 @@ pub async fn raw(
     Ok(samples_response(&headers, StrokeSamples { stroke: row.into(), indices: None, samples }))
 }
 
-/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one.
-/// Vertex and triangle counts are read from the GLB's accessors. The uploader is the optional
-/// `x-penmesh-uploader` header.
+/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
+/// the stroke's drawer may (its participant key in `x-penmesh-key`). Vertex and triangle counts
+/// are read from the GLB's accessors. The uploader stored is the drawer's participant id.
 #[utoipa::path(put, path = "/v1/strokes/{id}/mesh", tag = "meshes",
-    params(("id" = Uuid, Path)), security(("bearer" = [])),
+    params(("id" = Uuid, Path),
+        ("x-penmesh-key" = String, Header, description = "the drawer's participant key (its hello.key)")),
+    security(("bearer" = [])),
     request_body(content = Vec<u8>, content_type = "model/gltf-binary"),
     responses((status = 200, body = MeshInfo), (status = 400, body = ErrorBody), (status = 401, body = ErrorBody),
+        (status = 403, description = "not the stroke's drawer", body = ErrorBody),
         (status = 404, body = ErrorBody), (status = 409, body = ErrorBody), (status = 413, description = "body too large")))]
 pub async fn put_mesh(
     State(state): State<AppState>,
@@ -265,8 +306,9 @@ pub async fn put_mesh(
     headers: HeaderMap,
     body: axum::body::Body,
 ) -> Result<Json<MeshInfo>, AppError> {
-    // The token and the stroke first: a stranger's upload is refused before its body is read.
-    let row = authorized_stroke(&state, &headers, &id).await?;
+    // The token, the stroke and its drawer first: a stranger's upload is refused before its
+    // body is read.
+    let (row, participant) = owned_stroke(&state, &headers, &id).await?;
     let limit = state.config.max_body_bytes;
     let body = axum::body::to_bytes(body, limit).await.map_err(|err| {
         if std::error::Error::source(&err)
@@ -286,11 +328,7 @@ pub async fn put_mesh(
     }
     let counts = crate::glb::inspect(&body)
         .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
-    let uploader = headers
-        .get("x-penmesh-uploader")
-        .and_then(|v| v.to_str().ok())
-        .map(|s| s.chars().take(200).collect::<String>());
-    store_mesh(&state, &row, body.to_vec(), counts, uploader).await.map(Json)
+    store_mesh(&state, &row, body.to_vec(), counts, Some(participant.to_string())).await.map(Json)
 }
 
 /// Stores a done stroke's checked GLB and tells the session's peers (`PeerMesh`): the one path

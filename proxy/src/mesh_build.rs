@@ -8,18 +8,22 @@ use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use penmesh::{GlbMeta, GlbOptions, OutlineOptions, SolidOptions};
 
-use crate::http::{AppError, MeshInfo, authorized_stroke, store_mesh};
+use crate::http::{AppError, MeshInfo, owned_stroke, store_mesh};
 use crate::state::AppState;
 
 /// What the proxy names as the uploader of the meshes it builds.
 pub const PROXY_UPLOADER: &str = "penmesh-proxy";
 
-/// Builds, stores and announces the mesh of a done stroke from its simplified samples. A stroke
-/// that already has a mesh keeps it (the call is idempotent, so a page that reloads may ask
-/// again).
+/// Builds, stores and announces the mesh of a done stroke from its simplified samples; only
+/// the stroke's drawer may ask (its participant key in `x-penmesh-key`). A stroke that already
+/// has a mesh keeps it (the call is idempotent, so a page that reloads may ask again).
 #[utoipa::path(post, path = "/v1/strokes/{id}/mesh/build", tag = "meshes",
-    params(("id" = Uuid, Path)), security(("bearer" = [])),
-    responses((status = 200, body = MeshInfo), (status = 401, body = crate::http::ErrorBody),
+    params(("id" = Uuid, Path),
+        ("x-penmesh-key" = String, Header, description = "the drawer's participant key (its hello.key)")),
+    security(("bearer" = [])),
+    responses((status = 200, body = MeshInfo), (status = 400, body = crate::http::ErrorBody),
+        (status = 401, body = crate::http::ErrorBody),
+        (status = 403, description = "not the stroke's drawer", body = crate::http::ErrorBody),
         (status = 404, body = crate::http::ErrorBody),
         (status = 409, description = "stroke not done", body = crate::http::ErrorBody)))]
 pub async fn build_mesh(
@@ -27,7 +31,7 @@ pub async fn build_mesh(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Json<MeshInfo>, AppError> {
-    let row = authorized_stroke(&state, &headers, &id).await?;
+    let (row, _) = owned_stroke(&state, &headers, &id).await?;
     if row.has_mesh {
         let mesh = state.store.mesh(row.id).await?;
         if let Some(mesh) = mesh {

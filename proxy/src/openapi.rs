@@ -10,7 +10,8 @@ use crate::{http, mesh_build};
 #[openapi(
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
         The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, or for browsers the `penmesh.token.TOKEN` \
-        WebSocket subprotocol)."),
+        WebSocket subprotocol). Reads need the session's token; storing or building a stroke's mesh also needs its \
+        drawer's participant key (the `key` of its WebSocket `Hello`) in the `x-penmesh-key` header."),
     paths(
         http::create_session,
         http::list_strokes,

@@ -37,12 +37,14 @@ fn client_messages() -> Vec<ClientMessage> {
             client: "penmesh-test 0.1".into(),
             name: Some("Ada".into()),
             resume: vec![id(1), id(2)],
+            key: Some("0123456789abcdef0123456789abcdef".into()),
         }),
         ClientMessage::Hello(Hello {
             protocol: PROTOCOL_VERSION,
             client: String::new(),
             name: None,
             resume: vec![],
+            key: None,
         }),
         ClientMessage::StrokeBegin(StrokeBegin {
             stroke: id(3),
@@ -90,6 +92,11 @@ fn server_messages() -> Vec<ServerMessage> {
         ServerMessage::Error(ErrorMessage {
             code: ErrorCode::BadSample,
             message: "sample 3: x is not a finite number (NaN)".into(),
+            stroke: Some(id(3)),
+        }),
+        ServerMessage::Error(ErrorMessage {
+            code: ErrorCode::NotOwner,
+            message: "stroke x was begun by another participant".into(),
             stroke: Some(id(3)),
         }),
         ServerMessage::Error(ErrorMessage {
@@ -153,6 +160,45 @@ fn json_points_have_the_documented_shape() {
         r#"{"points":{"stroke":"67e55044-10b1-426f-9247-bb680e5fe0c8","seq":0,"points":[[1.0,2.5,0.0,0.5],[3.0,-4.0,8.0,1.0]]}}"#
     );
     assert_eq!(decode_client_json(&json, LIMIT).unwrap(), msg);
+}
+
+/// The participant key of protocol 3: optional in JSON (an older page's hello without it still
+/// decodes, keyless), a field of its own in binary, and checked for its form.
+#[test]
+fn hello_carries_the_participant_key_in_both_encodings() {
+    let key = "Zx-_0123456789abcdefghijklmnopqrstu";
+    let text = format!(r#"{{"hello":{{"protocol":3,"client":"web","key":"{key}"}}}}"#);
+    let ClientMessage::Hello(hello) = decode_client_json(&text, LIMIT).unwrap() else {
+        panic!("not hello")
+    };
+    assert_eq!(hello.key.as_deref(), Some(key));
+    let ClientMessage::Hello(keyless) =
+        decode_client_json(r#"{"hello":{"protocol":3,"client":"web"}}"#, LIMIT).unwrap()
+    else {
+        panic!("not hello")
+    };
+    assert_eq!(keyless.key, None);
+    // Binary: a field of its own; a keyed hello is longer than a keyless one by the key and
+    // its one-byte length prefix.
+    let with = encode_client(&ClientMessage::Hello(hello.clone()));
+    let without = encode_client(&ClientMessage::Hello(Hello { key: None, ..hello }));
+    assert_eq!(with.len(), without.len() + 1 + key.len());
+    assert_eq!(PROTOCOL_VERSION, 3);
+
+    assert_eq!(check_participant_key(key), Ok(()));
+    assert_eq!(check_participant_key(&"a".repeat(KEY_MIN_CHARS)), Ok(()));
+    assert_eq!(check_participant_key(&"a".repeat(KEY_MAX_CHARS)), Ok(()));
+    for (bad, why) in [
+        ("", "0 characters"),
+        ("0123456789abcdef", "16 characters"),
+        (&"a".repeat(KEY_MAX_CHARS + 1), "129 characters"),
+        ("0123456789abcdef0123456789abcde/", "'/'"),
+        ("0123456789abcdef 0123456789abcdef", "' '"),
+        ("0123456789abcdef0123456789abcdeé", "'é'"),
+    ] {
+        let err = check_participant_key(bad).expect_err(bad);
+        assert!(err.contains(why), "{bad:?}: {err}");
+    }
 }
 
 #[test]

@@ -9,9 +9,9 @@ use std::time::Duration;
 use futures_util::{SinkExt, StreamExt};
 use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, ErrorMessage, Hello, PROTOCOL_VERSION, PointBatch, Points,
-    ServerMessage, StrokeBegin, StrokeEnd, StrokeId, Welcome, decode_server, decode_server_json,
-    encode_client, encode_client_json,
+    ClientMessage, ErrorCode, ErrorMessage, Hello, KEY_HEADER, PROTOCOL_VERSION, PointBatch,
+    Points, ServerMessage, StrokeBegin, StrokeEnd, StrokeId, Welcome, decode_server,
+    decode_server_json, encode_client, encode_client_json,
 };
 use penmesh_proxy::{AppState, Application, Config};
 use tokio::net::TcpStream;
@@ -153,11 +153,31 @@ pub async fn spawn_replica(db: TestDatabase, tweak: impl FnOnce(&mut Config)) ->
     TestProxy::started(db, (port, shutdown, state), task, Some(ReplicaRuntime(Some(runtime))))
 }
 
-/// A session's id and token.
+/// A session's id and token, and the key of one participant (`Hello.key`, and the
+/// `x-penmesh-key` header of the mesh calls): connections made with the same `TestSession` are
+/// the same participant (a reconnect resumes its strokes); [`TestSession::stranger`] is another
+/// participant of the same session.
 #[derive(Debug, Clone)]
 pub struct TestSession {
     pub session: uuid::Uuid,
     pub token: String,
+    pub key: String,
+}
+
+impl TestSession {
+    pub fn new(session: uuid::Uuid, token: String) -> TestSession {
+        TestSession { session, token, key: new_key() }
+    }
+
+    /// Another participant of the session: the same token, a key of its own.
+    pub fn stranger(&self) -> TestSession {
+        TestSession { key: new_key(), ..self.clone() }
+    }
+}
+
+/// A fresh participant key: 32 hex digits, 128 random bits.
+pub fn new_key() -> String {
+    format!("{:032x}", rand::random::<u128>())
 }
 
 /// Starts the proxy with test settings on a fresh database.
@@ -199,10 +219,35 @@ impl TestProxy {
             self.http.post(self.url("/v1/sessions")).send().await.expect("POST /v1/sessions");
         assert_eq!(response.status(), 201);
         let body: serde_json::Value = response.json().await.unwrap();
-        TestSession {
-            session: body["session"].as_str().unwrap().parse().unwrap(),
-            token: body["token"].as_str().unwrap().to_string(),
-        }
+        TestSession::new(
+            body["session"].as_str().unwrap().parse().unwrap(),
+            body["token"].as_str().unwrap().to_string(),
+        )
+    }
+
+    /// `PUT /v1/strokes/{stroke}/mesh` of `glb` with the session's token and its participant's
+    /// key.
+    pub fn put_mesh(
+        &self,
+        session: &TestSession,
+        stroke: StrokeId,
+        glb: Vec<u8>,
+    ) -> reqwest::RequestBuilder {
+        self.http
+            .put(self.url(&format!("/v1/strokes/{stroke}/mesh")))
+            .bearer_auth(&session.token)
+            .header(KEY_HEADER, &session.key)
+            .header("content-type", "model/gltf-binary")
+            .body(glb)
+    }
+
+    /// `POST /v1/strokes/{stroke}/mesh/build` with the session's token and its participant's
+    /// key.
+    pub fn build_mesh(&self, session: &TestSession, stroke: StrokeId) -> reqwest::RequestBuilder {
+        self.http
+            .post(self.url(&format!("/v1/strokes/{stroke}/mesh/build")))
+            .bearer_auth(&session.token)
+            .header(KEY_HEADER, &session.key)
     }
 
     /// GET with the session's bearer token.
@@ -261,7 +306,7 @@ impl TestProxy {
             .headers_mut()
             .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
         let (ws, _) = tokio_tungstenite::connect_async(request).await?;
-        Ok(WsClient { ws, json: false })
+        Ok(WsClient { ws, json: false, key: Some(session.key.clone()) })
     }
 
     /// Connects with a raw URL path and query (for auth tests).
@@ -271,7 +316,7 @@ impl TestProxy {
     ) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
         let url = format!("ws://127.0.0.1:{}{path_and_query}", self.port);
         let (ws, _) = tokio_tungstenite::connect_async(url).await?;
-        Ok(WsClient { ws, json: false })
+        Ok(WsClient { ws, json: false, key: Some(new_key()) })
     }
 
     /// Triggers shutdown (as SIGTERM would) without waiting.
@@ -309,6 +354,9 @@ impl TestProxy {
 pub struct WsClient {
     pub ws: WebSocketStream<MaybeTlsStream<TcpStream>>,
     pub json: bool,
+    /// What [`WsClient::hello`] sends as `Hello.key`: the session's participant's, from
+    /// [`TestProxy::connect`].
+    pub key: Option<String>,
 }
 
 /// Is `msg` a session event (of other participants) rather than an answer to this client?
@@ -472,6 +520,7 @@ impl WsClient {
             client: "penmesh-e2e".into(),
             name: None,
             resume,
+            key: self.key.clone(),
         }))
         .await;
         match self.recv().await {

@@ -310,6 +310,8 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
         client: format!("penmesh-watch {}", env!("CARGO_PKG_VERSION")),
         name: Some(format!("{} (watching)", args.name)),
         resume: vec![],
+        // A watcher resumes and stores nothing: no key, an identity of its own.
+        key: None,
     });
     ws.send(Message::Binary(encode_client(&hello).into())).await.context("sending hello")?;
     let http = reqwest::Client::new();

@@ -497,7 +497,12 @@ impl Live {
         let mut link = Link { sink, incoming, reader, last_sent: Instant::now() };
         let resume: Vec<Uuid> =
             self.strokes.iter().filter(|s| s.begun && !s.done).map(|s| s.id).collect();
-        let hello = wire::hello("penmesh-client", Some(self.options.name.clone()), resume);
+        let hello = wire::hello(
+            "penmesh-client",
+            Some(self.options.name.clone()),
+            resume,
+            Some(self.options.key.clone()),
+        );
         send(&mut link, &hello).await.map_err(ConnectError::Transient)?;
         let incoming = futures_util::stream::poll_fn(|cx| link.incoming.poll_recv(cx));
         let answer = wire::await_welcome(HANDSHAKE_TIMEOUT, incoming).await;

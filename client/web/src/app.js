@@ -208,6 +208,20 @@ function showPeople() {
 
 // --- the connection --------------------------------------------------------------------------
 const storageKey = () => `penmesh:${state.session}:pending`;
+
+// This tab's participant key (hello.key, and the x-penmesh-key header of the mesh build): 128
+// random bits, kept in sessionStorage beside the pending stroke, so a reconnect or a reload is
+// the same participant and may resume that stroke; another tab is another participant.
+function participantKey() {
+  const name = `penmesh:${state.session}:key`;
+  let key = sessionStorage.getItem(name);
+  if (!key) {
+    const bytes = crypto.getRandomValues(new Uint8Array(16));
+    key = Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+    sessionStorage.setItem(name, key);
+  }
+  return key;
+}
 function savePending() {
   if (state.pending) sessionStorage.setItem(storageKey(), JSON.stringify(state.pending));
   else sessionStorage.removeItem(storageKey());
@@ -232,6 +246,7 @@ function connect() {
         client: "penmesh-web",
         name: localStorage.getItem("penmesh:name") || "browser",
         resume: pending ? [pending.stroke] : [],
+        key: participantKey(),
       },
     });
   };
@@ -335,7 +350,7 @@ async function ownStrokeDone(id) {
     savePending();
   }
   try {
-    await api(`/v1/strokes/${id}/mesh/build`, { method: "POST" });
+    await api(`/v1/strokes/${id}/mesh/build`, { method: "POST", headers: { "x-penmesh-key": participantKey() } });
     await loadMesh(id, state.me);
     // On screen: the frame after the mesh joined the scene has been drawn.
     if (s.penUp !== undefined) {

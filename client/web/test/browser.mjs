@@ -145,8 +145,11 @@ async function main() {
 
   // --- 3. reload in the middle of a stroke --------------------------------------------------
   const half = await drawStroke(cdpA, { x0: 600, y0: 500, dx: 4, dy: -1, n: 40, lift: false });
+  const meA = await a.evaluate(() => window.penmesh.me);
+  assert.notEqual(meA, await b.evaluate(() => window.penmesh.me), "two tabs are two participants");
   await a.reload();
   await a.waitForFunction(() => window.penmesh && window.penmesh.synced);
+  assert.equal(await a.evaluate(() => window.penmesh.me), meA, "a reload is the same participant");
   await until("the resumed stroke to be done with a mesh", () => a.evaluate(() => !window.penmesh.pending && window.penmesh.meshes >= 5));
   const after = (await getJson(`/v1/sessions/${session}/strokes`)).strokes;
   assert.equal(after.length, 5);

@@ -525,8 +525,8 @@ impl Store {
     pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
         let mut history = SessionHistory::default();
         let present = sqlx::query(
-            "SELECT id, name FROM participants WHERE session_id = $1 AND left_at IS NULL \
-             ORDER BY joined_at, id",
+            "SELECT connection, participant, name FROM participants \
+             WHERE session_id = $1 AND left_at IS NULL ORDER BY joined_at, connection",
         )
         .bind(session.to_string())
         .fetch_all(&self.pool)
@@ -535,7 +535,8 @@ impl Store {
             history.events.push(SessionEvent::new(
                 session,
                 EventKind::Joined {
-                    participant: parse_uuid(&row.try_get::<String, _>("id")?)?,
+                    participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
+                    connection: parse_uuid(&row.try_get::<String, _>("connection")?)?,
                     name: row.try_get("name")?,
                 },
             ));

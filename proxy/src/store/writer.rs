@@ -63,11 +63,11 @@ pub enum WriteOp {
     Finish { stroke: Uuid, kept: Vec<Kept> },
     /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
     SetStatus { stroke: Uuid, status: StrokeStatus },
-    /// A participant said hello in a session.
+    /// A participant said hello in a session on `connection` (its presence row).
     /// `replica` is the key of the lock the replica holds while it lives (PostgreSQL).
-    Join { participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
+    Join { connection: Uuid, participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
     /// A participant's connection ended.
-    Leave { participant: Uuid },
+    Leave { connection: Uuid },
 }
 
 impl WriteOp {
@@ -1004,11 +1004,12 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
         }
         WriteOp::Append { .. } => anyhow::bail!("an append goes into the log record"),
         WriteOp::Finish { .. } => anyhow::bail!("a finish goes through `finish`"),
-        WriteOp::Join { participant, session, name, replica } => {
+        WriteOp::Join { connection, participant, session, name, replica } => {
             sqlx::query(
-                "INSERT INTO participants (id, session_id, name, joined_at, replica_key) \
-                 VALUES ($1, $2, $3, $4, $5) ON CONFLICT (id) DO NOTHING",
+                "INSERT INTO participants (connection, participant, session_id, name, joined_at, \
+                 replica_key) VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (connection) DO NOTHING",
             )
+            .bind(connection.to_string())
             .bind(participant.to_string())
             .bind(session.to_string())
             .bind(name.clone())
@@ -1017,12 +1018,14 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             .execute(&mut *conn)
             .await?;
         }
-        WriteOp::Leave { participant } => {
-            sqlx::query("UPDATE participants SET left_at = $1 WHERE id = $2 AND left_at IS NULL")
-                .bind(now)
-                .bind(participant.to_string())
-                .execute(&mut *conn)
-                .await?;
+        WriteOp::Leave { connection } => {
+            sqlx::query(
+                "UPDATE participants SET left_at = $1 WHERE connection = $2 AND left_at IS NULL",
+            )
+            .bind(now)
+            .bind(connection.to_string())
+            .execute(&mut *conn)
+            .await?;
         }
         WriteOp::SetStatus { stroke, status } => {
             sqlx::query(

@@ -7,7 +7,7 @@ use std::time::Duration;
 use futures_util::future::BoxFuture;
 use futures_util::stream::FuturesOrdered;
 use penmesh::Kept;
-use penmesh::protocol::{ErrorMessage, ParticipantId, ServerMessage, StrokeId};
+use penmesh::protocol::{ErrorMessage, ServerMessage, StrokeId};
 use tokio::time::Instant;
 use uuid::Uuid;
 
@@ -40,7 +40,12 @@ pub(super) type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommi
 pub(super) struct Connection {
     pub state: AppState,
     pub id: u64,
+    /// Who is drawing: derived from `Hello.key` (crate::identity), a fresh id until then or
+    /// without a key.
     pub participant: Uuid,
+    /// This connection's presence row (`participants.connection`), named by its presence
+    /// events: one participant may be on several connections at once.
+    pub presence: Uuid,
     pub session: Uuid,
     pub _guard: SessionGuard,
     /// Lets go of every stroke this connection holds when dropped, a panic included.
@@ -48,8 +53,6 @@ pub(super) struct Connection {
     pub hello: bool,
     /// The participant row is written (and `Leave` is owed at the end).
     pub joined: bool,
-    /// The participant who began each stroke drawn here (a resumed stroke keeps its drawer).
-    pub owners: HashMap<StrokeId, ParticipantId>,
     /// Every stroke drawn on this connection: its client has them, peer events skip them.
     pub own: HashSet<StrokeId>,
     /// What the client has of the other participants' strokes.
@@ -74,12 +77,12 @@ impl Connection {
         Connection {
             id,
             participant: Uuid::new_v4(),
+            presence: Uuid::new_v4(),
             session,
             _guard: guard,
             claims: ConnectionClaims::new(state.clone(), id),
             hello: false,
             joined: false,
-            owners: HashMap::new(),
             own: HashSet::new(),
             view: PeerView::default(),
             events: None,

@@ -263,6 +263,10 @@ impl Connection {
                 End::Close(close_code::POLICY, "resume list too long".into()),
             ));
         }
+        if let Some(key) = &hello.key {
+            self.participant = crate::identity::participant_of(self.session, "hello.key", key)
+                .map_err(|why| ConnError::refused(ErrorCode::Malformed, why, None))?;
+        }
         self.hello = true;
         tracing::debug!(connection = self.id, client = %hello.client, "hello");
         let (resume, resent) = self.resume_strokes(hello.resume).await;
@@ -284,12 +288,13 @@ impl Connection {
             .chars()
             .take(200)
             .collect();
-        let (participant, session) = (self.participant, self.session);
+        let (participant, session, connection) = (self.participant, self.session, self.presence);
         let joined = self
             .state
             .writer
             .write_with(
                 vec![WriteOp::Join {
+                    connection,
                     participant,
                     session,
                     name: name.clone(),
@@ -298,7 +303,7 @@ impl Connection {
                 vec![SessionEvent::from_connection(
                     self.id,
                     session,
-                    EventKind::Joined { participant, name },
+                    EventKind::Joined { participant, connection, name },
                 )],
             )
             .await;
@@ -344,13 +349,16 @@ impl Connection {
         self.strokes.clear();
         self.events = None;
         if self.joined {
-            let participant = self.participant;
+            let (participant, connection) = (self.participant, self.presence);
             let left = self
                 .state
                 .writer
                 .write_with(
-                    vec![WriteOp::Leave { participant }],
-                    vec![SessionEvent::new(self.session, EventKind::Left { participant })],
+                    vec![WriteOp::Leave { connection }],
+                    vec![SessionEvent::new(
+                        self.session,
+                        EventKind::Left { participant, connection },
+                    )],
                 )
                 .await;
             if let Err(err) = left {
@@ -453,6 +461,7 @@ mod tests {
             client: "unit".into(),
             name: None,
             resume: vec![],
+            key: None,
         })))
     }
 

@@ -85,14 +85,17 @@ impl Connection {
         (resume, resent)
     }
 
-    /// Claims a stroke that is not on this connection, and rebuilds its state from the
-    /// database. Marks it `open` again.
+    /// Claims a stroke of this connection's participant (`owner`: the stroke's) that is not on
+    /// this connection, and rebuilds its state from the database. Marks it `open` again.
     async fn take_over(
         &mut self,
         stroke: StrokeId,
         params: penmesh::AcutsParams,
-        participant: ParticipantId,
+        owner: ParticipantId,
     ) -> Result<StrokeState, ConnError> {
+        if owner != self.participant {
+            return Err(self.not_owner(stroke));
+        }
         if !self.claims.claim(stroke, self.claim_wait()).await {
             return Err(Self::conflict(stroke));
         }
@@ -117,10 +120,22 @@ impl Connection {
         if result.is_err() {
             self.claims.release(stroke);
         } else {
-            self.owners.insert(stroke, participant);
             self.own.insert(stroke);
         }
         result
+    }
+
+    /// The refusal of another participant's stroke. It says no more than the session's stroke
+    /// list (`GET /v1/sessions/{id}/strokes`) tells any holder of the token.
+    fn not_owner(&self, stroke: StrokeId) -> ConnError {
+        ConnError::refused(
+            ErrorCode::NotOwner,
+            format!(
+                "stroke {stroke} was begun by another participant of this session: only its \
+                 drawer (the same hello.key) may resume it or append to it"
+            ),
+            Some(stroke),
+        )
     }
 
     pub(super) async fn on_stroke_begin(&mut self, begin: StrokeBegin) -> Result<(), ConnError> {
@@ -195,6 +210,10 @@ impl Connection {
                     Some(stroke),
                 ))
             }
+            Some(row) if row.participant != self.participant => {
+                self.claims.release(stroke);
+                Err(self.not_owner(stroke))
+            }
             Some(row) if row.status == StrokeStatus::Done => {
                 self.claims.release(stroke);
                 self.send(ServerMessage::StrokeDone(done_message(stroke, row.n_retained)));
@@ -232,7 +251,6 @@ impl Connection {
                         vec![event],
                     )
                     .await;
-                self.owners.insert(stroke, participant);
                 self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
                 self.strokes.insert(stroke, StrokeState::new(params));
@@ -337,7 +355,7 @@ impl Connection {
             retained = Decided { first: index, kept: vec![k] };
         }
         let n_retained = kept.len() as u64;
-        let participant = self.owner(stroke);
+        let participant = self.participant;
         events.push(SessionEvent::from_connection(
             self.id,
             self.session,
@@ -414,16 +432,12 @@ impl Connection {
         }
     }
 
-    fn owner(&self, stroke: StrokeId) -> ParticipantId {
-        self.owners.get(&stroke).copied().unwrap_or(self.participant)
-    }
-
     /// The peers' event for retained samples `first..` of a stroke drawn here.
     fn retained_event(&self, stroke: StrokeId, first: u64, kept: &[Kept]) -> Option<SessionEvent> {
         if kept.is_empty() {
             return None;
         }
-        let participant = self.owner(stroke);
+        let participant = self.participant;
         let points = kept.iter().map(|k| k.sample).collect();
         Some(SessionEvent::from_connection(
             self.id,

@@ -77,7 +77,8 @@ use crate::model::Sample;
 ///
 /// 2: `AcutsParams` carries the pressure gate as an enum and the `angle_near_anchor` flag, so
 /// a version-1 peer would misread a session's parameters.
-pub const PROTOCOL_VERSION: u16 = 2;
+/// 3: `Hello` carries the participant's `key`, and `ErrorCode` has `not_owner`.
+pub const PROTOCOL_VERSION: u16 = 3;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
 /// Default largest frame a decoder accepts.

@@ -12,8 +12,8 @@ use crate::model::{Brush, Sample};
 /// The JSON body of every error.
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct ErrorBody {
-    /// Machine-readable: `unauthorized`, `not_found`, `bad_request`, `conflict`,
-    /// `shutting_down`, `internal`.
+    /// Machine-readable: `unauthorized`, `forbidden`, `not_found`, `bad_request`, `conflict`,
+    /// `too_large`, `too_many_requests`, `busy`, `shutting_down`, `internal`.
     pub error: String,
     pub message: String,
 }
@@ -74,5 +74,7 @@ pub struct MeshInfo {
     pub bytes: u64,
     pub vertices: u64,
     pub triangles: u64,
+    /// Who stored it: the drawer's participant id for an upload, `penmesh-proxy` for a mesh
+    /// the proxy built (at the drawer's request).
     pub uploader: Option<String>,
 }

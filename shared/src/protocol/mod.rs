@@ -35,8 +35,38 @@ pub use http::{ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSa
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
 pub type StrokeId = Uuid;
-/// A participant of a session (one WebSocket connection's person).
+/// A participant of a session: the person behind one or more WebSocket connections. The proxy
+/// derives it from the session and the participant's key ([`Hello::key`]), so the same key is
+/// the same participant on every connection and replica; without a key, a fresh one per
+/// connection.
 pub type ParticipantId = Uuid;
+
+/// The HTTP header that carries a participant's key ([`Hello::key`]) on the calls only a
+/// stroke's drawer may make: storing or building its mesh.
+pub const KEY_HEADER: &str = "x-penmesh-key";
+/// Fewest characters of a participant key: 32 hex digits are 128 bits.
+pub const KEY_MIN_CHARS: usize = 32;
+/// Most characters of a participant key.
+pub const KEY_MAX_CHARS: usize = 128;
+
+/// Checks the form of a participant key: [`KEY_MIN_CHARS`] to [`KEY_MAX_CHARS`] characters of
+/// the base64url alphabet (`A-Z a-z 0-9 - _`, which holds lowercase hex). The error says what
+/// is wrong, for the caller to prefix with the field's name.
+pub fn check_participant_key(key: &str) -> Result<(), String> {
+    let n = key.chars().count();
+    if !(KEY_MIN_CHARS..=KEY_MAX_CHARS).contains(&n) {
+        return Err(format!(
+            "is {n} characters; a participant key has {KEY_MIN_CHARS} to {KEY_MAX_CHARS} \
+             (at least 128 random bits, e.g. 32 hex digits)"
+        ));
+    }
+    if let Some(c) = key.chars().find(|c| !(c.is_ascii_alphanumeric() || *c == '-' || *c == '_')) {
+        return Err(format!(
+            "holds {c:?}; a participant key is made of A-Z, a-z, 0-9, '-' and '_'"
+        ));
+    }
+    Ok(())
+}
 
 /// A batch of samples. In JSON it is a plain array of `[x, y, t, p]`; in the binary encoding it
 /// is quantised and delta-encoded (see the codec module), so decoded samples lie on the
@@ -67,6 +97,14 @@ pub struct Hello {
     pub name: Option<String>,
     #[serde(default)]
     pub resume: Vec<StrokeId>,
+    /// The participant's secret ([`check_participant_key`]: at least 128 random bits), made
+    /// once by the client and sent on every connection: the proxy derives the participant id
+    /// from it and the session, so a client that reconnects with the same key is the same
+    /// participant and may resume its strokes, and only it may ([`KEY_HEADER`] for HTTP).
+    /// Never stored or logged. Without one the connection gets a fresh identity: it can draw
+    /// and watch, but not resume after a reconnect nor store a mesh.
+    #[serde(default)]
+    pub key: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -218,6 +256,9 @@ pub enum ErrorCode {
     /// ACUTS parameters out of range.
     BadParams,
     UnknownStroke,
+    /// The stroke was begun by another participant of the session: only its drawer (the same
+    /// `Hello.key`) may resume it or append to it.
+    NotOwner,
     StrokeFinished,
     /// A `StrokeBegin` for a stroke id already in use by someone else.
     StrokeConflict,

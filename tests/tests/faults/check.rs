@@ -216,6 +216,7 @@ impl Watcher {
                         client: "penmesh-faults-watcher".into(),
                         name: None,
                         resume: vec![],
+                        key: None,
                     });
                     let frame = Message::Binary(penmesh::protocol::encode_client(&hello).into());
                     if ws.send(frame).await.is_ok() {

@@ -130,10 +130,10 @@ impl ProxyChild {
         let response = self.http.post(self.url("/v1/sessions")).send().await.unwrap();
         assert_eq!(response.status(), 201);
         let body: serde_json::Value = response.json().await.unwrap();
-        TestSession {
-            session: body["session"].as_str().unwrap().parse().unwrap(),
-            token: body["token"].as_str().unwrap().to_string(),
-        }
+        TestSession::new(
+            body["session"].as_str().unwrap().parse().unwrap(),
+            body["token"].as_str().unwrap().to_string(),
+        )
     }
 
     /// The value of a counter of `/metrics` (0 when it was never incremented).

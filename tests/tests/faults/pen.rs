@@ -77,6 +77,8 @@ pub fn pen_samples(pen: usize, k: usize, n: usize) -> Vec<Sample> {
 
 /// Draws `plan.strokes` strokes into `session` on the proxy at `port`, through every fault.
 pub async fn draw(port: u16, session: TestSession, pen: usize, plan: Plan) -> PenLog {
+    // A participant of its own, the same across its reconnects.
+    let session = session.stranger();
     let mut log = PenLog::default();
     let mut conn: Option<Ws> = None;
     for k in 0..plan.strokes {
@@ -270,6 +272,7 @@ async fn connect(
             client: "penmesh-faults".into(),
             name: None,
             resume,
+            key: Some(session.key.clone()),
         });
         ws.send(Message::Binary(encode_client(&hello).into()))
             .await

@@ -201,6 +201,7 @@ async fn a_wrong_protocol_version_closes_and_a_second_hello_does_not() {
         client: "old".into(),
         name: None,
         resume: vec![],
+        key: None,
     })))
     .await;
     let err = ws.expect_error(ErrorCode::Protocol).await;
@@ -214,6 +215,7 @@ async fn a_wrong_protocol_version_closes_and_a_second_hello_does_not() {
         client: "again".into(),
         name: None,
         resume: vec![],
+        key: None,
     }))
     .await;
     ws.expect_error(ErrorCode::Protocol).await;

@@ -68,18 +68,8 @@ async fn an_unfinished_stroke_has_raw_samples_but_no_simplified_form_yet() {
 async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
     let proxy = spawn_proxy().await;
     let (session, stroke, _) = done_stroke(&proxy).await;
-    let url = proxy.url(&format!("/v1/strokes/{stroke}/mesh"));
     let body = penmesh_e2e::minimal_glb(8, 36);
-    let response = proxy
-        .http
-        .put(&url)
-        .bearer_auth(&session.token)
-        .header("content-type", "model/gltf-binary")
-        .header("x-penmesh-uploader", "tester")
-        .body(body.clone())
-        .send()
-        .await
-        .unwrap();
+    let response = proxy.put_mesh(&session, stroke, body.clone()).send().await.unwrap();
     assert_eq!(response.status(), 200);
     let info: serde_json::Value = response.json().await.unwrap();
     assert_eq!((info["vertices"].as_u64(), info["triangles"].as_u64()), (Some(8), Some(12)));
@@ -119,8 +109,7 @@ async fn a_mesh_is_validated_stored_and_served_as_gltf_binary() {
             "length",
         ),
     ] {
-        let response =
-            proxy.http.put(&url).bearer_auth(&session.token).body(bad).send().await.unwrap();
+        let response = proxy.put_mesh(&session, stroke, bad).send().await.unwrap();
         assert_eq!(response.status(), 400, "{what}");
         let err: serde_json::Value = response.json().await.unwrap();
         assert_eq!(err["error"], "bad_request", "{what}");
@@ -133,14 +122,8 @@ async fn a_mesh_needs_a_done_stroke() {
     let session = proxy.create_session().await;
     let stroke = Uuid::new_v4();
     let _ws = proxy.drawing(&session, stroke).await;
-    let response = proxy
-        .http
-        .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
-        .bearer_auth(&session.token)
-        .body(penmesh_e2e::minimal_glb(3, 3))
-        .send()
-        .await
-        .unwrap();
+    let response =
+        proxy.put_mesh(&session, stroke, penmesh_e2e::minimal_glb(3, 3)).send().await.unwrap();
     assert_eq!(response.status(), 409);
 }
 

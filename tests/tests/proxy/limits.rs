@@ -103,6 +103,7 @@ async fn connections_per_session_are_limited() {
             client: "t".into(),
             name: None,
             resume: vec![],
+            key: None,
         }))
         .await;
         if let ServerMessage::Welcome(_) = ws.recv().await {
@@ -145,21 +146,14 @@ async fn the_http_body_size_is_limited() {
     ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
     penmesh_e2e::draw_stroke(&mut ws, stroke, &stroke_samples(10), 10).await;
-    let response = proxy
-        .http
-        .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
-        .bearer_auth(&session.token)
-        .body(vec![0u8; 2000])
-        .send()
-        .await
-        .unwrap();
+    let response = proxy.put_mesh(&session, stroke, vec![0u8; 2000]).send().await.unwrap();
     assert_eq!(response.status(), 413);
     let body: serde_json::Value = response.json().await.unwrap();
     assert_eq!(body["error"], "too_large");
 }
 
 #[tokio::test]
-async fn a_mesh_upload_with_a_wrong_token_is_refused_before_its_body_is_read() {
+async fn a_mesh_upload_with_a_wrong_token_or_key_is_refused_before_its_body_is_read() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let proxy = spawn_proxy_with(|_| {}).await;
     let session = proxy.create_session().await;
@@ -167,26 +161,37 @@ async fn a_mesh_upload_with_a_wrong_token_is_refused_before_its_body_is_read() {
     ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
     penmesh_e2e::draw_stroke(&mut ws, stroke, &stroke_samples(10), 10).await;
-    for token in ["wrong", session.token.as_str()] {
+    let stranger = session.stranger();
+    // (token, participant key, the answer that comes without the body; None: it waits for it)
+    let cases = [
+        ("wrong", &session.key, Some("401")),
+        (session.token.as_str(), &stranger.key, Some("403")),
+        (session.token.as_str(), &session.key, None),
+    ];
+    for (token, key, refused) in cases {
         // Announce 10 MB and send a few bytes: a server that reads the body first would wait.
         let mut socket = tokio::net::TcpStream::connect(("127.0.0.1", proxy.port)).await.unwrap();
         let head = format!(
             "PUT /v1/strokes/{stroke}/mesh HTTP/1.1\r\nhost: localhost\r\n\
-             authorization: Bearer {token}\r\ncontent-length: 10000000\r\n\r\nglTF"
+             authorization: Bearer {token}\r\nx-penmesh-key: {key}\r\n\
+             content-length: 10000000\r\n\r\nglTF"
         );
         socket.write_all(head.as_bytes()).await.unwrap();
         let mut answer = vec![0u8; 64];
         let read = tokio::time::timeout(Duration::from_secs(5), socket.read(&mut answer)).await;
-        if token == "wrong" {
-            let n = read.expect("a wrong token is answered without the body").unwrap();
+        if let Some(code) = refused {
+            let n = read.expect("a refusal is answered without the body").unwrap();
             let status = String::from_utf8_lossy(&answer[..n]).to_string();
-            assert!(status.starts_with("HTTP/1.1 401"), "{status}");
+            assert!(status.starts_with(&format!("HTTP/1.1 {code}")), "{status}");
         } else {
-            // The right token: the proxy waits for the body it was promised (or refuses it as too
-            // large at once); either way it does not answer 401.
+            // The right token and key: the proxy waits for the body it was promised (or
+            // refuses it as too large at once); either way it does not answer 401 or 403.
             if let Ok(Ok(n)) = read {
                 let status = String::from_utf8_lossy(&answer[..n]).to_string();
-                assert!(!status.starts_with("HTTP/1.1 401"), "{status}");
+                assert!(
+                    !status.starts_with("HTTP/1.1 401") && !status.starts_with("HTTP/1.1 403"),
+                    "{status}"
+                );
             }
         }
     }
@@ -216,7 +221,7 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
         tokio_tungstenite::client_async(request, tokio_tungstenite::MaybeTlsStream::Plain(stream))
             .await
             .unwrap();
-    let mut ws = WsClient { ws, json: false };
+    let mut ws = WsClient { ws, json: false, key: None };
     ws.hello(vec![]).await;
     let stroke = Uuid::new_v4();
     ws.begin(stroke).await;
@@ -380,6 +385,7 @@ async fn fields_over_their_limits_are_refused_naming_them() {
         client: "t".into(),
         name: None,
         resume: (0..3).map(|_| Uuid::new_v4()).collect(),
+        key: None,
     }))
     .await;
     let err = ws.expect_error(ErrorCode::TooManyOpenStrokes).await;
@@ -496,8 +502,8 @@ async fn an_http_request_whose_body_does_not_come_gets_408() {
     let mut socket = tokio::net::TcpStream::connect(("127.0.0.1", proxy.port)).await.unwrap();
     let head = format!(
         "PUT /v1/strokes/{stroke}/mesh HTTP/1.1\r\nhost: localhost\r\n\
-         authorization: Bearer {}\r\ncontent-length: 1000\r\n\r\nglTF",
-        session.token
+         authorization: Bearer {}\r\nx-penmesh-key: {}\r\ncontent-length: 1000\r\n\r\nglTF",
+        session.token, session.key
     );
     socket.write_all(head.as_bytes()).await.unwrap();
     let mut answer = vec![0u8; 64];

@@ -6,6 +6,7 @@ mod auth;
 mod bad_input;
 mod deploy;
 mod http;
+mod identity;
 mod limits;
 mod old_database;
 mod postgres;

@@ -7,10 +7,15 @@ use std::path::Path;
 
 use penmesh::protocol::ServerMessage;
 use penmesh::{AcutsParams, Brush, Sample};
-use penmesh_e2e::penmesh_proxy::hash_token;
-use penmesh_e2e::{TestDatabase, TestSession, batch_simplified, spawn_proxy_on, stroke_samples};
+use penmesh_e2e::penmesh_proxy::{hash_token, participant_id};
+use penmesh_e2e::{
+    TestDatabase, TestSession, batch_simplified, count_rows, spawn_proxy_on, stroke_samples,
+};
 use sqlx::Row;
 use uuid::Uuid;
+
+/// The connection of the old database's participant row.
+const OLD_CONNECTION: Uuid = Uuid::from_u128(0x0123_4567_89ab_4def_8123_4567_89ab_cdef);
 
 /// The last migration of the version that stored `f64` samples.
 const LAST_OLD_MIGRATION: i64 = 20261122000000;
@@ -72,7 +77,9 @@ async fn write_old_database(
            n_retained, created_at, updated_at) VALUES ($1, $2, $3, $4, $5, NULL, $6, $7, 1, 1)")
         .bind(stroke.to_string())
         .bind(session.session.to_string())
-        .bind(Uuid::new_v4().to_string())
+        // The participant the test's connections are (an old client had no key, so nobody
+        // could resume its strokes now: the test draws as their owner to read them).
+        .bind(participant_id(session.session, &session.key).to_string())
         .bind(brush.clone())
         .bind(params.clone())
         .bind(status)
@@ -93,6 +100,14 @@ async fn write_old_database(
                 .unwrap();
         }
     }
+    // A participant row of the old schema: one per connection, keyed by `id`.
+    q("INSERT INTO participants (id, session_id, name, joined_at, left_at) \
+       VALUES ($1, $2, 'old', 1, 2)")
+    .bind(OLD_CONNECTION.to_string())
+    .bind(session.session.to_string())
+    .execute(&pool)
+    .await
+    .unwrap();
     let kept: Vec<Sample> = done.2.iter().map(|&i| done.1[i as usize]).collect();
     q("INSERT INTO simplified (stroke_id, indices, data) VALUES ($1, $2, $3)")
         .bind(done.0.to_string())
@@ -108,7 +123,7 @@ async fn write_old_database(
 async fn a_database_of_the_previous_version_opens_and_reads_the_same_samples() {
     // Arrange: the previous version's database with an interrupted and a finished stroke.
     let db = TestDatabase::fresh().await;
-    let session = TestSession { session: Uuid::new_v4(), token: "an old session's token".into() };
+    let session = TestSession::new(Uuid::new_v4(), "an old session's token".into());
     let (interrupted, done) = (Uuid::new_v4(), Uuid::new_v4());
     let old_interrupted = off_grid(30);
     let old_done = off_grid(20);
@@ -131,6 +146,13 @@ async fn a_database_of_the_previous_version_opens_and_reads_the_same_samples() {
     let samples: Vec<Sample> = serde_json::from_value(simplified["samples"].clone()).unwrap();
     let expected: Vec<Sample> = done_indices.iter().map(|&i| old_done[i as usize]).collect();
     assert_eq!(samples, via_json(&expected));
+
+    // The old participant row is one connection's, and names it as its participant.
+    let old_row = format!(
+        "SELECT COUNT(*) FROM participants WHERE connection = '{OLD_CONNECTION}' \
+         AND participant = connection"
+    );
+    assert_eq!(count_rows(&proxy.db, &old_row).await, 1);
 
     // The interrupted stroke resumes: its old samples, then new ones in the compact layout.
     let more = stroke_samples(60)[30..].to_vec();

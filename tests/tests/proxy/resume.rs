@@ -173,6 +173,7 @@ async fn a_vanished_client_lets_go_of_its_stroke_within_the_heartbeat() {
             client: "penmesh-e2e".into(),
             name: None,
             resume: vec![stroke],
+            key: Some(session.key.clone()),
         }))
         .await;
         let mut refused = false;

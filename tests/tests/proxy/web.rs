@@ -45,7 +45,7 @@ async fn connect_with_subprotocols(
     let (ws, response) = tokio_tungstenite::connect_async(request).await?;
     let chosen =
         response.headers().get("sec-websocket-protocol").map(|v| v.to_str().unwrap().to_string());
-    Ok((WsClient { ws, json: true }, chosen))
+    Ok((WsClient { ws, json: true, key: None }, chosen))
 }
 
 #[tokio::test]
@@ -73,12 +73,7 @@ async fn the_proxy_builds_stores_and_announces_a_thin_clients_mesh() {
     let mut watcher = proxy.connect(&session).await;
     watcher.hello(vec![]).await;
     let stroke = Uuid::new_v4();
-    let build = |stroke: Uuid| {
-        proxy
-            .http
-            .post(proxy.url(&format!("/v1/strokes/{stroke}/mesh/build")))
-            .bearer_auth(&session.token)
-    };
+    let build = |stroke: Uuid| proxy.build_mesh(&session, stroke);
 
     // Not before the stroke is done.
     drawer.begin(stroke).await;

@@ -101,6 +101,8 @@ impl View {
 #[derive(Debug)]
 pub struct Participant {
     pub ws: WsClient,
+    /// Its participant key (`Hello.key`): a reconnect with it is the same participant.
+    pub key: String,
     pub welcome: Welcome,
     pub view: View,
     /// The retained samples of this participant's own strokes, as streamed back.
@@ -108,15 +110,18 @@ pub struct Participant {
 }
 
 impl Participant {
-    /// Connects, says hello with `name`, and reads the history up to `Synced`.
+    /// Connects as a new participant (a key of its own), says hello with `name`, and reads
+    /// the history up to `Synced`.
     pub async fn join(proxy: &TestProxy, session: &TestSession, name: &str) -> Participant {
-        Participant::join_resuming(proxy, session, name, vec![]).await
+        Participant::join_resuming(proxy, session, name, &penmesh_e2e::new_key(), vec![]).await
     }
 
+    /// Connects as the participant of `key` and resumes its strokes `resume`.
     pub async fn join_resuming(
         proxy: &TestProxy,
         session: &TestSession,
         name: &str,
+        key: &str,
         resume: Vec<StrokeId>,
     ) -> Participant {
         let mut ws = proxy.connect(session).await;
@@ -125,13 +130,15 @@ impl Participant {
             client: "penmesh-e2e".into(),
             name: Some(name.into()),
             resume,
+            key: Some(key.into()),
         }))
         .await;
         let welcome = match ws.recv_any().await {
             ServerMessage::Welcome(welcome) => welcome,
             other => panic!("expected welcome, got {other:?}"),
         };
-        let mut me = Participant { ws, welcome, view: View::default(), own: BTreeMap::new() };
+        let key = key.to_string();
+        let mut me = Participant { ws, key, welcome, view: View::default(), own: BTreeMap::new() };
         me.wait_for(|v| v.n_synced >= 1).await;
         me
     }
@@ -226,16 +233,15 @@ pub fn samples_for(k: usize, n: usize) -> Vec<Sample> {
 }
 
 /// Stores a mesh for a done stroke over HTTP.
-pub async fn put_mesh(proxy: &TestProxy, session: &TestSession, stroke: StrokeId) {
-    let response = proxy
-        .http
-        .put(proxy.url(&format!("/v1/strokes/{stroke}/mesh")))
-        .bearer_auth(&session.token)
-        .header("content-type", "model/gltf-binary")
-        .body(penmesh_e2e::minimal_glb(3, 3))
-        .send()
-        .await
-        .unwrap();
+pub async fn put_mesh(
+    proxy: &TestProxy,
+    drawer: &Participant,
+    session: &TestSession,
+    stroke: StrokeId,
+) {
+    let drawer = TestSession { key: drawer.key.clone(), ..session.clone() };
+    let response =
+        proxy.put_mesh(&drawer, stroke, penmesh_e2e::minimal_glb(3, 3)).send().await.unwrap();
     assert_eq!(response.status(), 200, "PUT mesh");
 }
 

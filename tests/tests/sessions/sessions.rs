@@ -22,10 +22,10 @@ async fn participants_see_each_other_join_draw_store_meshes_and_leave() {
     let (ann_stroke, bob_stroke) = (Uuid::new_v4(), Uuid::new_v4());
     let (ann_samples, bob_samples) = (samples_for(1, 250), samples_for(2, 180));
 
-    // Act: both draw at once, then each stores a mesh for the other's stroke.
+    // Act: both draw at once, then each stores the mesh of its stroke.
     tokio::join!(ann.draw(ann_stroke, &ann_samples, 7), bob.draw(bob_stroke, &bob_samples, 5));
-    put_mesh(&proxy, &session, ann_stroke).await;
-    put_mesh(&proxy, &session, bob_stroke).await;
+    put_mesh(&proxy, &ann, &session, ann_stroke).await;
+    put_mesh(&proxy, &bob, &session, bob_stroke).await;
     ann.wait_for(|v| v.n_meshes() == 1).await;
     bob.wait_for(|v| v.n_meshes() == 1).await;
 
@@ -56,7 +56,7 @@ async fn late_joiners_see_what_an_early_joiner_sees_with_no_gap_and_no_repeat() 
     let (done_stroke, streaming) = (Uuid::new_v4(), Uuid::new_v4());
     let (done_samples, streaming_samples) = (samples_for(1, 200), samples_for(2, 400));
     drawer.draw(done_stroke, &done_samples, 8).await;
-    put_mesh(first, &session, done_stroke).await;
+    put_mesh(first, &drawer, &session, done_stroke).await;
 
     // Act
     let mut lates = Vec::new();
@@ -78,7 +78,7 @@ async fn late_joiners_see_what_an_early_joiner_sees_with_no_gap_and_no_repeat() 
             }
         }
     );
-    put_mesh(last, &session, streaming).await;
+    put_mesh(last, &drawer, &session, streaming).await;
 
     // Assert: everyone ends with the same complete session.
     let expected = expected_view(

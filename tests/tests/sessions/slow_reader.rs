@@ -42,6 +42,7 @@ async fn a_slow_reader_is_cut_off_with_lagged_and_resynced_while_the_others_keep
         client: "slow".into(),
         name: Some("slow".into()),
         resume: vec![],
+        key: None,
     });
     to_server.send(Frame::Binary(encode_client(&hello))).await.unwrap();
 

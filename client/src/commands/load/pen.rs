@@ -163,7 +163,9 @@ async fn connect(base_ws: &str, session: Uuid, token: &str) -> anyhow::Result<So
         let mut ws = wire::open(&url, token, Some(config), CONNECT_TIMEOUT)
             .await
             .map_err(|e| anyhow::anyhow!("cannot connect: {e}"))?;
-        ws.send(wire::frame(&wire::hello("penmesh-load", None, Vec::new())))
+        // A participant of its own per pen.
+        let key = Some(wire::new_participant_key());
+        ws.send(wire::frame(&wire::hello("penmesh-load", None, Vec::new(), key)))
             .await
             .context("sending")?;
         let answer =
