@@ -160,7 +160,7 @@ pub async fn start_listener(
                 }
                 Ok(Some(notification)) => {
                     match SessionEvent::from_payload(notification.payload()) {
-                        Ok(event) => fanout.dispatch(event),
+                        Ok(events) => events.into_iter().for_each(|event| fanout.dispatch(event)),
                         Err(err) => {
                             // An event this replica cannot read is an event its clients miss:
                             // resync them from the database rather than lose it in silence.

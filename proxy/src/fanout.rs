@@ -27,7 +27,7 @@ use uuid::Uuid;
 
 /// Version of the `NOTIFY` payloads replicas exchange (a second protocol, between proxies):
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
-pub const NOTIFY_VERSION: u16 = 2;
+pub const NOTIFY_VERSION: u16 = 3;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -95,18 +95,11 @@ impl SessionEvent {
         SessionEvent { session, kind, origin: Some(origin) }
     }
 
-    /// The `NOTIFY` payloads of this event: JSON, each under [`MAX_NOTIFY_BYTES`]. A
+    /// This event as JSON for a `NOTIFY` payload, in pieces of at most `max` bytes: a
     /// `Retained` event too large for one is split into consecutive ones.
-    pub fn notify_payloads(&self) -> Vec<String> {
-        #[derive(Serialize)]
-        struct VersionedRef<'a> {
-            v: u16,
-            #[serde(flatten)]
-            event: &'a SessionEvent,
-        }
-        let versioned = VersionedRef { v: NOTIFY_VERSION, event: self };
-        let json = serde_json::to_string(&versioned).expect("events serialise");
-        if json.len() <= MAX_NOTIFY_BYTES {
+    fn notify_json(&self, max: usize) -> Vec<String> {
+        let json = serde_json::to_string(self).expect("events serialise");
+        if json.len() <= max {
             return vec![json];
         }
         match &self.kind {
@@ -123,8 +116,8 @@ impl SessionEvent {
                         },
                     )
                 };
-                let mut out = part(*first, &points[..half]).notify_payloads();
-                out.extend(part(first + half as u64, &points[half..]).notify_payloads());
+                let mut out = part(*first, &points[..half]).notify_json(max);
+                out.extend(part(first + half as u64, &points[half..]).notify_json(max));
                 out
             }
             // Names are cut to 200 characters when they join: cannot happen.
@@ -132,20 +125,50 @@ impl SessionEvent {
         }
     }
 
-    /// Reads a `NOTIFY` payload; one of another version (a replica of another release, during
-    /// a rolling update) is refused, so the listener resyncs instead of misreading it.
-    pub fn from_payload(payload: &str) -> anyhow::Result<SessionEvent> {
+    /// The `NOTIFY` payloads of `events`, in order: as many events as fit in each, under
+    /// [`MAX_NOTIFY_BYTES`], as `{"v": NOTIFY_VERSION, "events": [...]}`. One notification per
+    /// event cost PostgreSQL more than the rest of a commit (each is queued, and read by every
+    /// listening replica, on its own).
+    pub fn notify_payloads(events: &[SessionEvent]) -> Vec<String> {
+        let head = format!("{{\"v\":{NOTIFY_VERSION},\"events\":[");
+        let room = MAX_NOTIFY_BYTES - head.len() - 2;
+        let mut payloads = Vec::new();
+        let mut current = head.clone();
+        for json in events.iter().flat_map(|event| event.notify_json(room)) {
+            if current.len() > head.len() && current.len() + 1 + json.len() + 2 > MAX_NOTIFY_BYTES {
+                current.push_str("]}");
+                payloads.push(std::mem::replace(&mut current, head.clone()));
+            }
+            if current.len() > head.len() {
+                current.push(',');
+            }
+            current.push_str(&json);
+        }
+        if current.len() > head.len() {
+            current.push_str("]}");
+            payloads.push(current);
+        }
+        payloads
+    }
+
+    /// Reads a `NOTIFY` payload: its events, in order. One of another version (a replica of
+    /// another release, during a rolling upgrade) is refused, so that the listener resyncs its
+    /// clients rather than misread it.
+    pub fn from_payload(payload: &str) -> anyhow::Result<Vec<SessionEvent>> {
         #[derive(Deserialize)]
         struct Version {
             v: Option<u16>,
+        }
+        #[derive(Deserialize)]
+        struct Payload {
+            events: Vec<SessionEvent>,
         }
         let version = serde_json::from_str::<Version>(payload)?.v;
         anyhow::ensure!(
             version == Some(NOTIFY_VERSION),
             "payload version {version:?}, this replica reads {NOTIFY_VERSION}"
         );
-        // The version field is not part of the event; serde passes over it.
-        Ok(serde_json::from_str(payload)?)
+        Ok(serde_json::from_str::<Payload>(payload)?.events)
     }
 
     /// The message that tells a client of this event.
@@ -512,9 +535,9 @@ mod tests {
             Uuid::nil(),
             EventKind::StrokeDone { participant: Uuid::nil(), stroke: Uuid::nil(), n_retained: 3 },
         );
-        let payload = event.notify_payloads().remove(0);
+        let payload = SessionEvent::notify_payloads(std::slice::from_ref(&event)).remove(0);
         assert!(payload.contains(&format!("\"v\":{NOTIFY_VERSION}")), "{payload}");
-        assert_eq!(SessionEvent::from_payload(&payload).unwrap(), event);
+        assert_eq!(SessionEvent::from_payload(&payload).unwrap(), vec![event.clone()]);
         let other = payload.replace(&format!("\"v\":{NOTIFY_VERSION}"), "\"v\":999");
         assert!(SessionEvent::from_payload(&other).unwrap_err().to_string().contains("999"));
         let unversioned = serde_json::to_string(&event).unwrap();
@@ -584,20 +607,31 @@ mod tests {
     #[test]
     fn large_retained_events_split_under_the_notify_limit() {
         let event = retained(Uuid::new_v4(), 10, 1000);
-        let payloads = event.notify_payloads();
+        let payloads = SessionEvent::notify_payloads(&[event]);
         assert!(payloads.len() > 1);
         let mut next = 10;
         for p in &payloads {
             assert!(p.len() <= MAX_NOTIFY_BYTES);
-            let EventKind::Retained { first, points, .. } =
-                SessionEvent::from_payload(p).unwrap().kind
-            else {
-                panic!()
-            };
-            assert_eq!(first, next);
-            next += points.len() as u64;
+            for event in SessionEvent::from_payload(p).unwrap() {
+                let EventKind::Retained { first, points, .. } = event.kind else { panic!() };
+                assert_eq!(first, next);
+                next += points.len() as u64;
+            }
         }
         assert_eq!(next, 1010);
+    }
+
+    #[test]
+    fn a_commits_events_share_notify_payloads_in_order() {
+        let events: Vec<SessionEvent> =
+            (0..300).map(|i| retained(Uuid::new_v4(), i, 1 + (i as usize % 7))).collect();
+        let payloads = SessionEvent::notify_payloads(&events);
+        assert!(payloads.len() < 20, "{} payloads for 300 small events", payloads.len());
+        assert!(payloads.iter().all(|p| p.len() <= MAX_NOTIFY_BYTES));
+        let read: Vec<SessionEvent> =
+            payloads.iter().flat_map(|p| SessionEvent::from_payload(p).unwrap()).collect();
+        assert_eq!(read, events);
+        assert!(SessionEvent::notify_payloads(&[]).is_empty());
     }
 
     #[tokio::test]

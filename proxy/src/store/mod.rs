@@ -722,7 +722,7 @@ pub(crate) async fn notify(
     conn: &mut sqlx::AnyConnection,
     events: &[SessionEvent],
 ) -> anyhow::Result<()> {
-    let payloads: Vec<String> = events.iter().flat_map(SessionEvent::notify_payloads).collect();
+    let payloads = SessionEvent::notify_payloads(events);
     for chunk in payloads.chunks(500) {
         let values: Vec<String> = (1..=chunk.len()).map(|i| format!("(${i})")).collect();
         let sql = format!(
