@@ -222,6 +222,8 @@ pub struct Ack {
     pub upto_seq: u64,
 }
 
+/// Samples `first..first + points.len()` of the simplified stroke, decided by a batch: sent
+/// once that batch is committed, just before its `Ack` (in the same write to the socket).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Retained {
     pub stroke: StrokeId,
