@@ -35,15 +35,22 @@ async fn send_from(ws: &mut WsClient, stroke: StrokeId, samples: &[Sample], from
 /// What the proxy answered about `stroke` until it has been quiet for half a second: the
 /// highest acknowledged seq and the errors naming it.
 async fn answers(ws: &mut WsClient, stroke: StrokeId) -> (u64, Vec<ErrorCode>) {
-    let (mut acked, mut errors) = (0, Vec::new());
+    let (acked, errors, _) = answers_shown(ws, stroke).await;
+    (acked, errors)
+}
+
+/// Like [`answers`], with the retained samples the drawer was shown.
+async fn answers_shown(ws: &mut WsClient, stroke: StrokeId) -> (u64, Vec<ErrorCode>, Vec<Sample>) {
+    let (mut acked, mut errors, mut shown) = (0, Vec::new(), Vec::new());
     while let Ok(msg) = tokio::time::timeout(Duration::from_millis(500), ws.recv()).await {
         match msg {
             ServerMessage::Ack(ack) if ack.stroke == stroke => acked = acked.max(ack.upto_seq),
             ServerMessage::Error(err) if err.stroke == Some(stroke) => errors.push(err.code),
+            ServerMessage::Retained(r) if r.stroke == stroke => shown.extend(r.points.0),
             _ => {}
         }
     }
-    (acked, errors)
+    (acked, errors, shown)
 }
 
 /// Where a stroke's samples are stored, read straight from the database: its chunk rows and
@@ -127,10 +134,17 @@ async fn an_append_queued_behind_a_failed_one_is_not_stored_nor_acknowledged() {
 
     // Act
     send_from(&mut ws, stroke, &samples, 0).await;
-    let (acked, errors) = answers(&mut ws, stroke).await;
+    let (acked, errors, shown) = answers_shown(&mut ws, stroke).await;
 
-    // Assert: nothing past the failure is stored or acknowledged, and the stroke resumes.
+    // Assert: nothing past the failure is stored, acknowledged or shown (a batch's retained
+    // samples go out with its ack, once it is committed), and the stroke resumes.
     assert!(errors.contains(&ErrorCode::Internal), "{errors:?}");
+    assert!(!shown.is_empty(), "the committed batches decided retained samples");
+    let committed = &samples[..acked as usize];
+    assert!(
+        shown.iter().all(|s| committed.contains(s)),
+        "the drawer was shown retained samples of batches not committed: {shown:?}"
+    );
     let stored = assert_stored_prefix(&proxy, &session, stroke, &samples, acked).await;
     assert_eq!(stored, 8, "stored up to the failed append, not past it");
     assert!(acked <= 8, "acknowledged up to {acked}");
