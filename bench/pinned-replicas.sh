@@ -6,7 +6,8 @@
 # worst p99, lost, CPU per acknowledged sample of the replicas and of PostgreSQL) as
 # OUT_DIR/pinned-postgres-rREPLICAS-PENS.json, and prints them.
 # Usage: bench/pinned-replicas.sh OUT_DIR SECONDS PENS REPLICAS [-- PROXY_ARG...]
-#   PENMESH_PG: the server's URL without a database (default postgres://postgres@127.0.0.1:5432).
+#   PENMESH_PG: the server's URL without a database (default postgres://postgres@127.0.0.1:5432);
+#   PENMESH_PG_QUERY: appended to the replicas' database URL, e.g. "?sslmode=disable".
 # PostgreSQL's processes are moved to core 0 for the run and back to every core after it.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -54,7 +55,7 @@ ports=()
 for i in $(seq 1 "$replicas"); do
     port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
     RUST_LOG=warn taskset -c 0 "$penmesh" serve-proxy --host 127.0.0.1 --port "$port" \
-        --database-url "$pg/$db" --max-connections-per-session 64 --session-rate-per-minute 0 \
+        --database-url "$pg/$db${PENMESH_PG_QUERY:-}" --max-connections-per-session 64 --session-rate-per-minute 0 \
         --max-connections 10000 --idle-timeout-secs 600 "$@" > "$work/replica-$i.log" 2>&1 &
     pids+=($!)
     ports+=("$port")
