@@ -23,12 +23,9 @@ proxy_args=()
 for arg in "$@"; do proxy_args+=("--proxy-arg=$arg"); done
 targets="${PENMESH_TARGETS:-ceiling proxy}"
 
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-penmesh="${PENMESH_BIN:-}"
-if [ -z "$penmesh" ]; then
-    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-    penmesh="$CARGO_TARGET_DIR/release/penmesh"
-fi
+# shellcheck source=bench/pinned-common.sh
+. "$here/pinned-common.sh"
+penmesh="$(penmesh_binary)"
 mkdir -p "$out"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
@@ -39,19 +36,12 @@ run_one() { # TARGET PENS
     if [ "$target" = proxy ]; then
         db_args=(--database-url "${PENMESH_DATABASE_URL:-sqlite://$work/penmesh.db}" "${proxy_args[@]}")
     fi
-    # The load tool on core 1; the server it spawns inherits that, and is moved to core 0 (every
-    # thread, -a) as soon as it exists: threads it starts later inherit core 0 from their parent.
+    # The load tool on core 1, the server it spawns on core 0.
     taskset -c 1 "$penmesh" load "--spawn-$target" "${db_args[@]}" --clients "$n" --rate 200 \
         --batch-ms 12 --duration "$seconds" --ramp 10 --label "pinned-$target-$n" \
         --json "$work/run.json" > "$work/load.log" 2>&1 &
-    local load_pid=$! pid=""
-    for _ in $(seq 1 200); do
-        pid="$(pgrep -P "$load_pid" | head -1 || true)"
-        [ -n "$pid" ] && break
-        sleep 0.05
-    done
-    [ -n "$pid" ] || { echo "the server did not start" >&2; cat "$work/load.log" >&2; return 1; }
-    taskset -a -p -c 0 "$pid" > /dev/null
+    local load_pid=$! pid
+    pid="$(pin_spawned_server "$load_pid")" || { cat "$work/load.log" >&2; return 1; }
     # Keep the snapshot with the most CPU: threads vanish one by one while the server stops.
     local best=0 snapshot total
     : > "$work/io"

@@ -18,12 +18,9 @@ shift 4
 [ "${1:-}" = "--" ] && shift
 pg="${PENMESH_PG:-postgres://postgres@127.0.0.1:5432}"
 
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-penmesh="${PENMESH_BIN:-}"
-if [ -z "$penmesh" ]; then
-    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-    penmesh="$CARGO_TARGET_DIR/release/penmesh"
-fi
+# shellcheck source=bench/pinned-common.sh
+. "$here/pinned-common.sh"
+penmesh="$(penmesh_binary)"
 mkdir -p "$out"
 work="$(mktemp -d)"
 db="penmesh_bench_$$"

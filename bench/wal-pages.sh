@@ -13,26 +13,16 @@ shift
 [ "${1:-}" = "--" ] && shift
 proxy_args=()
 for arg in "$@"; do proxy_args+=("--proxy-arg=$arg"); done
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-penmesh="${PENMESH_BIN:-}"
-if [ -z "$penmesh" ]; then
-    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-    penmesh="$CARGO_TARGET_DIR/release/penmesh"
-fi
+# shellcheck source=bench/pinned-common.sh
+. "$here/pinned-common.sh"
+penmesh="$(penmesh_binary)"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 taskset -c 1 "$penmesh" load --spawn-proxy --database-url "sqlite://$work/p.db" "${proxy_args[@]}" \
     --clients "$n" --rate 200 --batch-ms 12 --duration 20 --ramp 6 --json "$work/run.json" \
     > "$work/load.log" 2>&1 &
 load_pid=$!
-pid=""
-for _ in $(seq 1 200); do
-    pid="$(pgrep -P "$load_pid" | head -1 || true)"
-    [ -n "$pid" ] && break
-    sleep 0.05
-done
-[ -n "$pid" ] || { echo "the server did not start" >&2; exit 1; }
-taskset -a -p -c 0 "$pid" > /dev/null
+pid="$(pin_spawned_server "$load_pid")"
 sleep 9
 timeout 4 strace -f -q -e trace=pwrite64 -s 8 -x -e signal=none -p "$pid" -o "$work/strace" 2>/dev/null || true
 wait "$load_pid" || true

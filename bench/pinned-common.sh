@@ -1,0 +1,28 @@
+# Sourced by the pinned benches (pinned-load.sh, pinned-replicas.sh, wal-pages.sh): what they
+# share. Expects `root` (the checkout) to be set.
+
+# The penmesh binary: $PENMESH_BIN, or this checkout's release build (built if needed).
+penmesh_binary() {
+    if [ -n "${PENMESH_BIN:-}" ]; then
+        echo "$PENMESH_BIN"
+        return
+    fi
+    export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
+    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
+    echo "$CARGO_TARGET_DIR/release/penmesh"
+}
+
+# Moves the server that `penmesh load --spawn-…` (pid $1, started on core 1) spawned to core 0,
+# every thread (-a), as soon as it exists: threads it starts later inherit core 0 from their
+# parent. Prints the server's pid; fails when it did not start within 10 s.
+pin_spawned_server() {
+    local load_pid="$1" pid=""
+    for _ in $(seq 1 200); do
+        pid="$(pgrep -P "$load_pid" | head -1 || true)"
+        [ -n "$pid" ] && break
+        sleep 0.05
+    done
+    [ -n "$pid" ] || { echo "the server did not start" >&2; return 1; }
+    taskset -a -p -c 0 "$pid" > /dev/null
+    echo "$pid"
+}
