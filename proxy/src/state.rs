@@ -36,6 +36,8 @@ pub struct Inner {
     pub tracker: TaskTracker,
     pub claims: Claims,
     pub metrics: PrometheusHandle,
+    /// The per-batch counters, looked up once.
+    pub counters: crate::metrics::HotCounters,
     /// Where committed session events reach this replica's connections.
     pub fanout: Fanout,
     /// Live connections per session on this replica.
@@ -81,6 +83,7 @@ impl AppState {
                 tracker: TaskTracker::new(),
                 claims: Claims::new(locks),
                 metrics,
+                counters: crate::metrics::HotCounters::register(),
                 fanout,
                 hubs: Mutex::new(HashMap::new()),
                 connections,

@@ -20,7 +20,7 @@ use sqlx::{AnyConnection, AnyPool, Connection, Executor, Row};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-pub use writer::{CommitFaults, Fault, WriteError, WriteOp, Writer, WriterTask};
+pub use writer::{CommitFaults, Committed, Fault, WriteError, WriteOp, Writer, WriterTask};
 
 use crate::config::{Config, SqliteSync};
 use crate::fanout::{EventKind, SessionEvent};

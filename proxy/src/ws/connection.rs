@@ -1,11 +1,11 @@
 //! One connection's state, and what every part of it uses to answer: the outgoing queue, the
 //! one place errors are answered (`fail`), and how the connection ends.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::pin::Pin;
+use std::task::Poll;
 use std::time::Duration;
 
-use futures_util::future::BoxFuture;
-use futures_util::stream::FuturesOrdered;
 use penmesh::Kept;
 use penmesh::protocol::{ErrorMessage, ServerMessage, StrokeId};
 use tokio::time::Instant;
@@ -17,7 +17,7 @@ use super::outgoing::Outgoing;
 use crate::fanout::{PeerView, Subscription};
 use crate::ingest::StrokeState;
 use crate::state::{AppState, ConnectionClaims, SessionGuard};
-use crate::store::WriteError;
+use crate::store::{Committed, WriteError};
 
 /// What to send once a write request commits. The retained samples the request's batch
 /// decided go out with its answer, in the same write to the socket: one write per batch, as
@@ -35,7 +35,40 @@ pub(super) struct Decided {
     pub kept: Vec<Kept>,
 }
 
-pub(super) type Pending = BoxFuture<'static, (Result<(), WriteError>, AfterCommit)>;
+/// The connection's requests to the writer that await their commit, oldest first. The writer
+/// answers one connection's requests in the order it got them, so only the oldest is polled.
+#[derive(Debug, Default)]
+pub(super) struct InFlight {
+    queue: VecDeque<(Committed, AfterCommit)>,
+}
+
+impl InFlight {
+    pub fn push(&mut self, committed: Committed, after: AfterCommit) {
+        self.queue.push_back((committed, after));
+    }
+
+    pub fn len(&self) -> usize {
+        self.queue.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.queue.is_empty()
+    }
+
+    /// The oldest request's answer, once it has one (`None` when none is in flight).
+    pub fn next(
+        &mut self,
+    ) -> impl Future<Output = Option<(Result<(), WriteError>, AfterCommit)>> + '_ {
+        std::future::poll_fn(move |cx| {
+            let Some((committed, _)) = self.queue.front_mut() else {
+                return Poll::Ready(None);
+            };
+            let result = std::task::ready!(Pin::new(committed).poll(cx));
+            let (_, after) = self.queue.pop_front().expect("the oldest request is there");
+            Poll::Ready(Some((result, after)))
+        })
+    }
+}
 
 pub(super) struct Connection {
     pub state: AppState,
@@ -67,7 +100,7 @@ pub(super) struct Connection {
     /// Strokes whose `StrokeEnd` awaits its commit (still claimed).
     pub finishing: HashSet<StrokeId>,
     pub outgoing: Outgoing,
-    pub pending: FuturesOrdered<Pending>,
+    pub pending: InFlight,
     pub end: Option<End>,
 }
 
@@ -90,7 +123,7 @@ impl Connection {
             strokes: HashMap::new(),
             finishing: HashSet::new(),
             outgoing,
-            pending: FuturesOrdered::new(),
+            pending: InFlight::default(),
             end: None,
             state,
         }

@@ -18,6 +18,7 @@ use tokio::time::Instant;
 
 use super::Frame;
 use super::error::End;
+use crate::metrics::HotCounters;
 
 /// Which encoding the client used last.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,14 +38,22 @@ pub(super) struct Outgoing {
     overflow_since: Option<Instant>,
     /// The form of the client's latest frame, which answers take.
     pub form: Form,
+    /// Frames sent, binary and text.
+    sent: (metrics::Counter, metrics::Counter),
 }
 
 impl Outgoing {
     /// A queue of `capacity` frames, and its other end for [`forward`].
-    pub fn new(capacity: usize) -> (Outgoing, mpsc::Receiver<Frame>) {
+    pub fn new(capacity: usize, counters: &HotCounters) -> (Outgoing, mpsc::Receiver<Frame>) {
         let (out, rx) = mpsc::channel(capacity.max(1));
-        let outgoing =
-            Outgoing { out, overflow: VecDeque::new(), overflow_since: None, form: Form::Binary };
+        let sent = (counters.frames_out_binary.clone(), counters.frames_out_text.clone());
+        let outgoing = Outgoing {
+            out,
+            overflow: VecDeque::new(),
+            overflow_since: None,
+            form: Form::Binary,
+            sent,
+        };
         (outgoing, rx)
     }
 
@@ -158,9 +167,10 @@ impl Outgoing {
     }
 
     fn count_sent(&self) {
-        let kind = if self.form == Form::Binary { "binary" } else { "text" };
-        metrics::counter!("penmesh_ws_frames_total", "direction" => "out", "kind" => kind)
-            .increment(1);
+        match self.form {
+            Form::Binary => self.sent.0.increment(1),
+            Form::Json => self.sent.1.increment(1),
+        }
     }
 }
 
@@ -208,7 +218,7 @@ mod tests {
 
     #[test]
     fn answers_past_the_bound_wait_in_order_and_none_is_lost() {
-        let (mut outgoing, mut rx) = Outgoing::new(4);
+        let (mut outgoing, mut rx) = Outgoing::new(4, &HotCounters::register());
         for i in 0..10 {
             outgoing.send(text(i)).unwrap();
         }
@@ -227,7 +237,7 @@ mod tests {
 
     #[test]
     fn an_answer_after_an_overflow_waits_behind_it_even_when_the_queue_has_room() {
-        let (mut outgoing, mut rx) = Outgoing::new(1);
+        let (mut outgoing, mut rx) = Outgoing::new(1, &HotCounters::register());
         outgoing.send(text(0)).unwrap();
         outgoing.send(text(1)).unwrap();
         assert_eq!(drain(&mut rx), vec![text(0)]);
@@ -239,7 +249,7 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn the_slow_reader_deadline_counts_from_the_first_overflow() {
-        let (mut outgoing, _rx) = Outgoing::new(1);
+        let (mut outgoing, _rx) = Outgoing::new(1, &HotCounters::register());
         outgoing.send(text(0)).unwrap();
         assert_eq!(outgoing.slow_reader_deadline(Duration::from_secs(1)), None);
         let first = Instant::now();
@@ -254,7 +264,7 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn send_wait_goes_after_the_overflow_and_gives_up_on_a_reader_that_takes_nothing() {
-        let (mut outgoing, mut rx) = Outgoing::new(2);
+        let (mut outgoing, mut rx) = Outgoing::new(2, &HotCounters::register());
         for i in 0..3 {
             outgoing.send(text(i)).unwrap();
         }

@@ -35,7 +35,7 @@ impl Connection {
         }
         match self.view.admit(event) {
             Admit::Whole => {
-                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                self.state.counters.fanout_events.increment(1);
                 // Encoded once for every participant of the session.
                 let frame = match self.outgoing.form {
                     Form::Binary => Frame::Binary(published.binary().to_vec()),
@@ -44,7 +44,7 @@ impl Connection {
                 self.send_frame(frame);
             }
             Admit::Part(msg) => {
-                metrics::counter!("penmesh_fanout_events_total").increment(1);
+                self.state.counters.fanout_events.increment(1);
                 self.send(msg);
             }
             Admit::Skip => {}

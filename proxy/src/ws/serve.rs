@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
     ClientMessage, CodecError, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, StrokeId,
@@ -30,7 +31,7 @@ pub async fn serve<Si, St, E>(
     St: Stream<Item = Result<Frame, E>> + Unpin + Send,
     E: Into<ReadError>,
 {
-    let (outgoing, out_rx) = Outgoing::new(state.config.outgoing_queue);
+    let (outgoing, out_rx) = Outgoing::new(state.config.outgoing_queue, &state.counters);
     let sender = tokio::spawn(forward(out_rx, sink));
     let mut conn = Connection::new(state.clone(), session, guard, outgoing);
     metrics::gauge!("penmesh_ws_connections").increment(1.0);
@@ -62,6 +63,7 @@ pub async fn serve<Si, St, E>(
         }
         let can_forward =
             !behind && conn.events.is_some() && conn.outgoing.has_room_beyond(reserve);
+        let wait_room = !behind && conn.events.is_some() && !can_forward;
         tokio::select! {
             biased;
             _ = &mut shutting_down => conn.fail(ConnError::fatal(
@@ -76,9 +78,11 @@ pub async fn serve<Si, St, E>(
                 Ok(event) => conn.on_event(&event).await,
                 Err(lag) => conn.resync(Some(lag)).await,
             },
-            // The socket was too slow to take peer events: wake up when it caught up.
-            _ = conn.outgoing.room(reserve + 1), if !behind && conn.events.is_some() && !can_forward => {}
-            permit = conn.outgoing.place(), if behind => match permit {
+            // The socket was too slow to take peer events: wake up when it caught up. (These
+            // two futures are made only when their branch is enabled: `select!` builds every
+            // branch's future each round, and each holds a clone of the queue's sender.)
+            Some(()) = OptionFuture::from(wait_room.then(|| conn.outgoing.room(reserve + 1))), if wait_room => {}
+            Some(permit) = OptionFuture::from(behind.then(|| conn.outgoing.place())), if behind => match permit {
                 Ok(permit) => conn.outgoing.flush_one(permit),
                 Err(_) => conn.end_with(End::Gone),
             },
@@ -188,15 +192,13 @@ impl Connection {
         let decoded = match &frame {
             Frame::Binary(bytes) => {
                 self.outgoing.form = Form::Binary;
-                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "binary")
-                    .increment(1);
+                self.state.counters.frames_in_binary.increment(1);
                 decode_client_limited(bytes, limit, self.state.config.max_batch_samples)
                     .map_err(|e| decode_error(e, ErrorCode::Malformed))
             }
             Frame::Text(text) => {
                 self.outgoing.form = Form::Json;
-                metrics::counter!("penmesh_ws_frames_total", "direction" => "in", "kind" => "text")
-                    .increment(1);
+                self.state.counters.frames_in_text.increment(1);
                 decode_client_json_limited(text, limit, self.state.config.max_batch_samples)
                     .map_err(|e| decode_error(e, ErrorCode::BadJson))
             }

@@ -4,7 +4,6 @@
 use std::collections::HashSet;
 use std::time::Duration;
 
-use futures_util::FutureExt;
 use penmesh::protocol::{
     Ack, ErrorCode, ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage,
     StrokeBegin, StrokeDone, StrokeEnd, StrokeId, StrokeStatus,
@@ -15,7 +14,7 @@ use super::connection::{AfterCommit, Connection, Decided};
 use super::error::ConnError;
 use crate::fanout::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
-use crate::store::{StrokeRow, WriteError, WriteOp};
+use crate::store::{Committed, StrokeRow, WriteError, WriteOp};
 
 /// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
 type Resumed = (Vec<ResumeState>, Vec<(StrokeId, Vec<Kept>)>);
@@ -302,7 +301,7 @@ impl Connection {
         let Some(state) = self.strokes.get_mut(&stroke) else {
             return Err(self.not_open(stroke).await.0);
         };
-        metrics::counter!("penmesh_samples_in_total").increment(points.points.0.len() as u64);
+        self.state.counters.samples_in.increment(points.points.0.len() as u64);
         let accepted = state
             .push_points(points.seq, &points.points.0, &limits)
             .map_err(|refusal| ConnError::from_refusal(refusal, Some(stroke)))?;
@@ -420,7 +419,7 @@ impl Connection {
         if kept.is_empty() {
             return;
         }
-        metrics::counter!("penmesh_samples_retained_total").increment(kept.len() as u64);
+        self.state.counters.samples_retained.increment(kept.len() as u64);
         let batch = self.state.config.max_batch_samples.max(1);
         for (i, chunk) in kept.chunks(batch).enumerate() {
             let points: Vec<Sample> = chunk.iter().map(|k| k.sample).collect();
@@ -446,12 +445,8 @@ impl Connection {
         ))
     }
 
-    fn queue_write(
-        &mut self,
-        pending: impl Future<Output = Result<(), WriteError>> + Send + 'static,
-        after: AfterCommit,
-    ) {
-        self.pending.push_back(pending.map(move |result| (result, after)).boxed());
+    fn queue_write(&mut self, pending: Committed, after: AfterCommit) {
+        self.pending.push(pending, after);
     }
 }
 
