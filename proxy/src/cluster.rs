@@ -19,7 +19,7 @@
 //!   ([`StrokeLocks::replica_key`]), stored with each participant. [`start_reaper`] closes the
 //!   participants whose replica's lock is gone (it died) and tells their sessions (`PeerLeft`).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
@@ -368,10 +368,12 @@ async fn within<T, E: Into<anyhow::Error>>(
 /// How often a replica looks for participants of replicas that died.
 pub const REAP_INTERVAL: Duration = Duration::from_secs(2);
 
-/// Closes, every [`REAP_INTERVAL`], the participants whose replica no longer holds its lock,
-/// and notifies their `PeerLeft` in the same transaction (one replica wins each row).
+/// Every [`REAP_INTERVAL`]: closes the participants whose replica no longer holds its lock,
+/// and notifies their `PeerLeft` in the same transaction (one replica wins each row); and
+/// clears the append log of the writers of replicas that died ([`reap_log`]).
 pub fn start_reaper(store: Store, stop: CancellationToken) -> tokio::task::JoinHandle<()> {
     tokio::spawn(async move {
+        let mut suspects = HashSet::new();
         loop {
             tokio::select! {
                 _ = stop.cancelled() => return,
@@ -384,21 +386,28 @@ pub fn start_reaper(store: Store, stop: CancellationToken) -> tokio::task::JoinH
                     tracing::warn!(error = %err, "looking for participants of dead replicas")
                 }
             }
+            match reap_log(&store, &mut suspects).await {
+                Ok((0, 0)) => {}
+                Ok((strokes, records)) => tracing::info!(
+                    strokes,
+                    records,
+                    "the append log of a replica that died is cleared: its strokes' samples \
+                     are in stroke_chunks"
+                ),
+                Err(err) => tracing::warn!(error = %err, "clearing the log of dead replicas"),
+            }
         }
     })
 }
 
 async fn reap(store: &Store) -> anyhow::Result<usize> {
     let mut tx = store.pool().begin().await?;
-    let rows = sqlx::query(
-        "UPDATE participants SET left_at = $1 WHERE left_at IS NULL AND replica_key IS NOT NULL \
-         AND NOT EXISTS (SELECT 1 FROM pg_locks l WHERE l.locktype = 'advisory' AND l.granted \
-           AND l.objsubid = 1 \
-           AND l.database = (SELECT oid FROM pg_database WHERE datname = current_database()) \
-           AND l.classid::bigint = (participants.replica_key >> 32) \
-           AND l.objid::bigint = (participants.replica_key & 4294967295)) \
-         RETURNING connection, participant, session_id",
-    )
+    let rows = sqlx::query(&format!(
+        "UPDATE participants SET left_at = $1 WHERE left_at IS NULL \
+             AND replica_key IS NOT NULL AND NOT {} \
+             RETURNING connection, participant, session_id",
+        replica_alive("participants.replica_key")
+    ))
     .bind(crate::store::now_ms())
     .fetch_all(&mut *tx)
     .await?;
@@ -415,4 +424,69 @@ async fn reap(store: &Store) -> anyhow::Result<usize> {
     }
     tx.commit().await?;
     Ok(events.len())
+}
+
+/// SQL that is true while the replica whose lock key is `key` (an SQL expression) holds its
+/// lock, i.e. lives: its session holds the advisory lock, which PostgreSQL frees when the
+/// session ends.
+fn replica_alive(key: &str) -> String {
+    format!(
+        "EXISTS (SELECT 1 FROM pg_locks l WHERE l.locktype = 'advisory' AND l.granted \
+         AND l.objsubid = 1 \
+         AND l.database = (SELECT oid FROM pg_database WHERE datname = current_database()) \
+         AND l.classid::bigint = (({key}) >> 32) AND l.objid::bigint = (({key}) & 4294967295))"
+    )
+}
+
+/// Clears the append log of writers whose replica died (a writer's records carry its
+/// replica's lock key, `WriterTask::start`): a replica killed mid-stroke leaves the appends
+/// it acknowledged there, which every reader then scans for ever. A writer counts as dead when
+/// its lock was free in two rounds in a row (`suspects` carries the first), so a replica whose
+/// lock connection is only being reopened is left alone. For each of its strokes that nobody
+/// is drawing (this transaction takes the stroke's lock, which conflicts with a drawing
+/// replica's), the samples only the log holds go into `stroke_chunks`; then its records are
+/// deleted, except those holding a stroke that is being drawn again (its new writer moves it;
+/// a later round deletes them). Returns the strokes moved and the records deleted.
+async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<(u64, u64)> {
+    let mut tx = store.pool().begin().await?;
+    let dead: HashSet<i64> = sqlx::query_scalar(&format!(
+        "SELECT DISTINCT writer FROM stroke_log WHERE NOT {}",
+        replica_alive("stroke_log.writer")
+    ))
+    .fetch_all(&mut *tx)
+    .await?
+    .into_iter()
+    .collect();
+    let confirmed: Vec<i64> = dead.intersection(suspects).copied().collect();
+    *suspects = dead;
+    let (mut moved, mut deleted) = (0, 0);
+    for writer in confirmed {
+        let mut kept_records: HashSet<i64> = HashSet::new();
+        for (stroke, entries) in crate::store::log::read_log(&mut tx, None, Some(writer)).await? {
+            let (a, b) = lock_key(stroke);
+            let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
+                .bind(a)
+                .bind(b)
+                .fetch_one(&mut *tx)
+                .await?;
+            if !free {
+                kept_records.extend(entries.iter().map(|(id, _, _)| *id));
+                continue;
+            }
+            // Every writer's entries of the stroke: the dead one's may continue another's.
+            let wanted = HashSet::from([stroke]);
+            let all = crate::store::log::read_log(&mut tx, Some(&wanted), None).await?;
+            let all = all.into_values().flatten().collect();
+            moved += u64::from(crate::store::move_log_tail(&mut tx, stroke, all).await?);
+        }
+        // Record ids are integers read from the database: safe to write into the statement.
+        let keep = kept_records.iter().map(i64::to_string).collect::<Vec<_>>().join(", ");
+        let sql = match keep.is_empty() {
+            true => "DELETE FROM stroke_log WHERE writer = $1".to_string(),
+            false => format!("DELETE FROM stroke_log WHERE writer = $1 AND id NOT IN ({keep})"),
+        };
+        deleted += sqlx::query(&sql).bind(writer).execute(&mut *tx).await?.rows_affected();
+    }
+    tx.commit().await?;
+    Ok((moved, deleted))
 }

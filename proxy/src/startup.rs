@@ -103,6 +103,7 @@ impl Application {
             config.writer_queue,
             fanout.clone(),
             faults,
+            locks.as_ref().map(StrokeLocks::replica_key),
         )
         .await?;
         let writer = writer.limit_bytes(config.writer_queue_bytes);

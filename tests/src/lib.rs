@@ -298,15 +298,7 @@ impl TestProxy {
         &self,
         session: &TestSession,
     ) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
-        let mut request =
-            format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", self.port, session.session)
-                .into_client_request()
-                .unwrap();
-        request
-            .headers_mut()
-            .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
-        let (ws, _) = tokio_tungstenite::connect_async(request).await?;
-        Ok(WsClient { ws, json: false, key: Some(session.key.clone()) })
+        WsClient::try_connect(self.port, session).await
     }
 
     /// Connects with a raw URL path and query (for auth tests).
@@ -381,7 +373,31 @@ pub enum Incoming {
     Closed(Option<(u16, String)>),
 }
 
+/// The request that opens the session's WebSocket on a proxy listening on `port` of this host,
+/// with the session's token.
+pub fn ws_request(
+    port: u16,
+    session: &TestSession,
+) -> tokio_tungstenite::tungstenite::handshake::client::Request {
+    let mut request = format!("ws://127.0.0.1:{port}/v1/sessions/{}/ws", session.session)
+        .into_client_request()
+        .unwrap();
+    request
+        .headers_mut()
+        .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
+    request
+}
+
 impl WsClient {
+    /// Connects to the session's WebSocket on a proxy listening on `port` of this host.
+    pub async fn try_connect(
+        port: u16,
+        session: &TestSession,
+    ) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
+        let (ws, _) = tokio_tungstenite::connect_async(ws_request(port, session)).await?;
+        Ok(WsClient { ws, json: false, key: Some(session.key.clone()) })
+    }
+
     pub fn json(mut self) -> WsClient {
         self.json = true;
         self

@@ -5,7 +5,7 @@
 //! the append log's records, [`log`]). A stroke's samples are in `stroke_chunks` and, while it is
 //! drawn, in `stroke_log`: every reader of raw samples reads both.
 
-mod log;
+pub(crate) mod log;
 mod writer;
 
 use std::collections::HashSet;
@@ -429,27 +429,7 @@ impl Store {
         let log = log::read_log(&mut tx, None, None).await?;
         let mut moved = 0;
         for (stroke, entries) in log {
-            let rows =
-                sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *tx).await?;
-            let chunks = log::assemble(stroke, pieces_from_chunks(stroke, &rows)?)?;
-            let pieces =
-                entries.into_iter().map(|(_, _, e)| log::Piece { seq: e.seq, samples: e.samples });
-            let tail = log::assemble_from(stroke, chunks.len() as u64, pieces.collect())?;
-            if tail.is_empty() {
-                continue;
-            }
-            let (layout, data) = encode_samples(&tail);
-            sqlx::query(
-                "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ($1, $2, $3, $4, $5)",
-            )
-            .bind(stroke.to_string())
-            .bind(chunks.len() as i64)
-            .bind(tail.len() as i64)
-            .bind(layout)
-            .bind(data)
-            .execute(&mut *tx)
-            .await?;
-            moved += 1;
+            moved += u64::from(move_log_tail(&mut tx, stroke, entries).await?);
         }
         sqlx::query("DELETE FROM stroke_log").execute(&mut *tx).await?;
         tx.commit().await?;
@@ -633,6 +613,36 @@ impl Store {
         }
         Ok(events)
     }
+}
+
+/// Moves the samples of `stroke` that only its log `entries` hold into `stroke_chunks`, as one
+/// more row after its last chunk; false when the chunks held them all. The caller makes sure
+/// nobody is drawing the stroke (SQLite at start; a stroke lock with PostgreSQL) and deletes
+/// the records afterwards.
+pub(crate) async fn move_log_tail(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    entries: Vec<(i64, i64, log::Entry)>,
+) -> anyhow::Result<bool> {
+    let rows = sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
+    let chunks = log::assemble(stroke, pieces_from_chunks(stroke, &rows)?)?;
+    let pieces = entries.into_iter().map(|(_, _, e)| log::Piece { seq: e.seq, samples: e.samples });
+    let tail = log::assemble_from(stroke, chunks.len() as u64, pieces.collect())?;
+    if tail.is_empty() {
+        return Ok(false);
+    }
+    let (layout, data) = encode_samples(&tail);
+    sqlx::query(
+        "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) VALUES ($1, $2, $3, $4, $5)",
+    )
+    .bind(stroke.to_string())
+    .bind(chunks.len() as i64)
+    .bind(tail.len() as i64)
+    .bind(layout)
+    .bind(data)
+    .execute(&mut *conn)
+    .await?;
+    Ok(true)
 }
 
 /// A stroke's pieces from its `stroke_chunks` rows (`seq, n, layout, data`), decoded.

@@ -291,7 +291,9 @@ pub struct WriterTask {
 
 impl WriterTask {
     /// Opens the write connection and starts the writer. The store's deadline bounds each
-    /// transaction (and each reconnection).
+    /// transaction (and each reconnection). `writer_id` is the id its log records carry: with
+    /// PostgreSQL the replica's lock key, so that other replicas can tell when the writer died
+    /// (`cluster::reap_log`); random when `None`.
     pub async fn start(
         store: &Store,
         commit_interval: Duration,
@@ -299,6 +301,7 @@ impl WriterTask {
         queue: usize,
         fanout: Fanout,
         faults: Option<Arc<CommitFaults>>,
+        writer_id: Option<i64>,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let (tx, rx) = mpsc::channel(queue.max(1));
         let deadline = store.deadline();
@@ -331,7 +334,7 @@ impl WriterTask {
                         stop: loop_stop,
                         fanout,
                         strokes: HashMap::new(),
-                        writer_id: (rand::random::<u64>() >> 1) as i64,
+                        writer_id: writer_id.unwrap_or_else(|| (rand::random::<u64>() >> 1) as i64),
                         trimmed_below: 0,
                         last_record: 0,
                         recover: false,

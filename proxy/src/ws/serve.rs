@@ -409,10 +409,17 @@ mod tests {
         configure(&mut config);
         config.database_url = format!("sqlite://{}", dir.path().join("t.db").display()).into();
         let store = Store::connect(&config).await.unwrap();
-        let (writer, writer_task) =
-            WriterTask::start(&store, Duration::from_millis(1), 100, 100, Fanout::default(), None)
-                .await
-                .unwrap();
+        let (writer, writer_task) = WriterTask::start(
+            &store,
+            Duration::from_millis(1),
+            100,
+            100,
+            Fanout::default(),
+            None,
+            None,
+        )
+        .await
+        .unwrap();
         let session = Uuid::new_v4();
         store.create_session(session, "hash").await.unwrap();
         let state = AppState::new(

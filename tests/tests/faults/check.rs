@@ -151,7 +151,11 @@ pub async fn verify(
 
 /// The stored raw samples of a stroke (the HTTP API, which reads every chunk and refuses a
 /// stroke whose chunks overlap or leave a hole).
-async fn raw_samples(proxy: &ProxyChild, session: &TestSession, stroke: uuid::Uuid) -> Vec<Sample> {
+pub async fn raw_samples(
+    proxy: &ProxyChild,
+    session: &TestSession,
+    stroke: uuid::Uuid,
+) -> Vec<Sample> {
     let response = proxy
         .http()
         .get(proxy.url(&format!("/v1/strokes/{stroke}/raw")))

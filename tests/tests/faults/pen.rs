@@ -15,7 +15,6 @@ use penmesh::protocol::{
 use penmesh_e2e::{TestSession, stroke_samples};
 use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 use uuid::Uuid;
 
@@ -259,14 +258,9 @@ async fn connect(
     within: Duration,
 ) -> Result<(Ws, Vec<penmesh::protocol::ResumeState>), String> {
     let opened = async {
-        let mut request = format!("ws://127.0.0.1:{port}/v1/sessions/{}/ws", session.session)
-            .into_client_request()
-            .unwrap();
-        request
-            .headers_mut()
-            .insert("authorization", format!("Bearer {}", session.token).parse().unwrap());
-        let (mut ws, _) =
-            tokio_tungstenite::connect_async(request).await.map_err(|e| format!("connect: {e}"))?;
+        let (mut ws, _) = tokio_tungstenite::connect_async(penmesh_e2e::ws_request(port, session))
+            .await
+            .map_err(|e| format!("connect: {e}"))?;
         let hello = ClientMessage::Hello(Hello {
             protocol: PROTOCOL_VERSION,
             client: "penmesh-faults".into(),
