@@ -459,34 +459,39 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
     .collect();
     let confirmed: Vec<i64> = dead.intersection(suspects).copied().collect();
     *suspects = dead;
-    let (mut moved, mut deleted) = (0, 0);
-    for writer in confirmed {
-        let mut kept_records: HashSet<i64> = HashSet::new();
-        for (stroke, entries) in crate::store::log::read_log(&mut tx, None, Some(writer)).await? {
-            let (a, b) = lock_key(stroke);
-            let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
-                .bind(a)
-                .bind(b)
-                .fetch_one(&mut *tx)
-                .await?;
-            if !free {
-                kept_records.extend(entries.iter().map(|(id, _, _)| *id));
-                continue;
-            }
-            // Every writer's entries of the stroke: the dead one's may continue another's.
-            let wanted = HashSet::from([stroke]);
-            let all = crate::store::log::read_log(&mut tx, Some(&wanted), None).await?;
-            let all = all.into_values().flatten().collect();
-            moved += u64::from(crate::store::move_log_tail(&mut tx, stroke, all).await?);
-        }
-        // Record ids are integers read from the database: safe to write into the statement.
-        let keep = kept_records.iter().map(i64::to_string).collect::<Vec<_>>().join(", ");
-        let sql = match keep.is_empty() {
-            true => "DELETE FROM stroke_log WHERE writer = $1".to_string(),
-            false => format!("DELETE FROM stroke_log WHERE writer = $1 AND id NOT IN ({keep})"),
-        };
-        deleted += sqlx::query(&sql).bind(writer).execute(&mut *tx).await?.rows_affected();
+    if confirmed.is_empty() {
+        return Ok((0, 0));
     }
+    // The whole log, read once: a dead writer's stroke may continue another writer's entries.
+    let log = crate::store::log::read_log(&mut tx, None, None).await?;
+    let (mut moved, mut kept_records) = (0, HashSet::new());
+    for (stroke, entries) in log {
+        let is_dead = |(_, writer, _): &(i64, i64, _)| confirmed.contains(writer);
+        if !entries.iter().any(is_dead) {
+            continue;
+        }
+        let (a, b) = lock_key(stroke);
+        let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
+            .bind(a)
+            .bind(b)
+            .fetch_one(&mut *tx)
+            .await?;
+        if free {
+            moved += u64::from(crate::store::move_log_tail(&mut tx, stroke, entries).await?);
+        } else {
+            kept_records.extend(entries.iter().filter(|e| is_dead(e)).map(|(id, _, _)| *id));
+        }
+    }
+    // Writer keys and record ids are integers read from the database: safe to write into the
+    // statement.
+    fn list<'a>(ids: impl IntoIterator<Item = &'a i64>) -> String {
+        ids.into_iter().map(i64::to_string).collect::<Vec<_>>().join(", ")
+    }
+    let mut sql = format!("DELETE FROM stroke_log WHERE writer IN ({})", list(&confirmed));
+    if !kept_records.is_empty() {
+        sql += &format!(" AND id NOT IN ({})", list(&kept_records));
+    }
+    let deleted = sqlx::query(&sql).execute(&mut *tx).await?.rows_affected();
     tx.commit().await?;
     Ok((moved, deleted))
 }

@@ -14,7 +14,7 @@ use super::connection::{AfterCommit, Connection, Decided};
 use super::error::ConnError;
 use crate::fanout::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
-use crate::store::{Committed, StrokeRow, WriteError, WriteOp};
+use crate::store::{StrokeRow, WriteError, WriteOp};
 
 /// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
 type Resumed = (Vec<ResumeState>, Vec<(StrokeId, Vec<Kept>)>);
@@ -254,7 +254,7 @@ impl Connection {
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
                 self.strokes.insert(stroke, StrokeState::new(params));
                 let after = AfterCommit::Ack { stroke, upto_seq: 0, retained: Decided::default() };
-                self.queue_write(pending, after);
+                self.pending.push(pending, after);
                 Ok(())
             }
         }
@@ -323,7 +323,7 @@ impl Connection {
                     .submit_with(vec![WriteOp::Append { stroke, seq, samples }], events)
                     .await;
                 let retained = Decided { first: first_kept, kept };
-                self.queue_write(pending, AfterCommit::Ack { stroke, upto_seq, retained });
+                self.pending.push(pending, AfterCommit::Ack { stroke, upto_seq, retained });
             }
         }
         Ok(())
@@ -362,7 +362,7 @@ impl Connection {
         ));
         let pending =
             self.state.writer.submit_with(vec![WriteOp::Finish { stroke, kept }], events).await;
-        self.queue_write(pending, AfterCommit::Done { stroke, n_retained, retained });
+        self.pending.push(pending, AfterCommit::Done { stroke, n_retained, retained });
         Ok(())
     }
 
@@ -443,10 +443,6 @@ impl Connection {
             self.session,
             EventKind::Retained { participant, stroke, first, points },
         ))
-    }
-
-    fn queue_write(&mut self, pending: Committed, after: AfterCommit) {
-        self.pending.push(pending, after);
     }
 }
 
