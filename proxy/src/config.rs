@@ -20,6 +20,16 @@ pub enum SqliteSync {
     Full,
 }
 
+/// A SQLite page size: a power of two from 512 to 65536, as SQLite takes.
+fn page_size(text: &str) -> Result<u32, String> {
+    let size: u32 = text.parse().map_err(|_| format!("{text:?} is not a number of bytes"))?;
+    if size.is_power_of_two() && (512..=65536).contains(&size) {
+        Ok(size)
+    } else {
+        Err(format!("{size} is not a power of two from 512 to 65536"))
+    }
+}
+
 /// A database URL whose password never reaches a log or an error message: `Display` and
 /// `Debug` show it with the password (of the user info, or a `password` parameter) as `***`;
 /// [`DatabaseUrl::expose`] gives the whole URL to the code that connects.
@@ -113,6 +123,12 @@ pub struct Config {
     /// SQLite durability: `normal` (survives a killed process) or `full` (also a power cut).
     #[arg(long, env = "PENMESH_SQLITE_SYNCHRONOUS", value_enum, default_value_t = SqliteSync::Normal)]
     pub sqlite_synchronous: SqliteSync,
+
+    /// SQLite page size in bytes (a power of two, 512 to 65536) of a database this proxy
+    /// creates; an existing file keeps its own. Every commit writes whole pages, so small
+    /// pages write less per commit (see `docs/storage.md`).
+    #[arg(long, env = "PENMESH_SQLITE_PAGE_SIZE", default_value_t = 1024, value_parser = page_size)]
+    pub sqlite_page_size: u32,
 
     /// Database connections for reads and HTTP writes (the group-commit writer has its own).
     #[arg(long, env = "PENMESH_DB_MAX_CONNECTIONS", default_value_t = 8)]
@@ -507,5 +523,17 @@ mod tests {
             assert!(err.contains(named), "{flag} {value}: {err}");
         }
         assert!(Config::defaults().check().is_ok());
+    }
+
+    #[test]
+    fn a_sqlite_page_size_sqlite_cannot_take_is_refused() {
+        for bad in ["3000", "256", "131072", "1k"] {
+            let setting = format!("--sqlite-page-size={bad}");
+            let err = load_without_env(&["penmesh-proxy", &setting]).unwrap_err().to_string();
+            assert!(err.contains("--sqlite-page-size"), "{bad}: {err}");
+        }
+        let config = load_without_env(&["penmesh-proxy", "--sqlite-page-size=4096"]).unwrap();
+        assert_eq!(config.sqlite_page_size, 4096);
+        assert_eq!(Config::defaults().sqlite_page_size, 1024);
     }
 }

@@ -38,7 +38,8 @@ impl StrokeLog {
     /// A stroke that has just started: nothing kept, nothing sent.
     pub(super) fn new(index: usize, device: String, resample: f64) -> StrokeLog {
         StrokeLog {
-            id: Uuid::new_v4(),
+            // Time-ordered (UUIDv7): the database's indexes of stroke ids grow at their end.
+            id: Uuid::now_v7(),
             index,
             device,
             resampler: Resampler::new(resample),

@@ -46,6 +46,8 @@ pub struct Store {
     /// How the pool's connections are opened, for the writer's own (see `open_write_connection`).
     options: AnyConnectOptions,
     synchronous: &'static str,
+    /// `--sqlite-page-size`: taken by a database file only when it is created.
+    page_size: u32,
     /// The longest one database round trip may take (`--db-timeout-ms`): taking a pool
     /// connection, and the writer's transactions.
     deadline: Duration,
@@ -197,6 +199,7 @@ impl Store {
             SqliteSync::Normal => "NORMAL",
             SqliteSync::Full => "FULL",
         };
+        let page_size = config.sqlite_page_size;
         let deadline = Duration::from_millis(config.db_timeout_ms);
         let pool = AnyPoolOptions::new()
             .max_connections(config.db_max_connections.max(1))
@@ -204,7 +207,7 @@ impl Store {
             .after_connect(move |conn, _meta| {
                 Box::pin(async move {
                     if backend == Backend::Sqlite {
-                        conn.execute(sqlite_settings(synchronous).as_str()).await?;
+                        conn.execute(sqlite_settings(synchronous, page_size).as_str()).await?;
                     }
                     Ok(())
                 })
@@ -230,7 +233,7 @@ impl Store {
             }
         }
         .context("applying migrations")?;
-        Ok(Store { pool, backend, options, synchronous, deadline })
+        Ok(Store { pool, backend, options, synchronous, page_size, deadline })
     }
 
     /// Opens the group-commit writer's connection, outside the pool. With SQLite, sqlx runs each
@@ -251,11 +254,15 @@ impl Store {
         let mut conn = AnyConnection::connect_with(&self.options).await?;
         if self.backend == Backend::Sqlite {
             let settings = format!(
-                "{} PRAGMA temp_store = MEMORY; PRAGMA cache_size = -32768; \
-                 PRAGMA wal_autocheckpoint = 16384;",
-                sqlite_settings(self.synchronous)
+                "{} PRAGMA temp_store = MEMORY; PRAGMA cache_size = -32768;",
+                sqlite_settings(self.synchronous, self.page_size)
             );
             conn.execute(settings.as_str()).await?;
+            // The file's own page size, which an older file set, not this proxy.
+            let page_size: i64 =
+                sqlx::query_scalar("PRAGMA page_size").fetch_one(&mut conn).await?;
+            let pages = WRITER_CHECKPOINT_BYTES / page_size.max(512);
+            conn.execute(format!("PRAGMA wal_autocheckpoint = {pages};").as_str()).await?;
         }
         Ok(conn)
     }
@@ -698,6 +705,10 @@ pub async fn stored_pieces(
 pub(crate) const CHUNKS_SELECT: &str =
     "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $1 ORDER BY seq";
 
+/// How large the SQLite write-ahead log grows before the writer checkpoints it itself (64 MB,
+/// 16,384 pages of 4 KB).
+const WRITER_CHECKPOINT_BYTES: i64 = 64 << 20;
+
 /// How often the SQLite checkpointer copies the write-ahead log back into the database.
 const CHECKPOINT_INTERVAL: Duration = Duration::from_millis(100);
 
@@ -705,7 +716,7 @@ const CHECKPOINT_INTERVAL: Duration = Duration::from_millis(100);
 /// the group-commit writer does not do it on its own critical path. By default SQLite
 /// checkpoints at the end of a commit once the log holds 1,000 pages; under 500 pens that was a
 /// 4 MB copy and an fsync every tenth commit, delaying every request queued behind it. The
-/// writer's connection raises that to 16,384 pages ([`Store::open_write_connection`]) and still
+/// writer's connection raises that to [`WRITER_CHECKPOINT_BYTES`] ([`Store::open_write_connection`]) and still
 /// checkpoints there (only it can restart the log from the beginning), but by then the pages
 /// are already copied and what is left is short. Every 100 ms rather than every second: at 1 s
 /// the SQLite threads spent 10 % less CPU under 500 pens, but p99 latency rose from 150 to
@@ -802,9 +813,10 @@ fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
 }
 
 /// The settings of every SQLite connection.
-fn sqlite_settings(synchronous: &str) -> String {
+fn sqlite_settings(synchronous: &str, page_size: u32) -> String {
+    // The page size first: it has to be set before `journal_mode` writes a new file's header.
     format!(
-        "PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; PRAGMA synchronous={synchronous}; \
+        "PRAGMA page_size={page_size}; PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; PRAGMA synchronous={synchronous}; \
          PRAGMA foreign_keys=ON;"
     )
 }
@@ -841,6 +853,30 @@ mod tests {
                 .to_string()
                 .contains("stored params")
         );
+    }
+
+    // The page size is the new file's; a file keeps the one it was made with.
+    #[tokio::test]
+    async fn a_database_is_made_with_the_page_size_set_and_keeps_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let url = format!("sqlite://{}", dir.path().join("p.db").display());
+        let config = |page_size| Config {
+            database_url: url.clone().into(),
+            sqlite_page_size: page_size,
+            ..Config::defaults()
+        };
+        let page_size = |store: Store| async move {
+            let mut conn = store.open_write_connection().await.unwrap();
+            let size: i64 =
+                sqlx::query_scalar("PRAGMA page_size").fetch_one(&mut conn).await.unwrap();
+            let pages: i64 =
+                sqlx::query_scalar("PRAGMA wal_autocheckpoint").fetch_one(&mut conn).await.unwrap();
+            assert_eq!(size * pages, WRITER_CHECKPOINT_BYTES, "the writer's checkpoint in bytes");
+            store.pool().close().await;
+            size
+        };
+        assert_eq!(page_size(Store::connect(&config(2048)).await.unwrap()).await, 2048);
+        assert_eq!(page_size(Store::connect(&config(1024)).await.unwrap()).await, 2048);
     }
 
     #[test]

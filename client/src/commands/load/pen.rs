@@ -223,7 +223,8 @@ async fn draw(
                     && result.begun < shared.max_strokes
                 {
                     let samples = shared.pool[(pen_idx * 7 + result.begun as usize) % shared.pool.len()].clone();
-                    let id = Uuid::new_v4();
+                    // Time-ordered, as the native client's (`live::stroke_log`).
+                    let id = Uuid::now_v7();
                     feed(ws, &ClientMessage::StrokeBegin(StrokeBegin {
                         stroke: id,
                         brush: Brush::default(),
