@@ -412,18 +412,64 @@ async fn reap(store: &Store) -> anyhow::Result<usize> {
     .fetch_all(&mut *tx)
     .await?;
     let mut events = Vec::with_capacity(rows.len());
+    let mut drawers = HashSet::new();
     for row in &rows {
         let uuid = |column| anyhow::Ok(Uuid::parse_str(&row.try_get::<String, _>(column)?)?);
+        let (session, participant) = (uuid("session_id")?, uuid("participant")?);
+        drawers.insert((session, participant));
         events.push(SessionEvent::new(
-            uuid("session_id")?,
-            EventKind::Left { participant: uuid("participant")?, connection: uuid("connection")? },
+            session,
+            EventKind::Left { participant, connection: uuid("connection")? },
         ));
+    }
+    for (session, participant) in drawers {
+        interrupt_undrawn(&mut tx, session, participant).await?;
     }
     if !events.is_empty() {
         notify(&mut tx, &events).await?;
     }
     tx.commit().await?;
     Ok(events.len())
+}
+
+/// Marks `interrupted` the strokes of `participant` in `session` left `open` by a replica that
+/// died (as a connection that ends marks its own, and SQLite all of them at start), except
+/// those being drawn: this transaction takes each stroke's lock, which the replica drawing it
+/// holds (the participant may be on another replica too, and have resumed it there). Their
+/// samples still in the dead replica's append log stay readable there until [`reap_log`]
+/// moves them.
+async fn interrupt_undrawn(
+    conn: &mut sqlx::AnyConnection,
+    session: Uuid,
+    participant: Uuid,
+) -> anyhow::Result<()> {
+    let open: Vec<String> = sqlx::query_scalar(
+        "SELECT id FROM strokes WHERE session_id = $1 AND participant = $2 AND status = 'open'",
+    )
+    .bind(session.to_string())
+    .bind(participant.to_string())
+    .fetch_all(&mut *conn)
+    .await?;
+    for id in open {
+        let (a, b) = lock_key(Uuid::parse_str(&id)?);
+        let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
+            .bind(a)
+            .bind(b)
+            .fetch_one(&mut *conn)
+            .await?;
+        if free {
+            sqlx::query(
+                "UPDATE strokes SET status = 'interrupted', updated_at = $1 \
+                 WHERE id = $2 AND status = 'open'",
+            )
+            .bind(crate::store::now_ms())
+            .bind(&id)
+            .execute(&mut *conn)
+            .await?;
+            metrics::counter!("penmesh_strokes_total", "event" => "interrupted").increment(1);
+        }
+    }
+    Ok(())
 }
 
 /// SQL that is true while the replica whose lock key is `key` (an SQL expression) holds its

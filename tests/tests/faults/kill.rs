@@ -69,6 +69,12 @@ async fn the_append_log_of_a_killed_proxy_is_emptied_and_its_samples_stay_readab
     let chunks = format!("SELECT COUNT(*) FROM stroke_chunks WHERE stroke_id = '{stroke}'");
     assert!(count_rows(&db, &chunks).await >= 1, "the samples are in stroke_chunks");
     assert_eq!(raw_samples(&proxy, &session, stroke).await, samples);
+    // And nobody draws it any more: `interrupted`, not `open` for ever (PostgreSQL: the
+    // reaper, once the killed replica's participants have left).
+    wait_for(&proxy, "the killed proxy's stroke interrupted", || async {
+        has_status(&db, stroke, "interrupted").await
+    })
+    .await;
 }
 
 /// The same, with one of the killed proxy's strokes resumed on the next proxy at once: while
@@ -116,6 +122,12 @@ async fn a_stroke_resumed_after_the_kill_is_left_to_its_new_writer_while_the_log
         sent += 6;
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+    // The stroke nobody draws is `interrupted`; the one drawn again is `open`.
+    wait_for(&proxy, "the stroke nobody draws interrupted", || async {
+        has_status(&db, other, "interrupted").await
+    })
+    .await;
+    assert!(has_status(&db, held, "open").await, "the stroke drawn again is open");
     for (i, batch) in samples[sent..].chunks(6).enumerate() {
         ws.points(held, (sent + i * 6) as u64, batch).await;
     }
@@ -129,6 +141,11 @@ async fn a_stroke_resumed_after_the_kill_is_left_to_its_new_writer_while_the_log
     .await;
     assert_eq!(raw_samples(&proxy, &session, held).await, samples);
     assert_eq!(raw_samples(&proxy, &session, other).await, samples[..30]);
+}
+
+async fn has_status(db: &TestDatabase, stroke: uuid::Uuid, status: &str) -> bool {
+    let sql = format!("SELECT COUNT(*) FROM strokes WHERE id = '{stroke}' AND status = '{status}'");
+    count_rows(db, &sql).await == 1
 }
 
 /// Polls `done` for up to 20 s (a few of the PostgreSQL reaper's rounds).

@@ -76,7 +76,9 @@ async fn a_replica_killed_mid_stroke_is_resumed_on_the_other_and_everyone_ends_e
         Participant::join_resuming(&b, &session, "drawer again", &key, vec![cut]).await;
     assert_eq!(drawer.welcome.participant, old_drawer, "the same key: the same participant");
     let resume = drawer.welcome.resume[0].clone();
-    assert_eq!(resume.status, StrokeStatus::Open, "{resume:?}");
+    // `interrupted` once a reaper round has seen A's lock gone and nobody drawing it (a race
+    // with this resume), `open` before that: resumable either way.
+    assert!(matches!(resume.status, StrokeStatus::Open | StrokeStatus::Interrupted), "{resume:?}");
     let next = resume.next_seq as usize;
     assert!((120..=160).contains(&next), "resumes from {next}");
     drawer.send_points(cut, &cut_samples, next, 300, 6).await;
