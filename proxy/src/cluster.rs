@@ -432,6 +432,18 @@ async fn reap(store: &Store) -> anyhow::Result<usize> {
     Ok(events.len())
 }
 
+/// Takes `stroke`'s lock until the end of the transaction on `conn`, if no replica holds it,
+/// i.e. nobody is drawing the stroke; `false` when one does.
+async fn nobody_draws(conn: &mut sqlx::AnyConnection, stroke: Uuid) -> anyhow::Result<bool> {
+    let (a, b) = lock_key(stroke);
+    let free = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
+        .bind(a)
+        .bind(b)
+        .fetch_one(&mut *conn)
+        .await?;
+    Ok(free)
+}
+
 /// Marks `interrupted` the strokes of `participant` in `session` left `open` by a replica that
 /// died (as a connection that ends marks its own, and SQLite all of them at start), except
 /// those being drawn: this transaction takes each stroke's lock, which the replica drawing it
@@ -451,13 +463,7 @@ async fn interrupt_undrawn(
     .fetch_all(&mut *conn)
     .await?;
     for id in open {
-        let (a, b) = lock_key(Uuid::parse_str(&id)?);
-        let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
-            .bind(a)
-            .bind(b)
-            .fetch_one(&mut *conn)
-            .await?;
-        if free {
+        if nobody_draws(conn, Uuid::parse_str(&id)?).await? {
             sqlx::query(
                 "UPDATE strokes SET status = 'interrupted', updated_at = $1 \
                  WHERE id = $2 AND status = 'open'",
@@ -516,13 +522,7 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
         if !entries.iter().any(is_dead) {
             continue;
         }
-        let (a, b) = lock_key(stroke);
-        let free: bool = sqlx::query_scalar("SELECT pg_try_advisory_xact_lock($1, $2)")
-            .bind(a)
-            .bind(b)
-            .fetch_one(&mut *tx)
-            .await?;
-        if free {
+        if nobody_draws(&mut tx, stroke).await? {
             moved += u64::from(crate::store::move_log_tail(&mut tx, stroke, entries).await?);
         } else {
             kept_records.extend(entries.iter().filter(|e| is_dead(e)).map(|(id, _, _)| *id));
