@@ -233,6 +233,17 @@ impl Store {
             }
         }
         .context("applying migrations")?;
+        if backend == Backend::Sqlite {
+            let size: i64 = sqlx::query_scalar("PRAGMA page_size").fetch_one(&pool).await?;
+            if size != i64::from(page_size) {
+                tracing::info!(
+                    file = size,
+                    setting = page_size,
+                    "the SQLite file keeps the page size it was made with; \
+                     --sqlite-page-size applies to new files"
+                );
+            }
+        }
         Ok(Store { pool, backend, options, synchronous, page_size, deadline })
     }
 
