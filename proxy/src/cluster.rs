@@ -464,7 +464,7 @@ async fn interrupt_undrawn(
     .await?;
     for id in open {
         if nobody_draws(conn, Uuid::parse_str(&id)?).await? {
-            sqlx::query(
+            let marked = sqlx::query(
                 "UPDATE strokes SET status = 'interrupted', updated_at = $1 \
                  WHERE id = $2 AND status = 'open'",
             )
@@ -472,7 +472,8 @@ async fn interrupt_undrawn(
             .bind(&id)
             .execute(&mut *conn)
             .await?;
-            metrics::counter!("penmesh_strokes_total", "event" => "interrupted").increment(1);
+            metrics::counter!("penmesh_strokes_total", "event" => "interrupted")
+                .increment(marked.rows_affected());
         }
     }
     Ok(())

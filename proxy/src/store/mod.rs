@@ -46,8 +46,8 @@ pub struct Store {
     /// How the pool's connections are opened, for the writer's own (see `open_write_connection`).
     options: AnyConnectOptions,
     synchronous: &'static str,
-    /// `--sqlite-page-size`: taken by a database file only when it is created.
-    page_size: u32,
+    /// SQLite: the file's page size (`--sqlite-page-size` when this proxy made the file).
+    page_size: i64,
     /// The longest one database round trip may take (`--db-timeout-ms`): taking a pool
     /// connection, and the writer's transactions.
     deadline: Duration,
@@ -233,17 +233,19 @@ impl Store {
             }
         }
         .context("applying migrations")?;
-        if backend == Backend::Sqlite {
-            let size: i64 = sqlx::query_scalar("PRAGMA page_size").fetch_one(&pool).await?;
-            if size != i64::from(page_size) {
-                tracing::info!(
-                    file = size,
-                    setting = page_size,
-                    "the SQLite file keeps the page size it was made with; \
-                     --sqlite-page-size applies to new files"
-                );
-            }
+        let file_page_size = match backend {
+            Backend::Sqlite => sqlx::query_scalar("PRAGMA page_size").fetch_one(&pool).await?,
+            Backend::Postgres => i64::from(page_size),
+        };
+        if file_page_size != i64::from(page_size) {
+            tracing::info!(
+                file = file_page_size,
+                setting = page_size,
+                "the SQLite file keeps the page size it was made with; \
+                 --sqlite-page-size applies to new files"
+            );
         }
+        let page_size = file_page_size;
         Ok(Store { pool, backend, options, synchronous, page_size, deadline })
     }
 
@@ -265,15 +267,12 @@ impl Store {
         let mut conn = AnyConnection::connect_with(&self.options).await?;
         if self.backend == Backend::Sqlite {
             let settings = format!(
-                "{} PRAGMA temp_store = MEMORY; PRAGMA cache_size = -32768;",
-                sqlite_settings(self.synchronous, self.page_size)
+                "{} PRAGMA temp_store = MEMORY; PRAGMA cache_size = -32768; \
+                 PRAGMA wal_autocheckpoint = {};",
+                sqlite_settings(self.synchronous, self.page_size),
+                WRITER_CHECKPOINT_BYTES / self.page_size
             );
             conn.execute(settings.as_str()).await?;
-            // The file's own page size, which an older file set, not this proxy.
-            let page_size: i64 =
-                sqlx::query_scalar("PRAGMA page_size").fetch_one(&mut conn).await?;
-            let pages = WRITER_CHECKPOINT_BYTES / page_size.max(512);
-            conn.execute(format!("PRAGMA wal_autocheckpoint = {pages};").as_str()).await?;
         }
         Ok(conn)
     }
@@ -824,7 +823,7 @@ fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeRow> {
 }
 
 /// The settings of every SQLite connection.
-fn sqlite_settings(synchronous: &str, page_size: u32) -> String {
+fn sqlite_settings(synchronous: &str, page_size: impl std::fmt::Display) -> String {
     // The page size first: it has to be set before `journal_mode` writes a new file's header.
     format!(
         "PRAGMA page_size={page_size}; PRAGMA journal_mode=WAL; PRAGMA busy_timeout=5000; PRAGMA synchronous={synchronous}; \
