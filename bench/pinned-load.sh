@@ -8,6 +8,7 @@
 # Usage: bench/pinned-load.sh OUT_DIR SECONDS PENS... [-- PROXY_ARG...]
 #   e.g. bench/pinned-load.sh docs/load 30 500 1000 1500
 #   PENMESH_TARGETS="proxy" (default "ceiling proxy") runs only some targets;
+#   PENMESH_CEILING_ARGS="--answer-task" passes settings to the ceiling (space-separated);
 #   PENMESH_DATABASE_URL=postgres://... runs the proxy on PostgreSQL (a fresh database each run
 #   is the caller's business; the database server is then not pinned and not counted).
 set -euo pipefail
@@ -35,6 +36,8 @@ run_one() { # TARGET PENS
     rm -f "$work"/penmesh.db*
     if [ "$target" = proxy ]; then
         db_args=(--database-url "${PENMESH_DATABASE_URL:-sqlite://$work/penmesh.db}" "${proxy_args[@]}")
+    else
+        for arg in ${PENMESH_CEILING_ARGS:-}; do db_args+=("--ceiling-arg=$arg"); done
     fi
     # The load tool on core 1, the server it spawns on core 0.
     taskset -c 1 "$penmesh" load "--spawn-$target" "${db_args[@]}" --clients "$n" --rate 200 \

@@ -85,26 +85,24 @@ fn a_short_run_against_a_spawned_proxy_loses_nothing() {
     assert!(summary["server"]["peak_rss_kb"].as_u64().unwrap() > 0);
 }
 
-/// The ceiling answers the same protocol; there is nothing stored to count back.
+/// The ceiling answers the same protocol, in both of its ways of writing answers (at once, and
+/// through a queue and a task of its own as the proxy does); there is nothing stored to count back.
 #[test]
 fn a_short_run_against_the_ceiling_is_acknowledged() {
-    let dir = tempfile::tempdir().unwrap();
-    let json = dir.path().join("ceiling.json");
-    let output = penmesh(&[
-        "load",
-        "--spawn-ceiling",
-        "--clients",
-        "3",
-        "--duration",
-        "1",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
-    let summary = read_summary(&json);
-    assert_eq!(summary["target"], "ceiling");
-    let sent = summary["samples"]["sent"].as_u64().unwrap();
-    assert!(sent > 0);
-    assert_eq!(summary["samples"]["acknowledged"].as_u64(), Some(sent));
-    assert!(summary["samples"]["stored"].is_null());
+    for extra in [None, Some("--ceiling-arg=--answer-task")] {
+        let dir = tempfile::tempdir().unwrap();
+        let json = dir.path().join("ceiling.json");
+        let mut args =
+            vec!["load", "--spawn-ceiling", "--clients", "3", "--duration", "1", "--json"];
+        args.push(json.to_str().unwrap());
+        args.extend(extra);
+        let output = penmesh(&args);
+        assert!(output.status.success(), "{extra:?}: {}", stderr(&output));
+        let summary = read_summary(&json);
+        assert_eq!(summary["target"], "ceiling");
+        let sent = summary["samples"]["sent"].as_u64().unwrap();
+        assert!(sent > 0, "{extra:?}");
+        assert_eq!(summary["samples"]["acknowledged"].as_u64(), Some(sent), "{extra:?}");
+        assert!(summary["samples"]["stored"].is_null());
+    }
 }

@@ -6,6 +6,10 @@
 //! `StrokeBegin` and to every `Points` batch, `StrokeDone` to `StrokeEnd`, `Pong` to `Ping`.
 //! No token check, no ACUTS, no database, no fan-out. `POST /v1/sessions` hands out a session
 //! marked `"ceiling": true`, so the load tool knows there is nothing stored to count back.
+//!
+//! `--answer-task` answers the way the proxy does (`proxy/src/ws/outgoing.rs`): the socket split
+//! in two, the answers put in a bounded queue, and a task of its own writing them to the socket.
+//! Against the plain ceiling, that measures what this structure costs by itself.
 
 use anyhow::Context;
 use axum::Router;
@@ -16,6 +20,7 @@ use axum::response::Response;
 use axum::routing::{get, post};
 use axum::serve::ListenerExt;
 use clap::Args;
+use futures_util::{SinkExt, StreamExt};
 use penmesh::protocol::{
     Ack, ClientMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION, ServerMessage, StrokeDone,
     Welcome, decode_client, encode_server,
@@ -30,6 +35,9 @@ pub struct CeilingArgs {
     /// Port to listen on (0 picks a free one; the address is printed).
     #[arg(long, default_value_t = 0)]
     pub port: u16,
+    /// Answer through a bounded queue and a writing task of its own, as the proxy does.
+    #[arg(long)]
+    pub answer_task: bool,
 }
 
 pub fn run(args: &CeilingArgs) -> anyhow::Result<()> {
@@ -44,12 +52,14 @@ pub fn run(args: &CeilingArgs) -> anyhow::Result<()> {
         println!("ceiling listening on http://{}", listener.local_addr()?);
         // TCP_NODELAY, as the proxy: no answer waits for the ACK of the one before.
         let listener = listener.tap_io(|tcp| drop(tcp.set_nodelay(true)));
-        axum::serve(listener, router()).await.context("serving")
+        axum::serve(listener, router(args.answer_task)).await.context("serving")
     })
 }
 
-/// The ceiling's routes: a session, the WebSocket and a health check.
-pub fn router() -> Router {
+/// The ceiling's routes: a session, the WebSocket and a health check. `answer_task`: see the
+/// module's comment.
+pub fn router(answer_task: bool) -> Router {
+    let upgrade = move |path: Path<Uuid>, ws: WebSocketUpgrade| upgrade(path, ws, answer_task);
     Router::new()
         .route("/v1/sessions", post(new_session))
         .route("/v1/sessions/{session}/ws", get(upgrade))
@@ -61,43 +71,87 @@ async fn new_session() -> (StatusCode, axum::Json<serde_json::Value>) {
     (StatusCode::CREATED, axum::Json(body))
 }
 
-async fn upgrade(Path(session): Path<Uuid>, ws: WebSocketUpgrade) -> Response {
+async fn upgrade(Path(session): Path<Uuid>, ws: WebSocketUpgrade, answer_task: bool) -> Response {
     // The proxy's read buffer (see proxy/src/ws/adapter.rs), so both measure the same stack.
-    ws.read_buffer_size(4 * 1024).on_upgrade(move |socket| serve(socket, session))
+    let ws = ws.read_buffer_size(4 * 1024);
+    if answer_task {
+        ws.on_upgrade(move |socket| serve_through_task(socket, session))
+    } else {
+        ws.on_upgrade(move |socket| serve(socket, session))
+    }
 }
 
 /// Decodes each binary frame and answers it; anything undecodable ends the connection.
 async fn serve(mut socket: WebSocket, session: Uuid) {
     while let Some(Ok(frame)) = socket.recv().await {
-        let bytes = match frame {
-            Message::Binary(bytes) => bytes,
-            Message::Close(_) => return,
-            _ => continue,
-        };
-        let Ok(msg) = decode_client(&bytes, MAX_FRAME_BYTES_DEFAULT) else { return };
-        let reply = match msg {
-            ClientMessage::Hello(_) => ServerMessage::Welcome(Welcome {
-                protocol: PROTOCOL_VERSION,
-                session,
-                participant: Uuid::new_v4(),
-                resume: Vec::new(),
-            }),
-            ClientMessage::StrokeBegin(begin) => {
-                ServerMessage::Ack(Ack { stroke: begin.stroke, upto_seq: 0 })
-            }
-            ClientMessage::Points(points) => ServerMessage::Ack(Ack {
-                stroke: points.stroke,
-                upto_seq: points.seq + points.points.0.len() as u64,
-            }),
-            ClientMessage::StrokeEnd(end) => ServerMessage::StrokeDone(StrokeDone {
-                stroke: end.stroke,
-                n_retained: 0,
-                url: format!("/v1/strokes/{}/simplified", end.stroke),
-            }),
-            ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
-        };
-        if socket.send(Message::Binary(encode_server(&reply).into())).await.is_err() {
+        let Some(reply) = answer(frame, session) else { return };
+        let Some(reply) = reply else { continue };
+        if socket.send(reply).await.is_err() {
             return;
         }
     }
+}
+
+/// [`serve`], with the answers written by a task of their own through a bounded queue (the
+/// proxy's default length), several per flush when they queue up, as the proxy's `forward`.
+async fn serve_through_task(socket: WebSocket, session: Uuid) {
+    let (mut sink, mut stream) = socket.split();
+    let (queue, mut answers) = tokio::sync::mpsc::channel::<Message>(1024);
+    let writer = tokio::spawn(async move {
+        while let Some(reply) = answers.recv().await {
+            if sink.feed(reply).await.is_err() {
+                return;
+            }
+            while let Ok(reply) = answers.try_recv() {
+                if sink.feed(reply).await.is_err() {
+                    return;
+                }
+            }
+            if sink.flush().await.is_err() {
+                return;
+            }
+        }
+    });
+    while let Some(Ok(frame)) = stream.next().await {
+        let Some(reply) = answer(frame, session) else { break };
+        let Some(reply) = reply else { continue };
+        if queue.try_send(reply).is_err() {
+            break;
+        }
+    }
+    drop(queue);
+    let _ = writer.await;
+}
+
+/// The answer to one frame: `None` ends the connection (a close, or a frame that does not
+/// decode), `Some(None)` is a frame with no answer.
+fn answer(frame: Message, session: Uuid) -> Option<Option<Message>> {
+    let bytes = match frame {
+        Message::Binary(bytes) => bytes,
+        Message::Close(_) => return None,
+        _ => return Some(None),
+    };
+    let msg = decode_client(&bytes, MAX_FRAME_BYTES_DEFAULT).ok()?;
+    let reply = match msg {
+        ClientMessage::Hello(_) => ServerMessage::Welcome(Welcome {
+            protocol: PROTOCOL_VERSION,
+            session,
+            participant: Uuid::new_v4(),
+            resume: Vec::new(),
+        }),
+        ClientMessage::StrokeBegin(begin) => {
+            ServerMessage::Ack(Ack { stroke: begin.stroke, upto_seq: 0 })
+        }
+        ClientMessage::Points(points) => ServerMessage::Ack(Ack {
+            stroke: points.stroke,
+            upto_seq: points.seq + points.points.0.len() as u64,
+        }),
+        ClientMessage::StrokeEnd(end) => ServerMessage::StrokeDone(StrokeDone {
+            stroke: end.stroke,
+            n_retained: 0,
+            url: format!("/v1/strokes/{}/simplified", end.stroke),
+        }),
+        ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
+    };
+    Some(Some(Message::Binary(encode_server(&reply).into())))
 }

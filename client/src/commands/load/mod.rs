@@ -57,6 +57,9 @@ pub struct LoadArgs {
     /// Extra setting for the spawned proxy, e.g. `--proxy-arg=--commit-interval-ms=5`.
     #[arg(long, value_name = "ARG", allow_hyphen_values = true)]
     pub proxy_arg: Vec<String>,
+    /// Extra setting for the spawned ceiling, e.g. `--ceiling-arg=--answer-task`.
+    #[arg(long, value_name = "ARG", allow_hyphen_values = true, requires = "spawn_ceiling")]
+    pub ceiling_arg: Vec<String>,
     /// Simulated pens, each with its own WebSocket.
     #[arg(long)]
     pub clients: usize,

@@ -59,7 +59,10 @@ pub(super) fn spawn_server(args: &LoadArgs, plan: &Plan) -> anyhow::Result<(Stri
             .args(["--idle-timeout-secs", &idle.to_string()])
             .args(&args.proxy_arg);
     } else {
-        command.arg("ceiling").args(["--host", "127.0.0.1", "--port", &port.to_string()]);
+        command
+            .arg("ceiling")
+            .args(["--host", "127.0.0.1", "--port", &port.to_string()])
+            .args(&args.ceiling_arg);
     }
     let log = fs_err::File::create(dir.path().join("server.log"))?.into_parts().0;
     command
