@@ -82,6 +82,12 @@ fn a_short_run_against_a_spawned_proxy_loses_nothing() {
     assert_eq!(strokes["done"], strokes["begun"]);
     assert_eq!(strokes["stored_done"], strokes["done"]);
     assert!(summary["latency_ms"]["sample_to_ack"]["count"].as_u64() == Some(sent));
+    // Every finished stroke's latency is counted once: ended by its pen, or by the run's end.
+    let done_count = |key: &str| summary["latency_ms"][key]["count"].as_u64().unwrap();
+    assert_eq!(
+        done_count("pen_up_to_stroke_done") + done_count("run_end_to_stroke_done"),
+        strokes["done"].as_u64().unwrap()
+    );
     assert!(summary["server"]["peak_rss_kb"].as_u64().unwrap() > 0);
 }
 

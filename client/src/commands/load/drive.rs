@@ -160,6 +160,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         total.done += r.done;
         total.ack_us.add(&r.ack_us).expect("same histogram bounds");
         total.done_us.add(&r.done_us).expect("same histogram bounds");
+        total.run_end_done_us.add(&r.run_end_done_us).expect("same histogram bounds");
         errors.count += r.errors.len() as u64;
         for e in r.errors {
             if errors.first.len() < 5 && !errors.first.contains(&e) {
@@ -232,6 +233,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         latency_ms: Latencies {
             sample_to_ack: Percentiles::of(&total.ack_us),
             pen_up_to_stroke_done: Percentiles::of(&total.done_us),
+            run_end_to_stroke_done: Percentiles::of(&total.run_end_done_us),
         },
         errors,
         server,

@@ -66,7 +66,10 @@ pub(super) struct PenResult {
     pub(super) done: u64,
     pub(super) errors: Vec<String>,
     pub(super) ack_us: Histogram<u64>,
+    /// Pen-up to `StrokeDone`, strokes the pen ended by itself.
     pub(super) done_us: Histogram<u64>,
+    /// The same for the strokes lifted because the run ended.
+    pub(super) run_end_done_us: Histogram<u64>,
 }
 
 impl PenResult {
@@ -81,6 +84,7 @@ impl PenResult {
             errors: Vec::new(),
             ack_us: histogram(),
             done_us: histogram(),
+            run_end_done_us: histogram(),
         }
     }
 }
@@ -201,7 +205,8 @@ async fn draw(
 ) -> anyhow::Result<()> {
     let counters = &shared.counters;
     let mut unacked: HashMap<Uuid, Unacked> = HashMap::new();
-    let mut pen_ups: HashMap<Uuid, Instant> = HashMap::new();
+    // When each ended stroke's `StrokeEnd` went, and whether the run's end lifted it.
+    let mut pen_ups: HashMap<Uuid, (Instant, bool)> = HashMap::new();
     let mut drawing: Option<Drawing> = None;
     // Pens start at different points of their rhythm, so batches do not all leave at once.
     let phase = shared.batch.mul_f64((pen_idx % 97) as f64 / 97.0);
@@ -261,7 +266,7 @@ async fn draw(
                 }
                 if end == d.samples.len() || lifting {
                     feed(ws, &ClientMessage::StrokeEnd(StrokeEnd { stroke: d.id, n_points: d.sent as u64 })).await?;
-                    pen_ups.insert(d.id, now);
+                    pen_ups.insert(d.id, (now, end < d.samples.len()));
                     drawing = None;
                     next_stroke_at = now + shared.pause;
                 }
@@ -286,8 +291,13 @@ async fn draw(
                         }
                     }
                     ServerMessage::StrokeDone(done) => {
-                        if let Some(up) = pen_ups.remove(&done.stroke) {
-                            let _ = result.done_us.record(elapsed_us(up, now));
+                        if let Some((up, by_run_end)) = pen_ups.remove(&done.stroke) {
+                            let latency = if by_run_end {
+                                &mut result.run_end_done_us
+                            } else {
+                                &mut result.done_us
+                            };
+                            let _ = latency.record(elapsed_us(up, now));
                             result.done += 1;
                             counters.done.fetch_add(1, Ordering::Relaxed);
                         }

@@ -69,7 +69,13 @@ pub struct Throughput {
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Latencies {
     pub sample_to_ack: Percentiles,
+    /// Strokes the pen ended by itself.
     pub pen_up_to_stroke_done: Percentiles,
+    /// Strokes still being drawn when the run ended, all lifted at once (a burst of every
+    /// pen's `StrokeEnd` within one batch interval, which a real session does not make): kept
+    /// apart so that it does not pass for the latency of ordinary pen-ups.
+    #[serde(default)]
+    pub run_end_to_stroke_done: Percentiles,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -140,9 +146,11 @@ pub(super) fn print_table(s: &Summary) {
         s.throughput.offered_per_s,
         s.throughput.window_s
     );
-    for (name, p) in
-        [("sample -> Ack", &lat.sample_to_ack), ("pen-up -> Done", &lat.pen_up_to_stroke_done)]
-    {
+    for (name, p) in [
+        ("sample -> Ack", &lat.sample_to_ack),
+        ("pen-up -> Done", &lat.pen_up_to_stroke_done),
+        ("run end -> Done", &lat.run_end_to_stroke_done),
+    ] {
         println!(
             "{name:<18}p50 {:.2} ms, p95 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} measured)",
             p.p50, p.p95, p.p99, p.max, p.count
