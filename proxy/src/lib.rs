@@ -33,7 +33,7 @@ pub use crate::state::AppState;
 pub use crate::store::{
     CommitFaults, Fault, decode_samples as decode_stored_samples, hash_token, stored_pieces,
 };
-pub use crate::ws::{Frame, ReadError, serve};
+pub use crate::ws::{Frame, ReadError, forward as forward_frames, serve, split as split_socket};
 
 /// Runs the proxy with `config` until it is stopped (SIGTERM, Ctrl-C), on a runtime of its own
 /// whose threads run [`Config::worker_nice`] steps below the priority of the calling thread,

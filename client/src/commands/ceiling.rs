@@ -7,8 +7,9 @@
 //! No token check, no ACUTS, no database, no fan-out. `POST /v1/sessions` hands out a session
 //! marked `"ceiling": true`, so the load tool knows there is nothing stored to count back.
 //!
-//! `--answer-task` answers the way the proxy does (`proxy/src/ws/outgoing.rs`): the socket split
-//! in two, the answers put in a bounded queue, and a task of its own writing them to the socket.
+//! `--answer-task` answers through the proxy's own pieces (`proxy/src/ws/adapter.rs`,
+//! `outgoing.rs`): the socket split in two, the answers in a bounded queue, and a task of its own
+//! writing them to the socket.
 //! Against the plain ceiling, that measures what this structure costs by itself.
 
 use anyhow::Context;
@@ -20,11 +21,12 @@ use axum::response::Response;
 use axum::routing::{get, post};
 use axum::serve::ListenerExt;
 use clap::Args;
-use futures_util::{SinkExt, StreamExt};
+use futures_util::StreamExt;
 use penmesh::protocol::{
     Ack, ClientMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION, ServerMessage, StrokeDone,
     Welcome, decode_client, encode_server,
 };
+use penmesh_proxy::Frame;
 use uuid::Uuid;
 
 #[derive(Debug, Args)]
@@ -84,38 +86,32 @@ async fn upgrade(Path(session): Path<Uuid>, ws: WebSocketUpgrade, answer_task: b
 /// Decodes each binary frame and answers it; anything undecodable ends the connection.
 async fn serve(mut socket: WebSocket, session: Uuid) {
     while let Some(Ok(frame)) = socket.recv().await {
-        let Some(reply) = answer(frame, session) else { return };
-        let Some(reply) = reply else { continue };
-        if socket.send(reply).await.is_err() {
+        let bytes = match frame {
+            Message::Binary(bytes) => bytes,
+            Message::Close(_) => return,
+            _ => continue,
+        };
+        let Some(reply) = answer(&bytes, session) else { return };
+        if socket.send(Message::Binary(reply.into())).await.is_err() {
             return;
         }
     }
 }
 
-/// [`serve`], with the answers written by a task of their own through a bounded queue (the
-/// proxy's default length), several per flush when they queue up, as the proxy's `forward`.
+/// [`serve`] through the proxy's own pieces: its socket adapter, a queue of the proxy's
+/// default length (`--outgoing-queue`), and its task that writes the queued frames.
 async fn serve_through_task(socket: WebSocket, session: Uuid) {
-    let (mut sink, mut stream) = socket.split();
-    let (queue, mut answers) = tokio::sync::mpsc::channel::<Message>(1024);
-    let writer = tokio::spawn(async move {
-        while let Some(reply) = answers.recv().await {
-            if sink.feed(reply).await.is_err() {
-                return;
-            }
-            while let Ok(reply) = answers.try_recv() {
-                if sink.feed(reply).await.is_err() {
-                    return;
-                }
-            }
-            if sink.flush().await.is_err() {
-                return;
-            }
-        }
-    });
+    let (sink, mut stream) = penmesh_proxy::split_socket(socket);
+    let (queue, frames) = tokio::sync::mpsc::channel(1024);
+    let writer = tokio::spawn(penmesh_proxy::forward_frames(frames, sink));
     while let Some(Ok(frame)) = stream.next().await {
-        let Some(reply) = answer(frame, session) else { break };
-        let Some(reply) = reply else { continue };
-        if queue.try_send(reply).is_err() {
+        let bytes = match frame {
+            Frame::Binary(bytes) => bytes,
+            Frame::Close(_) => break,
+            _ => continue,
+        };
+        let Some(reply) = answer(&bytes, session) else { break };
+        if queue.try_send(Frame::Binary(reply)).is_err() {
             break;
         }
     }
@@ -123,16 +119,9 @@ async fn serve_through_task(socket: WebSocket, session: Uuid) {
     let _ = writer.await;
 }
 
-/// The answer to one frame: `None` ends the connection (a close, or a frame that does not
-/// decode), `Some(None)` is a frame with no answer.
-fn answer(frame: Message, session: Uuid) -> Option<Option<Message>> {
-    let bytes = match frame {
-        Message::Binary(bytes) => bytes,
-        Message::Close(_) => return None,
-        _ => return Some(None),
-    };
-    let msg = decode_client(&bytes, MAX_FRAME_BYTES_DEFAULT).ok()?;
-    let reply = match msg {
+/// The encoded answer to a binary frame; `None` when it does not decode.
+fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
+    let reply = match decode_client(bytes, MAX_FRAME_BYTES_DEFAULT).ok()? {
         ClientMessage::Hello(_) => ServerMessage::Welcome(Welcome {
             protocol: PROTOCOL_VERSION,
             session,
@@ -153,5 +142,5 @@ fn answer(frame: Message, session: Uuid) -> Option<Option<Message>> {
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
     };
-    Some(Some(Message::Binary(encode_server(&reply).into())))
+    Some(encode_server(&reply))
 }

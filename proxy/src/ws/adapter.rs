@@ -57,10 +57,12 @@ pub async fn ws_handler(
 /// (the buffer grows for them).
 const READ_BUFFER_BYTES: usize = 4 * 1024;
 
-type FrameSink = std::pin::Pin<Box<dyn Sink<Frame, Error = axum::Error> + Send>>;
-type FrameStream = std::pin::Pin<Box<dyn Stream<Item = Result<Frame, ReadError>> + Send>>;
+pub type FrameSink = std::pin::Pin<Box<dyn Sink<Frame, Error = axum::Error> + Send>>;
+pub type FrameStream = std::pin::Pin<Box<dyn Stream<Item = Result<Frame, ReadError>> + Send>>;
 
-fn split(socket: WebSocket) -> (FrameSink, FrameStream) {
+/// axum's WebSocket as the `Sink`/`Stream` of [`Frame`]s the connection loop works with (public
+/// for the ceiling, which measures this structure alone).
+pub fn split(socket: WebSocket) -> (FrameSink, FrameStream) {
     let (sink, stream) = socket.split();
     let sink = sink.with(|frame: Frame| {
         futures_util::future::ready(Ok::<_, axum::Error>(match frame {

@@ -52,8 +52,9 @@ mod peers;
 mod serve;
 mod strokes;
 
-pub use adapter::ws_handler;
+pub use adapter::{split, ws_handler};
 pub use error::ReadError;
+pub use outgoing::forward;
 pub use serve::serve;
 
 /// A WebSocket frame, independent of the WebSocket library.

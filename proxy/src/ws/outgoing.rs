@@ -179,7 +179,7 @@ impl Outgoing {
 const FRAMES_PER_FLUSH: usize = 64;
 
 /// Writes queued frames to the socket until the queue closes or a close frame went out.
-pub(super) async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
+pub async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
     let mut sink = std::pin::pin!(sink);
     'frames: while let Some(frame) = rx.recv().await {
         let mut closing = matches!(frame, Frame::Close(_));
