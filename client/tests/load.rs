@@ -29,14 +29,17 @@ fn a_target_on_another_machine_is_refused() {
     }
 }
 
-/// Refuses zero pens, a ramp as long as the run and more sessions than pens.
+/// Refuses zero pens, a ramp as long as the run, more sessions than pens, and settings for a
+/// server the run does not start.
 #[test]
 fn settings_that_make_no_run_are_refused() {
     let base = ["load", "--url", "http://127.0.0.1:9", "--duration", "2"];
-    let cases: [(&[&str], &str); 3] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["--clients", "0"], "--clients 0"),
         (&["--clients", "2", "--ramp", "2"], "--ramp 2"),
         (&["--clients", "2", "--sessions", "3"], "--sessions 3"),
+        (&["--clients", "1", "--proxy-arg=--commit-interval-ms=5"], "add --spawn-proxy"),
+        (&["--clients", "1", "--ceiling-arg=--answer-task"], "add --spawn-ceiling"),
     ];
     for (extra, needle) in cases {
         let args: Vec<&str> = base.iter().chain(extra).copied().collect();

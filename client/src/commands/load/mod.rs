@@ -58,7 +58,7 @@ pub struct LoadArgs {
     #[arg(long, value_name = "ARG", allow_hyphen_values = true)]
     pub proxy_arg: Vec<String>,
     /// Extra setting for the spawned ceiling, e.g. `--ceiling-arg=--answer-task`.
-    #[arg(long, value_name = "ARG", allow_hyphen_values = true, requires = "spawn_ceiling")]
+    #[arg(long, value_name = "ARG", allow_hyphen_values = true)]
     pub ceiling_arg: Vec<String>,
     /// Simulated pens, each with its own WebSocket.
     #[arg(long)]
@@ -163,6 +163,15 @@ impl Plan {
             args.batch_ms
         );
         anyhow::ensure!(args.strokes != Some(0), "--strokes 0 draws nothing");
+        // Settings for a server this run does not start would be dropped without a word.
+        anyhow::ensure!(
+            args.proxy_arg.is_empty() || args.spawn_proxy,
+            "--proxy-arg is for the proxy this run starts: add --spawn-proxy"
+        );
+        anyhow::ensure!(
+            args.ceiling_arg.is_empty() || args.spawn_ceiling,
+            "--ceiling-arg is for the ceiling this run starts: add --spawn-ceiling"
+        );
         anyhow::ensure!(
             args.speed.is_finite() && args.speed > 0.0,
             "--speed {} must be a positive number of px/s",
