@@ -26,7 +26,8 @@ pub struct LiveArgs {
     /// Send as soon as this many kept samples wait.
     #[arg(long, default_value_t = crate::draw_options::DEFAULT_BATCH_SAMPLES)]
     pub batch_size: usize,
-    /// After a lost connection, keep trying to resume this many seconds.
+    /// Keep trying to reach the proxy (at start, or after a lost connection) and to fetch and
+    /// store each stroke's mesh this many seconds without progress.
     #[arg(long, default_value_t = crate::draw_options::DEFAULT_RETRY_SECS)]
     pub retry_for: u64,
     /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.

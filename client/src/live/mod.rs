@@ -40,8 +40,6 @@ use crate::input::{PenEvent, PenSource};
 use crate::reconstruct::{self, FinishedStroke, StrokeReport};
 use crate::wire::{self, OpenError, Socket};
 
-/// Attempts to reach a proxy that was never reached before giving up.
-const FIRST_CONNECT_ATTEMPTS: u32 = 3;
 /// Longest wait for a handshake or a `Welcome`.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 /// A ping keeps an idle connection (a pen at rest) from the proxy's idle timeout.
@@ -71,12 +69,29 @@ pub async fn draw(
         pen: Pen::Up,
         reconstructions: JoinSet::new(),
         last_progress: Instant::now(),
-        ever_connected: false,
     };
     live.run(events).await?;
+    // Every reconstruction runs to its end: one that fails (after its own retries) does not
+    // take the others' meshes with it.
     let mut reports = Vec::new();
+    let mut failures = Vec::new();
     while let Some(joined) = live.reconstructions.join_next().await {
-        reports.push(joined.context("a reconstruction task failed")??);
+        match joined.context("a reconstruction task failed").and_then(|r| r) {
+            Ok(report) => reports.push(report),
+            Err(err) => {
+                tracing::error!(error = %format!("{err:#}"), "a stroke is stored without its mesh");
+                failures.push(format!("{err:#}"));
+            }
+        }
+    }
+    if !failures.is_empty() {
+        anyhow::bail!(
+            "{} of {} strokes are stored without their mesh (the other {} with theirs): {}",
+            failures.len(),
+            failures.len() + reports.len(),
+            reports.len(),
+            failures.join("; ")
+        );
     }
     reports.sort_by_key(|r| r.index);
     Ok(reports)
@@ -124,8 +139,9 @@ struct Live {
     strokes: Vec<StrokeLog>,
     pen: Pen,
     reconstructions: JoinSet<anyhow::Result<StrokeReport>>,
+    /// When the proxy last took something of ours (or when drawing began): the live path
+    /// gives up only after `retry_for` without it.
     last_progress: Instant,
-    ever_connected: bool,
 }
 
 impl Live {
@@ -136,7 +152,6 @@ impl Live {
         let mut link: Option<Link> = None;
         let mut source_open = true;
         let mut backoff = Backoff::default();
-        let mut attempts = 0u32;
         let mut retry_at = Instant::now();
         let mut interrupts = self.options.interrupts.clone();
         let mut tick =
@@ -150,25 +165,22 @@ impl Live {
                 return Ok(());
             }
             if link.is_none() && Instant::now() >= retry_at {
-                attempts += 1;
                 match self.connect().await {
                     Ok(new_link) => {
                         tracing::info!(name = %self.options.name, "connected");
-                        self.ever_connected = true;
                         self.last_progress = Instant::now();
                         backoff.reset();
-                        attempts = 0;
                         link = Some(new_link);
                     }
                     Err(ConnectError::Fatal(err)) => return Err(err),
+                    // The first connection too: a proxy busy with a crowd joining, or starting
+                    // up, is waited for with the same backoff as a lost one.
                     Err(ConnectError::Transient(err)) => {
-                        let gave_up = if self.ever_connected {
-                            self.last_progress.elapsed() >= self.options.retry_for
-                        } else {
-                            attempts >= FIRST_CONNECT_ATTEMPTS
-                        };
-                        if gave_up {
-                            return Err(err);
+                        if self.last_progress.elapsed() >= self.options.retry_for {
+                            return Err(err.context(format!(
+                                "could not reach the proxy within {} s",
+                                self.options.retry_for.as_secs()
+                            )));
                         }
                         tracing::info!(error = %format!("{err:#}"), retry_in_ms = backoff.peek().as_millis() as u64, "connection failed");
                         retry_at = Instant::now() + backoff.next_delay();
@@ -228,13 +240,6 @@ impl Live {
                             self.lost(&mut link, err);
                             retry_at = Instant::now() + backoff.peek();
                         }
-                    }
-                    if link.is_none() && self.ever_connected && self.last_progress.elapsed() >= self.options.retry_for {
-                        anyhow::bail!(
-                            "lost the connection to {} and could not resume within {} s",
-                            self.endpoint.base,
-                            self.options.retry_for.as_secs()
-                        );
                     }
                 }
                 _ = tokio::time::sleep_until(retry_at), if link.is_none() => {}

@@ -45,10 +45,11 @@ fn a_missing_input_file_is_named() {
 
 #[test]
 fn an_unreachable_server_is_named() {
-    // Port 9 (discard) on the loopback: nothing listens there.
-    let out = run(draw_to("http://127.0.0.1:9").args(["--synth", "leaf"]));
+    // Port 9 (discard) on the loopback: nothing listens there. The client keeps trying for
+    // `--retry-for` seconds, as it does for a proxy that is starting or busy.
+    let out = run(draw_to("http://127.0.0.1:9").args(["--synth", "leaf", "--retry-for", "1"]));
 
-    assert_one_error_line(&out, &["cannot connect", "127.0.0.1:9"]);
+    assert_one_error_line(&out, &["could not reach the proxy within 1 s", "127.0.0.1:9"]);
 }
 
 #[test]

@@ -8,7 +8,7 @@
 pub(crate) mod log;
 mod writer;
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::str::FromStr;
 use std::time::Duration;
 
@@ -519,14 +519,20 @@ impl Store {
     /// retained from what is committed so far, rebuilt by replaying it), as events in order.
     /// A stroke that cannot be read is left out and named in `unreadable`; it does not hide
     /// the others.
+    ///
+    /// It reads through one pooled connection, taken once: a reader that holds a connection
+    /// while it waits for a second one deadlocks the pool when as many newcomers arrive at
+    /// once as the pool has connections (issue 25's join storm). Its queries are a fixed few,
+    /// whatever the number of strokes.
     pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
+        let mut conn = self.pool.acquire().await?;
         let mut history = SessionHistory::default();
         let present = sqlx::query(
             "SELECT connection, participant, name FROM participants \
              WHERE session_id = $1 AND left_at IS NULL ORDER BY joined_at, connection",
         )
         .bind(session.to_string())
-        .fetch_all(&self.pool)
+        .fetch_all(&mut *conn)
         .await?;
         for row in present {
             history.events.push(SessionEvent::new(
@@ -542,19 +548,40 @@ impl Store {
             "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
         ))
         .bind(session.to_string())
-        .fetch_all(&self.pool)
+        .fetch_all(&mut *conn)
         .await?;
         let meshes = sqlx::query(
             "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
              WHERE s.session_id = $1",
         )
         .bind(session.to_string())
-        .fetch_all(&self.pool)
+        .fetch_all(&mut *conn)
         .await?;
-        let mut mesh_at = std::collections::HashMap::new();
+        let mut mesh_at = HashMap::new();
         for row in meshes {
             let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
             mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
+        }
+        // The finished strokes' simplified samples, in one query; a row that cannot be
+        // decoded is reported with its stroke below.
+        let simplified_rows = sqlx::query(
+            "SELECT sm.stroke_id, sm.layout, sm.data FROM simplified sm \
+             JOIN strokes s ON s.id = sm.stroke_id WHERE s.session_id = $1",
+        )
+        .bind(session.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+        let mut simplified = HashMap::new();
+        for row in simplified_rows {
+            let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+            let samples = (|| {
+                let data: Vec<u8> = row.try_get("data")?;
+                decode_samples(row.try_get("layout")?, &data)
+            })();
+            simplified.insert(
+                stroke,
+                samples.with_context(|| format!("stroke {stroke}: simplified samples")),
+            );
         }
         // The log, once, for the strokes in progress (a stroke whose row cannot be read is
         // reported below).
@@ -564,14 +591,14 @@ impl Store {
             .filter(|r| r.status != StrokeStatus::Done)
             .map(|r| r.id)
             .collect();
-        let mut conn = self.pool.acquire().await?;
         let log = if open.is_empty() {
             log::StrokeEntries::new()
         } else {
             log::read_log(&mut conn, Some(&open), None).await?
         };
+        let stored = StoredHistory { mesh_at, simplified, log };
         for row in &strokes {
-            match self.stroke_history(&mut conn, session, row, &mesh_at, &log).await {
+            match self.stroke_history(&mut conn, session, row, &stored).await {
                 Ok(events) => history.events.extend(events),
                 Err(err) => {
                     let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
@@ -589,8 +616,7 @@ impl Store {
         conn: &mut AnyConnection,
         session: Uuid,
         row: &sqlx::any::AnyRow,
-        mesh_at: &std::collections::HashMap<Uuid, i64>,
-        log: &log::StrokeEntries,
+        stored: &StoredHistory,
     ) -> anyhow::Result<Vec<SessionEvent>> {
         let row = stroke_from_row(row)?;
         let (participant, stroke) = (row.participant, row.id);
@@ -600,9 +626,13 @@ impl Store {
         )];
         let done = row.status == StrokeStatus::Done;
         let points: Vec<Sample> = if done {
-            self.simplified(stroke).await?.map(|s| s.samples).unwrap_or_default()
+            match stored.simplified.get(&stroke) {
+                Some(Ok(samples)) => samples.clone(),
+                Some(Err(err)) => anyhow::bail!("{err:#}"),
+                None => Vec::new(),
+            }
         } else {
-            let raw = self.raw_samples_with(conn, stroke, log).await?;
+            let raw = self.raw_samples_with(conn, stroke, &stored.log).await?;
             crate::ingest::StrokeState::replay(row.params, &raw)
                 .kept()
                 .iter()
@@ -621,7 +651,7 @@ impl Store {
                 session,
                 EventKind::StrokeDone { participant, stroke, n_retained },
             ));
-            if let Some(&created_at) = mesh_at.get(&stroke) {
+            if let Some(&created_at) = stored.mesh_at.get(&stroke) {
                 events.push(SessionEvent::new(
                     session,
                     EventKind::Mesh { participant, stroke, created_at },
@@ -630,6 +660,16 @@ impl Store {
         }
         Ok(events)
     }
+}
+
+/// What [`Store::session_history`] reads for all of a session's strokes at once.
+struct StoredHistory {
+    /// When each stroke's mesh was stored.
+    mesh_at: HashMap<Uuid, i64>,
+    /// The finished strokes' simplified samples (or why they cannot be read).
+    simplified: HashMap<Uuid, anyhow::Result<Vec<Sample>>>,
+    /// The append log's entries of the strokes in progress.
+    log: log::StrokeEntries,
 }
 
 /// Moves the samples of `stroke` that only its log `entries` hold into `stroke_chunks`, as one
