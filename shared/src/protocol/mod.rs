@@ -49,6 +49,23 @@ pub const KEY_MIN_CHARS: usize = 32;
 /// Most characters of a participant key.
 pub const KEY_MAX_CHARS: usize = 128;
 
+/// Most characters of `Hello.name` and `Hello.client`.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// Checks a text field a client sends, which the proxy stores or shows to others: at most
+/// `max_chars` characters, and no NUL byte (PostgreSQL cannot store one in text). The error
+/// says what is wrong, for the caller to prefix with the field's name.
+pub fn check_text(text: &str, max_chars: usize) -> Result<(), String> {
+    let n = text.chars().count();
+    if n > max_chars {
+        return Err(format!("is {n} characters, more than the limit of {max_chars}"));
+    }
+    if let Some(at) = text.chars().position(|c| c == '\0') {
+        return Err(format!("holds a NUL byte (character {at}), which text may not hold"));
+    }
+    Ok(())
+}
+
 /// Checks the form of a participant key: [`KEY_MIN_CHARS`] to [`KEY_MAX_CHARS`] characters of
 /// the base64url alphabet (`A-Z a-z 0-9 - _`, which holds lowercase hex). The error says what
 /// is wrong, for the caller to prefix with the field's name.
@@ -90,9 +107,10 @@ pub enum ClientMessage {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Hello {
     pub protocol: u16,
-    /// Free-form client name and version, for logs.
+    /// Free-form client name and version, for logs ([`check_text`], [`MAX_NAME_CHARS`]).
     pub client: String,
-    /// Display name shown to the session's other participants.
+    /// Display name shown to the session's other participants ([`check_text`],
+    /// [`MAX_NAME_CHARS`]).
     #[serde(default)]
     pub name: Option<String>,
     #[serde(default)]
@@ -112,7 +130,8 @@ pub struct StrokeBegin {
     pub stroke: StrokeId,
     #[serde(default)]
     pub brush: Brush,
-    /// Input device description, e.g. `"wacom ctl-671"` or `"synth:figure8"`.
+    /// Input device description, e.g. `"wacom ctl-671"` or `"synth:figure8"` ([`check_text`];
+    /// the proxy's `--max-device-chars` is its limit).
     #[serde(default)]
     pub device: Option<String>,
     /// ACUTS stage 2 parameters; the proxy's defaults when absent.
@@ -244,7 +263,8 @@ pub struct StrokeDone {
 #[serde(rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]
 pub enum ErrorCode {
-    /// A binary frame that does not decode.
+    /// A binary frame that does not decode, or a field the proxy cannot take: text with a NUL
+    /// byte or longer than its limit, a participant key of the wrong form.
     Malformed,
     /// A text frame that is not valid JSON for any message.
     BadJson,
