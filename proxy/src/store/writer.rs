@@ -93,8 +93,13 @@ impl WriteOp {
 pub enum WriteError {
     #[error("the writer has stopped")]
     Closed,
+    /// The database failed; its own words, for the log.
     #[error("database write failed: {0}")]
     Database(String),
+    /// The database could not write for want of space or a failing disk (its own words, for
+    /// the log): the one database failure a client is told the cause of.
+    #[error("the database cannot write to its disk: {0}")]
+    Storage(String),
     /// The writer refused the request: storing it would break a stroke's stored samples (a
     /// hole, samples after its end, a stroke that does not exist). The message is the
     /// writer's own, fit for the client.
@@ -542,7 +547,8 @@ impl WriterLoop {
             Err(err) if batch.len() == 1 && !self.idle_moved => {
                 tracing::error!(error = %err, "write failed");
                 let req = batch.pop().expect("one request");
-                self.answer(req, Err(WriteError::Database(err.to_string())));
+                let failure = self.failure(&err);
+                self.answer(req, Err(failure));
             }
             Err(err) => {
                 tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
@@ -555,12 +561,31 @@ impl WriterLoop {
                         Ok(mut refused) => refused.pop().flatten().map_or(Ok(()), Err),
                         Err(err) => {
                             tracing::error!(error = %err, "write failed");
-                            Err(WriteError::Database(err.to_string()))
+                            Err(self.failure(&err))
                         }
                     };
                     self.answer(req, result);
                 }
             }
+        }
+    }
+
+    /// A failed transaction as its requesters hear it: [`WriteError::Storage`] when the
+    /// database could not write to its disk (SQLite: `SQLITE_FULL`, or `SQLITE_IOERR`, as a
+    /// write refused for its size reads; PostgreSQL: class 53, insufficient resources, e.g.
+    /// `disk_full`), else [`WriteError::Database`].
+    fn failure(&self, err: &anyhow::Error) -> WriteError {
+        let backend = self.store.backend();
+        let storage = err
+            .chain()
+            .filter_map(|cause| cause.downcast_ref::<sqlx::Error>()?.as_database_error()?.code())
+            .any(|code| match backend {
+                Backend::Sqlite => code.parse::<i32>().is_ok_and(|c| matches!(c & 0xff, 10 | 13)),
+                Backend::Postgres => code.starts_with("53"),
+            });
+        match storage {
+            true => WriteError::Storage(err.to_string()),
+            false => WriteError::Database(err.to_string()),
         }
     }
 

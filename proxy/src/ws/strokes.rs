@@ -385,10 +385,13 @@ impl Connection {
                 self.strokes.remove(&stroke);
                 self.finishing.remove(&stroke);
                 self.claims.release(stroke);
-                // The writer's own refusals say what is wrong; the database's words stay in
-                // the log.
+                // The writer's own refusals say what is wrong, and a full disk is named; the
+                // database's words stay in the log.
                 let advice = match &err {
                     WriteError::Refused(why) => format!("{why}; resume it from the last ack"),
+                    WriteError::Storage(_) => "storing the stroke failed: the proxy's disk is \
+                                               full or failing; resume it from the last ack"
+                        .to_string(),
                     _ => "storing the stroke failed; resume it from the last ack".to_string(),
                 };
                 self.fail(ConnError::internal("storing a stroke", err, advice, Some(stroke)));

@@ -376,3 +376,44 @@ async fn a_stroke_spanning_the_coordinate_bound_gets_its_mesh() {
     let body = response.text().await.unwrap();
     assert_eq!(status, 200, "{body}");
 }
+
+#[tokio::test]
+async fn the_mesh_of_a_stroke_stored_with_huge_coordinates_is_refused_not_a_500() {
+    let proxy = spawn_proxy().await;
+    let (session, mut ws) = ready(&proxy).await;
+    // One sample far out, and a whole stroke far out.
+    let damages: [fn(usize, &mut Sample); 2] =
+        [|i, s| s.x = 1e50 * (1.0 + i as f64), |i, s| s.x = if i == 4 { 1e50 } else { s.x }];
+    for damage in damages {
+        // Arrange: a done stroke whose stored samples hold x = 1e50 or more, as an earlier
+        // version, which did not bound coordinates, stored them (samples as f64, layout 0).
+        let (stroke, mut samples) = (Uuid::new_v4(), stroke_samples(10));
+        penmesh_e2e::draw_stroke(&mut ws, stroke, &samples, 10).await;
+        samples.iter_mut().enumerate().for_each(|(i, s)| damage(i, s));
+        let blob: Vec<u8> =
+            samples.iter().flat_map(|s| [s.x, s.y, s.t, s.p]).flat_map(f64::to_le_bytes).collect();
+        sqlx::any::install_default_drivers();
+        let pool = sqlx::AnyPool::connect(&proxy.db.url).await.unwrap();
+        let changed = sqlx::query(
+            "UPDATE stroke_chunks SET layout = 0, data = $1 \
+             WHERE stroke_id = $2 AND seq = 0 AND n = 10",
+        )
+        .bind(blob)
+        .bind(stroke.to_string())
+        .execute(&pool)
+        .await
+        .unwrap();
+        assert_eq!(changed.rows_affected(), 1, "the stroke is one chunk row");
+        pool.close().await;
+
+        // Act
+        let response = proxy.build_mesh(&session, stroke).send().await.unwrap();
+
+        // Assert: refused with what is wrong, neither an internal error nor a mesh.
+        let status = response.status();
+        let body: serde_json::Value = response.json().await.unwrap();
+        assert_eq!(status, 409, "{body}");
+        let message = body["message"].as_str().unwrap();
+        assert!(message.contains("sample") && message.contains("1000000"), "{message}");
+    }
+}
