@@ -14,6 +14,15 @@
 //! `penmesh`, which the proxy selects (`docs/web.md`). A client that cannot run LRPDP (the
 //! browser) asks the proxy to build a done stroke's mesh: `POST /v1/strokes/{id}/mesh/build`,
 //! announced with `PeerMesh` like an upload. Neither changes the binary layout.
+//!
+//! **What the proxy refuses** beyond the encoding: text a client sends (`Hello.client`,
+//! `Hello.name`, `StrokeBegin.device`) holding a NUL byte or longer than its limit
+//! ([`MAX_NAME_CHARS`] = 200 characters; the device's is the proxy's `--max-device-chars`, 200
+//! by default), with `Error {malformed}` naming the field ([`check_text`]); a sample with a
+//! non-finite value, a coordinate beyond ±[`crate::MAX_COORDINATE`] = 10⁶, pressure outside
+//! [0, 1] or time going backwards, with `Error {bad_sample}` naming the sample
+//! ([`crate::validate_sample`]). Nothing of a stroke is acknowledged before its `StrokeBegin`
+//! is stored: batches sent after a begin that fails are refused with it.
 
 mod codec;
 mod http;
@@ -272,7 +281,8 @@ pub enum ErrorCode {
     UnknownMessage,
     /// The first message was not `Hello`, or a `Hello` came twice, or versions differ.
     Protocol,
-    /// A non-finite value, pressure outside [0, 1], time going backwards.
+    /// A non-finite value, a coordinate beyond ±10⁶, pressure outside [0, 1], time going
+    /// backwards.
     BadSample,
     BadBrush,
     /// ACUTS parameters out of range.
