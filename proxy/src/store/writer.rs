@@ -985,10 +985,7 @@ async fn recover(conn: &mut AnyConnection, writer: i64) -> anyhow::Result<HashMa
         let mut records: Vec<i64> = entries.iter().map(|(id, _, _)| *id).collect();
         records.dedup();
         let known = if log::stroke_exists(conn, stroke).await? {
-            match chunk_end(conn, stroke).await {
-                Ok(end) => known_from(stroke, end, entries, writer),
-                Err(err) => Err(err),
-            }
+            chunk_end(conn, stroke).await.and_then(|end| known_from(stroke, end, entries, writer))
         } else {
             Err(anyhow::anyhow!("stroke {stroke} has no row"))
         };
