@@ -499,7 +499,9 @@ fn replica_alive(key: &str) -> String {
 /// is drawing (this transaction takes the stroke's lock, which conflicts with a drawing
 /// replica's), the samples only the log holds go into `stroke_chunks`; then its records are
 /// deleted, except those holding a stroke that is being drawn again (its new writer moves it;
-/// a later round deletes them). Returns the strokes moved and the records deleted.
+/// a later round deletes them). What cannot be moved (a stroke with no row, a record that does
+/// not decode) is set aside first (`log::set_aside`). Returns the strokes moved and the
+/// records deleted.
 async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<(u64, u64)> {
     let mut tx = store.pool().begin().await?;
     let dead: HashSet<i64> = sqlx::query_scalar(&format!(
@@ -516,7 +518,8 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
         return Ok((0, 0));
     }
     // The whole log, read once: a dead writer's stroke may continue another writer's entries.
-    let log = crate::store::log::read_log(&mut tx, None, None).await?;
+    // What does not decode is set aside, not moved.
+    let log = crate::store::log::read_log_to_move(&mut tx, None).await?;
     let (mut moved, mut kept_records) = (0, HashSet::new());
     for (stroke, entries) in log {
         let is_dead = |(_, writer, _): &(i64, i64, _)| confirmed.contains(writer);
@@ -524,7 +527,9 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
             continue;
         }
         if nobody_draws(&mut tx, stroke).await? {
-            moved += u64::from(crate::store::move_log_tail(&mut tx, stroke, entries).await?);
+            // One that cannot be moved is set aside, not tried again every round.
+            moved +=
+                u64::from(crate::store::log::move_or_set_aside(&mut tx, stroke, entries).await?);
         } else {
             kept_records.extend(entries.iter().filter(|e| is_dead(e)).map(|(id, _, _)| *id));
         }

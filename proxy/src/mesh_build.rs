@@ -25,7 +25,7 @@ pub const PROXY_UPLOADER: &str = "penmesh-proxy";
         (status = 401, body = crate::http::ErrorBody),
         (status = 403, description = "not the stroke's drawer", body = crate::http::ErrorBody),
         (status = 404, body = crate::http::ErrorBody),
-        (status = 409, description = "stroke not done", body = crate::http::ErrorBody)))]
+        (status = 409, description = "stroke not done, or its stored samples make no mesh", body = crate::http::ErrorBody)))]
 pub async fn build_mesh(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -54,6 +54,11 @@ pub async fn build_mesh(
     // The samples the proxy received: the smooth centreline is checked against them, as the
     // native client checks it against what it drew.
     let raw = state.store.raw_samples(row.id).await?;
+    // Samples stored before they were bounded (`penmesh::MAX_COORDINATE`) make no mesh: said,
+    // not a failure of the proxy.
+    if let Err(err) = penmesh::validate_samples(&raw, None, 0) {
+        return Err(AppError::Conflict(format!("stroke {} cannot have a mesh: {err}", row.id)));
+    }
     let kept: Vec<usize> = simplified.indices.iter().map(|&i| i as usize).collect();
     let meta = GlbMeta { stroke: row.id, author: PROXY_UPLOADER.into(), brush: row.brush };
     // LRPDP is CPU work of a few milliseconds: keep it off the connection threads.

@@ -93,4 +93,8 @@ fn describe() {
     describe_histogram!("penmesh_commit_batch_requests", "Write requests per group commit");
     describe_histogram!("penmesh_commit_batch_samples", "Samples per group commit");
     describe_counter!("penmesh_commit_failures_total", "Write requests that failed to commit");
+    describe_counter!(
+        "penmesh_log_set_aside_total",
+        "Append-log records set aside in stroke_log_set_aside: their entries cannot be moved"
+    );
 }

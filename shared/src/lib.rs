@@ -24,8 +24,8 @@ pub use crate::acuts::{
     pressure_variance, resample, segment_distance, simplify,
 };
 pub use crate::model::{
-    Brush, BrushError, Sample, SampleError, Stroke, polyline_length, validate_sample,
-    validate_samples,
+    Brush, BrushError, MAX_COORDINATE, Sample, SampleError, Stroke, polyline_length,
+    validate_sample, validate_samples,
 };
 
 pub use crate::centreline::{Centreline, SmoothOptions, fit_centreline, smooth_centreline};

@@ -44,11 +44,21 @@ impl From<Sample> for [f64; 4] {
     }
 }
 
+/// Largest magnitude of a coordinate (x or y, in the stroke's unit: CSS px or tablet units).
+/// A tablet's raw units reach about 10^5; past 10^6 a value is not a pen's, and the mesh's
+/// arithmetic (squared distances, `f32` positions of the GLB) loses what it needs.
+pub const MAX_COORDINATE: f64 = 1e6;
+
 /// Why a sample is bad input. Each variant names the sample's index in its stroke.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SampleError {
     #[error("sample {index}: {field} is not a finite number ({value})")]
     NonFinite { index: usize, field: &'static str, value: f64 },
+    #[error(
+        "sample {index}: {field} = {value} is beyond ±{}, the largest coordinate",
+        MAX_COORDINATE
+    )]
+    CoordinateOutOfRange { index: usize, field: &'static str, value: f64 },
     #[error("sample {index}: pressure {value} is outside [0, 1]")]
     PressureOutOfRange { index: usize, value: f64 },
     #[error("sample {index}: time goes backwards ({value} ms after {previous} ms)")]
@@ -60,6 +70,7 @@ impl SampleError {
     pub fn index(&self) -> usize {
         match self {
             SampleError::NonFinite { index, .. }
+            | SampleError::CoordinateOutOfRange { index, .. }
             | SampleError::PressureOutOfRange { index, .. }
             | SampleError::TimeBackwards { index, .. } => *index,
         }
@@ -71,6 +82,9 @@ impl SampleError {
             SampleError::NonFinite { index, field, value } => {
                 SampleError::NonFinite { index: index + offset, field, value }
             }
+            SampleError::CoordinateOutOfRange { index, field, value } => {
+                SampleError::CoordinateOutOfRange { index: index + offset, field, value }
+            }
             SampleError::PressureOutOfRange { index, value } => {
                 SampleError::PressureOutOfRange { index: index + offset, value }
             }
@@ -81,11 +95,17 @@ impl SampleError {
     }
 }
 
-/// Checks one sample on its own (finite values, pressure range) at `index`.
+/// Checks one sample on its own (finite values, coordinates within [`MAX_COORDINATE`],
+/// pressure range) at `index`.
 pub fn validate_sample(index: usize, s: &Sample) -> Result<(), SampleError> {
     for (field, value) in [("x", s.x), ("y", s.y), ("t", s.t), ("p", s.p)] {
         if !value.is_finite() {
             return Err(SampleError::NonFinite { index, field, value });
+        }
+    }
+    for (field, value) in [("x", s.x), ("y", s.y)] {
+        if value.abs() > MAX_COORDINATE {
+            return Err(SampleError::CoordinateOutOfRange { index, field, value });
         }
     }
     if !(0.0..=1.0).contains(&s.p) {
@@ -236,6 +256,8 @@ mod tests {
         let cases = [
             (Sample::new(f64::NAN, 0.0, 1.0, 0.5), 1, "x is not a finite"),
             (Sample::new(0.0, f64::INFINITY, 1.0, 0.5), 1, "y is not a finite"),
+            (Sample::new(1e50, 0.0, 1.0, 0.5), 1, "x = 1000000000"),
+            (Sample::new(0.0, -1_000_000.5, 1.0, 0.5), 1, "y = -1000000.5 is beyond ±1000000"),
             (Sample::new(0.0, 0.0, 1.0, 1.5), 1, "pressure 1.5 is outside"),
             (Sample::new(0.0, 0.0, -1.0, 0.5), 1, "time goes backwards"),
         ];
@@ -245,6 +267,15 @@ mod tests {
             assert!(err.to_string().contains(text), "{err}");
             assert!(err.to_string().starts_with("sample 1:"), "{err}");
         }
+    }
+
+    #[test]
+    fn coordinates_at_the_bound_are_accepted() {
+        let edge = [
+            Sample::new(-MAX_COORDINATE, MAX_COORDINATE, 0.0, 0.5),
+            Sample::new(MAX_COORDINATE, -MAX_COORDINATE, 1.0, 0.5),
+        ];
+        assert!(Stroke::new(edge.to_vec()).is_ok());
     }
 
     #[test]

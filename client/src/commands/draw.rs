@@ -213,6 +213,8 @@ pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOp
     );
     anyhow::ensure!(live.batch_size >= 1, "--batch-size must be at least 1");
     anyhow::ensure!(!name.trim().is_empty(), "--name must not be empty");
+    penmesh::protocol::check_text(name, penmesh::protocol::MAX_NAME_CHARS)
+        .map_err(|why| anyhow::anyhow!("--name {why}"))?;
     Ok(DrawOptions {
         brush,
         resample: live.resample,

@@ -75,11 +75,30 @@ pub(crate) fn encode_record(appends: &[(Uuid, u64, &[Sample])]) -> Vec<u8> {
     out
 }
 
-/// The entries of a record for the strokes `wanted` accepts (the others are skipped, not decoded).
-pub(crate) fn decode_record(
-    bytes: &[u8],
-    wanted: impl Fn(&Uuid) -> bool,
-) -> anyhow::Result<Vec<Entry>> {
+/// An entry of a record, its samples not decoded yet.
+struct RawEntry<'a> {
+    stroke: Uuid,
+    seq: u64,
+    n: u64,
+    layout: u8,
+    data: &'a [u8],
+}
+
+impl RawEntry<'_> {
+    fn decode(&self) -> anyhow::Result<Entry> {
+        let (stroke, seq) = (self.stroke, self.seq);
+        let samples = decode_samples(i64::from(self.layout), self.data)
+            .with_context(|| format!("stroke {stroke}: log entry at seq {seq}"))?;
+        anyhow::ensure!(
+            samples.len() as u64 == self.n,
+            "stroke {stroke}: log entry at seq {seq} has a bad length"
+        );
+        Ok(Entry { stroke, seq, samples })
+    }
+}
+
+/// The entries of a record, their samples not decoded.
+fn split_record(bytes: &[u8]) -> anyhow::Result<Vec<RawEntry<'_>>> {
     let mut entries = Vec::new();
     let mut at = 0;
     while at < bytes.len() {
@@ -91,19 +110,20 @@ pub(crate) fn decode_record(
         let layout = *bytes.get(at).context("log record ends before a layout")?;
         at += 1;
         let len = get_varint(bytes, &mut at)? as usize;
-        let data = bytes.get(at..at + len).context("log record ends inside a sample blob")?;
-        at += len;
-        if wanted(&stroke) {
-            let samples = decode_samples(i64::from(layout), data)
-                .with_context(|| format!("stroke {stroke}: log entry at seq {seq}"))?;
-            anyhow::ensure!(
-                samples.len() as u64 == n,
-                "stroke {stroke}: log entry at seq {seq} has a bad length"
-            );
-            entries.push(Entry { stroke, seq, samples });
-        }
+        let end = at.checked_add(len).context("log record holds a blob length past its end")?;
+        let data = bytes.get(at..end).context("log record ends inside a sample blob")?;
+        at = end;
+        entries.push(RawEntry { stroke, seq, n, layout, data });
     }
     Ok(entries)
+}
+
+/// The entries of a record for the strokes `wanted` accepts (the others are skipped, not decoded).
+pub(crate) fn decode_record(
+    bytes: &[u8],
+    wanted: impl Fn(&Uuid) -> bool,
+) -> anyhow::Result<Vec<Entry>> {
+    split_record(bytes)?.iter().filter(|e| wanted(&e.stroke)).map(RawEntry::decode).collect()
 }
 
 /// A stroke's log entries, each with the id and writer of its record.
@@ -116,6 +136,22 @@ pub(crate) async fn read_log(
     strokes: Option<&HashSet<Uuid>>,
     writer: Option<i64>,
 ) -> anyhow::Result<StrokeEntries> {
+    let mut out: StrokeEntries = HashMap::new();
+    for (id, writer, data) in fetch_records(conn, writer).await? {
+        let entries = decode_record(&data, |s| strokes.is_none_or(|set| set.contains(s)))
+            .with_context(|| format!("log record {id}"))?;
+        for entry in entries {
+            out.entry(entry.stroke).or_default().push((id, writer, entry));
+        }
+    }
+    Ok(out)
+}
+
+/// The log's records (id, writer, data) in order, of every writer or of `writer` alone.
+async fn fetch_records(
+    conn: &mut AnyConnection,
+    writer: Option<i64>,
+) -> anyhow::Result<Vec<(i64, i64, Vec<u8>)>> {
     let rows = match writer {
         Some(w) => {
             sqlx::query("SELECT id, writer, data FROM stroke_log WHERE writer = $1 ORDER BY id")
@@ -129,18 +165,130 @@ pub(crate) async fn read_log(
                 .await?
         }
     };
-    let mut out: StrokeEntries = HashMap::new();
+    let mut records = Vec::with_capacity(rows.len());
     for row in rows {
-        let id: i64 = row.try_get("id")?;
-        let writer: i64 = row.try_get("writer")?;
-        let data: Vec<u8> = row.try_get("data")?;
-        let entries = decode_record(&data, |s| strokes.is_none_or(|set| set.contains(s)))
-            .with_context(|| format!("log record {id}"))?;
-        for entry in entries {
-            out.entry(entry.stroke).or_default().push((id, writer, entry));
+        records.push((row.try_get("id")?, row.try_get("writer")?, row.try_get("data")?));
+    }
+    Ok(records)
+}
+
+/// Is `err` a failure of the database (or of the connection to it), rather than of what it
+/// holds? The moves set aside what cannot be stored; a database failure they pass on, to be
+/// tried again.
+pub(crate) fn is_database_error(err: &anyhow::Error) -> bool {
+    err.chain().any(|cause| cause.is::<sqlx::Error>())
+}
+
+/// Does `stroke` have its row in `strokes`? Its samples cannot be stored without one.
+pub(crate) async fn stroke_exists(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<bool> {
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM strokes WHERE id = $1")
+        .bind(stroke.to_string())
+        .fetch_one(&mut *conn)
+        .await?;
+    Ok(n > 0)
+}
+
+/// The log entries to move (of `writer` alone, or of every writer), as [`read_log`] reads
+/// them, except that what does not decode is set aside ([`set_aside`]) instead of failing the
+/// read: a record that does not decode at all, and every entry of a stroke one of whose
+/// entries does not.
+pub(crate) async fn read_log_to_move(
+    conn: &mut AnyConnection,
+    writer: Option<i64>,
+) -> anyhow::Result<StrokeEntries> {
+    let rows = fetch_records(conn, writer).await?;
+    let mut out: StrokeEntries = HashMap::new();
+    // Strokes with an entry that does not decode: why, and the records that hold one.
+    let mut damaged: HashMap<Uuid, (String, HashSet<i64>)> = HashMap::new();
+    for (id, writer, data) in rows {
+        let raw = match split_record(&data) {
+            Ok(raw) => raw,
+            Err(err) => {
+                set_aside(conn, &[id], None, &format!("log record {id}: {err:#}")).await?;
+                continue;
+            }
+        };
+        for entry in raw {
+            let stroke = entry.stroke;
+            match entry.decode() {
+                Ok(entry) => out.entry(stroke).or_default().push((id, writer, entry)),
+                Err(err) => {
+                    let why = format!("log record {id}: {err:#}");
+                    damaged.entry(stroke).or_insert((why, HashSet::new())).1.insert(id);
+                }
+            }
         }
     }
+    for (stroke, (why, mut records)) in damaged {
+        records.extend(out.remove(&stroke).into_iter().flatten().map(|(id, _, _)| id));
+        let records: Vec<i64> = records.into_iter().collect();
+        set_aside(conn, &records, Some(stroke), &why).await?;
+    }
     Ok(out)
+}
+
+/// Keeps log records whose entries cannot be stored in `stroke_chunks` (of `stroke`, or the
+/// whole record with `None`: it does not decode) in `stroke_log_set_aside`, for an operator:
+/// a copy of each record with why. Logged and counted (`penmesh_log_set_aside_total`) once
+/// per record and stroke: setting the same aside again changes nothing. The caller then
+/// treats the entries as moved, so that the records can be deleted and nothing retries them.
+pub(crate) async fn set_aside(
+    conn: &mut AnyConnection,
+    records: &[i64],
+    stroke: Option<Uuid>,
+    why: &str,
+) -> anyhow::Result<()> {
+    let stroke_id = stroke.map(|s| s.to_string()).unwrap_or_default();
+    let mut added = 0;
+    for &record in records {
+        added += sqlx::query(
+            "INSERT INTO stroke_log_set_aside (record_id, stroke_id, writer, data, reason, \
+             set_aside_at) SELECT id, $1, writer, data, $2, $3 FROM stroke_log WHERE id = $4 \
+             ON CONFLICT (record_id, stroke_id) DO NOTHING",
+        )
+        .bind(&stroke_id)
+        .bind(why)
+        .bind(super::now_ms())
+        .bind(record)
+        .execute(&mut *conn)
+        .await?
+        .rows_affected();
+    }
+    if added > 0 {
+        tracing::error!(
+            stroke = ?stroke, ?records, reason = why,
+            "log entries that cannot be stored are set aside in stroke_log_set_aside"
+        );
+        metrics::counter!("penmesh_log_set_aside_total").increment(added);
+    }
+    Ok(())
+}
+
+/// Moves `stroke`'s log `entries` into `stroke_chunks` after its chunks (`true`: a row was
+/// written), or sets them aside when they cannot be stored there: the stroke has no row, or
+/// its stored samples do not decode or do not fit together. `Err` only when the database
+/// fails.
+pub(crate) async fn move_or_set_aside(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    entries: Vec<(i64, i64, Entry)>,
+) -> anyhow::Result<bool> {
+    let mut records: Vec<i64> = entries.iter().map(|(id, _, _)| *id).collect();
+    records.dedup();
+    if !stroke_exists(conn, stroke).await? {
+        set_aside(conn, &records, Some(stroke), &format!("stroke {stroke} has no row")).await?;
+        return Ok(false);
+    }
+    // The checks come before the one statement that writes: a failure here leaves the
+    // transaction usable (PostgreSQL aborts it on a failed statement).
+    match super::move_log_tail(conn, stroke, entries).await {
+        Ok(moved) => Ok(moved),
+        Err(err) if is_database_error(&err) => Err(err),
+        Err(err) => {
+            set_aside(conn, &records, Some(stroke), &format!("{err:#}")).await?;
+            Ok(false)
+        }
+    }
 }
 
 /// A stroke's samples from its pieces (chunks first, then log entries, in any order): they must

@@ -435,18 +435,20 @@ impl Store {
     }
 
     /// SQLite, at start: strokes left in the log by a process that stopped without moving them
-    /// (killed) go into `stroke_chunks`, and the log is emptied. (With PostgreSQL another
-    /// replica may be writing; readers read the log, so nothing is lost either way.)
+    /// (killed) go into `stroke_chunks`, and the log is emptied; what cannot go there is set
+    /// aside (`log::move_or_set_aside`), so that one bad record does not stop the start. (With
+    /// PostgreSQL another replica may be writing; readers read the log, so nothing is lost
+    /// either way.)
     pub async fn recover_log(&self) -> anyhow::Result<u64> {
         if self.backend != Backend::Sqlite {
             return Ok(0);
         }
         let mut conn = self.pool.acquire().await?;
         let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
-        let log = log::read_log(&mut tx, None, None).await?;
+        let log = log::read_log_to_move(&mut tx, None).await?;
         let mut moved = 0;
         for (stroke, entries) in log {
-            moved += u64::from(move_log_tail(&mut tx, stroke, entries).await?);
+            moved += u64::from(log::move_or_set_aside(&mut tx, stroke, entries).await?);
         }
         sqlx::query("DELETE FROM stroke_log").execute(&mut *tx).await?;
         tx.commit().await?;

@@ -30,7 +30,7 @@
 //! the same transaction (so every replica's listener gets them, or none does), with SQLite
 //! straight to the local [`Fanout`] after `COMMIT`, before the next transaction begins.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -93,8 +93,18 @@ impl WriteOp {
 pub enum WriteError {
     #[error("the writer has stopped")]
     Closed,
+    /// The database failed; its own words, for the log.
     #[error("database write failed: {0}")]
     Database(String),
+    /// The database could not write for want of space or a failing disk (its own words, for
+    /// the log): the one database failure a client is told the cause of.
+    #[error("the database cannot write to its disk: {0}")]
+    Storage(String),
+    /// The writer refused the request: storing it would break a stroke's stored samples (a
+    /// hole, samples after its end, a stroke that does not exist). The message is the
+    /// writer's own, fit for the client.
+    #[error("{0}")]
+    Refused(String),
 }
 
 /// The answer to a submitted request: ready once it is committed (or failed). A named type, not
@@ -160,6 +170,8 @@ enum FaultTarget {
     Transaction(u64),
     /// Any transaction holding the append of `stroke` submitted at `seq`.
     Append { stroke: Uuid, seq: u64 },
+    /// Any transaction holding the begin of `stroke`.
+    Begin { stroke: Uuid },
 }
 
 impl CommitFaults {
@@ -181,6 +193,12 @@ impl CommitFaults {
         self.state.lock().expect("faults lock").rules.push(rule);
     }
 
+    /// The next `times` transactions that hold the begin of `stroke` get `fault`.
+    pub fn fail_begin(&self, stroke: Uuid, fault: Fault, times: u32) {
+        let rule = FaultRule { target: FaultTarget::Begin { stroke }, fault, remaining: times };
+        self.state.lock().expect("faults lock").rules.push(rule);
+    }
+
     /// Removes every fault not yet spent.
     pub fn clear(&self) {
         self.state.lock().expect("faults lock").rules.clear();
@@ -196,11 +214,18 @@ impl CommitFaults {
                 matches!(op, WriteOp::Append { stroke: s, seq: q, .. } if s == stroke && q == seq)
             })
         };
+        let begins = |stroke: &Uuid| {
+            requests
+                .iter()
+                .flat_map(|r| &r.ops)
+                .any(|op| matches!(op, WriteOp::BeginStroke { stroke: s, .. } if s == stroke))
+        };
         let rule = state.rules.iter_mut().find(|r| {
             r.remaining > 0
                 && match &r.target {
                     FaultTarget::Transaction(n) => *n == k,
                     FaultTarget::Append { stroke, seq } => holds(stroke, seq),
+                    FaultTarget::Begin { stroke } => begins(stroke),
                 }
         })?;
         rule.remaining -= 1;
@@ -339,6 +364,7 @@ impl WriterTask {
                         last_record: 0,
                         recover: false,
                         idle_checked: Instant::now(),
+                        idle_moved: false,
                         faults,
                     };
                     state.run().await
@@ -391,6 +417,9 @@ struct WriterLoop {
     recover: bool,
     /// When the strokes were last checked for samples in the log longer than `MOVE_AFTER`.
     idle_checked: Instant,
+    /// The last transaction moved strokes because they sat in the log long enough: a failure
+    /// may be theirs, not its requests'.
+    idle_moved: bool,
     faults: Option<Arc<CommitFaults>>,
 }
 
@@ -512,10 +541,14 @@ impl WriterLoop {
                     self.answer(req, refusal.map_or(Ok(()), Err));
                 }
             }
-            Err(err) if batch.len() == 1 => {
+            // A request alone is answered with its failure, unless the transaction also moved
+            // other strokes: then it is tried again alone (below), after the writer has looked
+            // at what is stored again and set aside what cannot be moved (`recover`).
+            Err(err) if batch.len() == 1 && !self.idle_moved => {
                 tracing::error!(error = %err, "write failed");
                 let req = batch.pop().expect("one request");
-                self.answer(req, Err(WriteError::Database(err.to_string())));
+                let failure = self.failure(&err);
+                self.answer(req, Err(failure));
             }
             Err(err) => {
                 tracing::warn!(error = %err, n = batch.len(), "group commit failed; retrying each request alone");
@@ -528,12 +561,31 @@ impl WriterLoop {
                         Ok(mut refused) => refused.pop().flatten().map_or(Ok(()), Err),
                         Err(err) => {
                             tracing::error!(error = %err, "write failed");
-                            Err(WriteError::Database(err.to_string()))
+                            Err(self.failure(&err))
                         }
                     };
                     self.answer(req, result);
                 }
             }
+        }
+    }
+
+    /// A failed transaction as its requesters hear it: [`WriteError::Storage`] when the
+    /// database could not write to its disk (SQLite: `SQLITE_FULL`, or `SQLITE_IOERR`, as a
+    /// write refused for its size reads; PostgreSQL: class 53, insufficient resources, e.g.
+    /// `disk_full`), else [`WriteError::Database`].
+    fn failure(&self, err: &anyhow::Error) -> WriteError {
+        let backend = self.store.backend();
+        let storage = err
+            .chain()
+            .filter_map(|cause| cause.downcast_ref::<sqlx::Error>()?.as_database_error()?.code())
+            .any(|code| match backend {
+                Backend::Sqlite => code.parse::<i32>().is_ok_and(|c| matches!(c & 0xff, 10 | 13)),
+                Backend::Postgres => code.starts_with("53"),
+            });
+        match storage {
+            true => WriteError::Storage(err.to_string()),
+            false => WriteError::Database(err.to_string()),
         }
     }
 
@@ -586,6 +638,7 @@ impl WriterLoop {
         requests: &[&WriteRequest],
         move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
+        self.idle_moved = false;
         let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
         let backend = self.store.backend();
         let conn = match &mut self.conn {
@@ -614,19 +667,47 @@ impl WriterLoop {
         // commit plans hundreds of requests).
         let mut req_ends: HashMap<Uuid, u64> = HashMap::new();
         let mut req_planned = Vec::new();
+        // Strokes this transaction creates (the requests planned so far, and the one being
+        // planned): they have no row yet, and exist once it commits.
+        let mut creates: HashSet<Uuid> = HashSet::new();
+        let mut req_creates: HashSet<Uuid> = HashSet::new();
         for req in requests {
             // A request is written whole or refused whole.
             req_ends.clear();
             req_planned.clear();
+            req_creates.clear();
             let mut refusal = None;
             for op in &req.ops {
                 let WriteOp::Append { stroke, seq, samples } = op else {
+                    match op {
+                        WriteOp::BeginStroke { stroke, .. } => {
+                            req_creates.insert(*stroke);
+                        }
+                        // A stroke exists before anything of it is stored.
+                        WriteOp::Finish { stroke, .. }
+                            if !self.strokes.contains_key(stroke)
+                                && !loaded.contains_key(stroke)
+                                && !creates.contains(stroke)
+                                && !req_creates.contains(stroke) =>
+                        {
+                            match load_stroke(&mut tx, *stroke, self.writer_id).await? {
+                                Some(known) => {
+                                    loaded.insert(*stroke, known);
+                                }
+                                None => {
+                                    refusal = Some(no_stroke(*stroke));
+                                    break;
+                                }
+                            }
+                        }
+                        _ => {}
+                    }
                     closed.extend(closes(op));
                     req_planned.push(Planned::Other(op));
                     continue;
                 };
                 if closed.contains(stroke) {
-                    refusal = Some(WriteError::Database(format!(
+                    refusal = Some(WriteError::Refused(format!(
                         "samples of stroke {stroke} after its end in the same request"
                     )));
                     break;
@@ -639,16 +720,26 @@ impl WriterLoop {
                     .or_else(|| loaded.get(stroke).map(Known::end));
                 let end = match known {
                     Some(end) => end,
-                    None => {
-                        let known = load_stroke(&mut tx, *stroke, self.writer_id).await?;
-                        let end = known.end();
-                        loaded.insert(*stroke, known);
-                        end
-                    }
+                    None => match load_stroke(&mut tx, *stroke, self.writer_id).await? {
+                        Some(known) => {
+                            let end = known.end();
+                            loaded.insert(*stroke, known);
+                            end
+                        }
+                        None if creates.contains(stroke) || req_creates.contains(stroke) => {
+                            loaded.insert(*stroke, Known::default());
+                            0
+                        }
+                        // Its begin failed (or never came): nothing of it is stored or acked.
+                        None => {
+                            refusal = Some(no_stroke(*stroke));
+                            break;
+                        }
+                    },
                 };
                 let upto = seq + samples.len() as u64;
                 if *seq > end {
-                    refusal = Some(WriteError::Database(format!(
+                    refusal = Some(WriteError::Refused(format!(
                         "samples {seq}..{upto} of stroke {stroke} would leave a hole: only \
                          {end} are stored"
                     )));
@@ -663,6 +754,7 @@ impl WriterLoop {
             if refusal.is_none() {
                 planned.append(&mut req_planned);
                 ends.extend(req_ends.drain());
+                creates.extend(req_creates.drain());
             }
             refused.push(refusal);
         }
@@ -684,9 +776,12 @@ impl WriterLoop {
             let Planned::Other(op) = op else { continue };
             match op {
                 WriteOp::Finish { stroke, kept } => {
+                    // Known, or created by this transaction (checked when planned).
                     let base = match self.strokes.get(stroke).or_else(|| loaded.get(stroke)) {
                         Some(known) => known.clone(),
-                        None => load_stroke(&mut tx, *stroke, self.writer_id).await?,
+                        None => {
+                            load_stroke(&mut tx, *stroke, self.writer_id).await?.unwrap_or_default()
+                        }
                     };
                     let tail = appended.get(stroke).map(Vec::as_slice).unwrap_or_default();
                     finish(&mut tx, backend, *stroke, &base, tail, kept, now).await?;
@@ -724,6 +819,7 @@ impl WriterLoop {
                 moved.push(*stroke);
                 moves.push((*stroke, known.chunk_end, samples));
             }
+            self.idle_moved = !moved.is_empty();
         }
         let rows: Vec<(Uuid, u64, &[Sample])> =
             moves.iter().map(|(s, seq, samples)| (*s, *seq, samples.as_slice())).collect();
@@ -839,20 +935,28 @@ async fn chunk_end(conn: &mut AnyConnection, stroke: Uuid) -> anyhow::Result<u64
 }
 
 /// What is stored of `stroke`, read from the database: its chunks' end and the samples after
-/// it in the log (any writer's). A stroke with no row yet is new: nothing is stored.
-async fn load_stroke(conn: &mut AnyConnection, stroke: Uuid, writer: i64) -> anyhow::Result<Known> {
-    let exists: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM strokes WHERE id = $1")
-        .bind(stroke.to_string())
-        .fetch_one(&mut *conn)
-        .await?;
-    if exists == 0 {
-        return Ok(Known::default());
+/// it in the log (any writer's); `None` when it has no row.
+async fn load_stroke(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    writer: i64,
+) -> anyhow::Result<Option<Known>> {
+    if !log::stroke_exists(conn, stroke).await? {
+        return Ok(None);
     }
     let chunk_end = chunk_end(conn, stroke).await?;
-    let wanted = std::collections::HashSet::from([stroke]);
+    let wanted = HashSet::from([stroke]);
     let entries =
         log::read_log(conn, Some(&wanted), None).await?.remove(&stroke).unwrap_or_default();
-    known_from(stroke, chunk_end, entries, writer)
+    known_from(stroke, chunk_end, entries, writer).map(Some)
+}
+
+/// The refusal of samples or an end of a stroke that does not exist.
+fn no_stroke(stroke: Uuid) -> WriteError {
+    WriteError::Refused(format!(
+        "stroke {stroke} does not exist (its stroke_begin was not stored), so nothing of it \
+         is; begin it again"
+    ))
 }
 
 /// A stroke's state from its chunks' end and its log entries (id and writer of the record).
@@ -872,11 +976,26 @@ fn known_from(
 }
 
 /// After a failed transaction: every stroke with samples in this writer's records, as stored.
+/// Samples that cannot be moved into `stroke_chunks` (a stroke with no row, samples that do
+/// not decode or do not fit together) are set aside (`log::set_aside`) and forgotten, so that
+/// one bad stroke does not fail every transaction after it.
 async fn recover(conn: &mut AnyConnection, writer: i64) -> anyhow::Result<HashMap<Uuid, Known>> {
     let mut strokes = HashMap::new();
-    for (stroke, entries) in log::read_log(conn, None, Some(writer)).await? {
-        let end = chunk_end(conn, stroke).await?;
-        strokes.insert(stroke, known_from(stroke, end, entries, writer)?);
+    for (stroke, entries) in log::read_log_to_move(conn, Some(writer)).await? {
+        let mut records: Vec<i64> = entries.iter().map(|(id, _, _)| *id).collect();
+        records.dedup();
+        let known = if log::stroke_exists(conn, stroke).await? {
+            chunk_end(conn, stroke).await.and_then(|end| known_from(stroke, end, entries, writer))
+        } else {
+            Err(anyhow::anyhow!("stroke {stroke} has no row"))
+        };
+        match known {
+            Ok(known) => {
+                strokes.insert(stroke, known);
+            }
+            Err(err) if log::is_database_error(&err) => return Err(err),
+            Err(err) => log::set_aside(conn, &records, Some(stroke), &format!("{err:#}")).await?,
+        }
     }
     Ok(strokes)
 }

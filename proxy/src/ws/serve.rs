@@ -5,8 +5,8 @@ use std::time::Duration;
 use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
-    ClientMessage, CodecError, ErrorCode, Hello, PROTOCOL_VERSION, ServerMessage, StrokeId,
-    Welcome, decode_client_json_limited, decode_client_limited,
+    ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, PROTOCOL_VERSION, ServerMessage,
+    StrokeId, Welcome, check_text, decode_client_json_limited, decode_client_limited,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -265,6 +265,16 @@ impl Connection {
                 End::Close(close_code::POLICY, "resume list too long".into()),
             ));
         }
+        let name = hello.name.as_deref();
+        for (field, text) in [("hello.client", Some(hello.client.as_str())), ("hello.name", name)] {
+            if let Some(Err(why)) = text.map(|t| check_text(t, MAX_NAME_CHARS)) {
+                return Err(ConnError::refused(
+                    ErrorCode::Malformed,
+                    format!("{field} {why}"),
+                    None,
+                ));
+            }
+        }
         if let Some(key) = &hello.key {
             self.participant = crate::identity::participant_of(self.session, "hello.key", key)
                 .map_err(|why| ConnError::refused(ErrorCode::Malformed, why, None))?;
@@ -287,9 +297,7 @@ impl Connection {
             .map(str::trim)
             .filter(|n| !n.is_empty())
             .unwrap_or(hello.client.as_str())
-            .chars()
-            .take(200)
-            .collect();
+            .to_string();
         let (participant, session, connection) = (self.participant, self.session, self.presence);
         let joined = self
             .state

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use penmesh::protocol::{
     Ack, ErrorCode, ParticipantId, PointBatch, Points, ResumeState, Retained, ServerMessage,
-    StrokeBegin, StrokeDone, StrokeEnd, StrokeId, StrokeStatus,
+    StrokeBegin, StrokeDone, StrokeEnd, StrokeId, StrokeStatus, check_text,
 };
 use penmesh::{Kept, Sample};
 
@@ -143,14 +143,9 @@ impl Connection {
             return Err(ConnError::refused(ErrorCode::BadBrush, err.to_string(), Some(stroke)));
         }
         let (device, max_device) = (begin.device.as_deref(), self.state.config.max_device_chars);
-        if let Some(n) = device.map(|d| d.chars().count()).filter(|&n| n > max_device) {
-            return Err(ConnError::refused(
-                ErrorCode::Malformed,
-                format!(
-                    "stroke_begin.device is {n} characters, more than the limit of {max_device}"
-                ),
-                Some(stroke),
-            ));
+        if let Some(Err(why)) = device.map(|d| check_text(d, max_device)) {
+            let message = format!("stroke_begin.device {why}");
+            return Err(ConnError::refused(ErrorCode::Malformed, message, Some(stroke)));
         }
         let params = begin.params.unwrap_or_else(|| self.state.config.default_params());
         if let Err(err) = params.validate() {
@@ -390,8 +385,15 @@ impl Connection {
                 self.strokes.remove(&stroke);
                 self.finishing.remove(&stroke);
                 self.claims.release(stroke);
-                let advice =
-                    format!("storing the stroke failed ({err}); resume it from the last ack");
+                // The writer's own refusals say what is wrong, and a full disk is named; the
+                // database's words stay in the log.
+                let advice = match &err {
+                    WriteError::Refused(why) => format!("{why}; resume it from the last ack"),
+                    WriteError::Storage(_) => "storing the stroke failed: the proxy's disk is \
+                                               full or failing; resume it from the last ack"
+                        .to_string(),
+                    _ => "storing the stroke failed; resume it from the last ack".to_string(),
+                };
                 self.fail(ConnError::internal("storing a stroke", err, advice, Some(stroke)));
             }
         }

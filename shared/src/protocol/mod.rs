@@ -14,6 +14,15 @@
 //! `penmesh`, which the proxy selects (`docs/web.md`). A client that cannot run LRPDP (the
 //! browser) asks the proxy to build a done stroke's mesh: `POST /v1/strokes/{id}/mesh/build`,
 //! announced with `PeerMesh` like an upload. Neither changes the binary layout.
+//!
+//! **What the proxy refuses** beyond the encoding: text a client sends (`Hello.client`,
+//! `Hello.name`, `StrokeBegin.device`) holding a NUL byte or longer than its limit
+//! ([`MAX_NAME_CHARS`] = 200 characters; the device's is the proxy's `--max-device-chars`, 200
+//! by default), with `Error {malformed}` naming the field ([`check_text`]); a sample with a
+//! non-finite value, a coordinate beyond ±[`crate::MAX_COORDINATE`] = 10⁶, pressure outside
+//! [0, 1] or time going backwards, with `Error {bad_sample}` naming the sample
+//! ([`crate::validate_sample`]). Nothing of a stroke is acknowledged before its `StrokeBegin`
+//! is stored: batches sent after a begin that fails are refused with it.
 
 mod codec;
 mod http;
@@ -48,6 +57,23 @@ pub const KEY_HEADER: &str = "x-penmesh-key";
 pub const KEY_MIN_CHARS: usize = 32;
 /// Most characters of a participant key.
 pub const KEY_MAX_CHARS: usize = 128;
+
+/// Most characters of `Hello.name` and `Hello.client`.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// Checks a text field a client sends, which the proxy stores or shows to others: at most
+/// `max_chars` characters, and no NUL byte (PostgreSQL cannot store one in text). The error
+/// says what is wrong, for the caller to prefix with the field's name.
+pub fn check_text(text: &str, max_chars: usize) -> Result<(), String> {
+    let n = text.chars().count();
+    if n > max_chars {
+        return Err(format!("is {n} characters, more than the limit of {max_chars}"));
+    }
+    if let Some(at) = text.chars().position(|c| c == '\0') {
+        return Err(format!("holds a NUL byte (character {at}), which text may not hold"));
+    }
+    Ok(())
+}
 
 /// Checks the form of a participant key: [`KEY_MIN_CHARS`] to [`KEY_MAX_CHARS`] characters of
 /// the base64url alphabet (`A-Z a-z 0-9 - _`, which holds lowercase hex). The error says what
@@ -90,9 +116,10 @@ pub enum ClientMessage {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Hello {
     pub protocol: u16,
-    /// Free-form client name and version, for logs.
+    /// Free-form client name and version, for logs ([`check_text`], [`MAX_NAME_CHARS`]).
     pub client: String,
-    /// Display name shown to the session's other participants.
+    /// Display name shown to the session's other participants ([`check_text`],
+    /// [`MAX_NAME_CHARS`]).
     #[serde(default)]
     pub name: Option<String>,
     #[serde(default)]
@@ -112,7 +139,8 @@ pub struct StrokeBegin {
     pub stroke: StrokeId,
     #[serde(default)]
     pub brush: Brush,
-    /// Input device description, e.g. `"wacom ctl-671"` or `"synth:figure8"`.
+    /// Input device description, e.g. `"wacom ctl-671"` or `"synth:figure8"` ([`check_text`];
+    /// the proxy's `--max-device-chars` is its limit).
     #[serde(default)]
     pub device: Option<String>,
     /// ACUTS stage 2 parameters; the proxy's defaults when absent.
@@ -244,7 +272,8 @@ pub struct StrokeDone {
 #[serde(rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]
 pub enum ErrorCode {
-    /// A binary frame that does not decode.
+    /// A binary frame that does not decode, or a field the proxy cannot take: text with a NUL
+    /// byte or longer than its limit, a participant key of the wrong form.
     Malformed,
     /// A text frame that is not valid JSON for any message.
     BadJson,
@@ -252,7 +281,8 @@ pub enum ErrorCode {
     UnknownMessage,
     /// The first message was not `Hello`, or a `Hello` came twice, or versions differ.
     Protocol,
-    /// A non-finite value, pressure outside [0, 1], time going backwards.
+    /// A non-finite value, a coordinate beyond ±10⁶, pressure outside [0, 1], time going
+    /// backwards.
     BadSample,
     BadBrush,
     /// ACUTS parameters out of range.

@@ -10,8 +10,10 @@
 //!   all), and PostgreSQL cut off for
 //!   longer than any timeout, through the TCP forwarder of `forwarder.rs` (PostgreSQL only:
 //!   ignored without the URL, see `tests/build.rs`; with it they run and fail when they must);
+//! - `bad_record.rs`: records of the append log that cannot be moved, set aside one by one;
 //! - `disk_full.rs`: every file write failing under SQLite (`RLIMIT_FSIZE`), then space back.
 
+mod bad_record;
 mod black_hole;
 mod check;
 mod child;

@@ -233,7 +233,8 @@ async fn a_slow_reader_is_disconnected_instead_of_growing_memory() {
             .map(|i| {
                 let k = b * batch + i;
                 Sample::new(
-                    k as f64 * 4.0,
+                    // Within the coordinate bound (±1e6): back to 0 every 250 000 samples.
+                    (k % 250_000) as f64 * 4.0,
                     if k.is_multiple_of(2) { 0.0 } else { 50.0 },
                     k as f64,
                     0.5,

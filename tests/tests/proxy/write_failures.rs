@@ -269,3 +269,113 @@ async fn an_unreadable_stroke_is_reported_and_does_not_hide_the_others() {
         "{before:?}"
     );
 }
+
+#[tokio::test]
+async fn a_batch_whose_begin_failed_is_neither_stored_nor_acknowledged() {
+    // Arrange: every transaction holding the stroke's begin fails. A client streams: its
+    // batches follow the begin before the begin's answer comes back.
+    let faults = CommitFaults::new();
+    let proxy = faulty_proxy(&faults).await;
+    let session = proxy.create_session().await;
+    let (stroke, samples) = (Uuid::new_v4(), stroke_samples(12));
+    faults.fail_begin(stroke, Fault::Fail, u32::MAX);
+    let mut ws = proxy.connect(&session).await;
+    ws.hello(vec![]).await;
+
+    // Act
+    ws.begin(stroke).await;
+    send_from(&mut ws, stroke, &samples, 0).await;
+    let mut acks = Vec::new();
+    let mut errors = Vec::new();
+    while let Ok(msg) = tokio::time::timeout(Duration::from_millis(500), ws.recv()).await {
+        match msg {
+            ServerMessage::Ack(ack) if ack.stroke == stroke => acks.push(ack.upto_seq),
+            ServerMessage::Error(err) if err.stroke == Some(stroke) => errors.push(err),
+            _ => {}
+        }
+    }
+
+    // Assert: a stroke exists before anything of it is acknowledged; nothing of it is stored,
+    // and no answer carries the database's own words.
+    assert!(acks.is_empty(), "acknowledged {acks:?} of a stroke that was never created");
+    assert!(errors.iter().any(|e| e.code == ErrorCode::Internal), "{errors:?}");
+    assert!(
+        errors.iter().all(|e| !e.message.contains("injected")),
+        "an answer carries the failure's own text: {errors:?}"
+    );
+    assert_eq!(pieces(&proxy.db, stroke).await, (vec![], vec![]));
+    let raw = proxy.get(&format!("/v1/strokes/{stroke}/raw"), &session).send().await.unwrap();
+    assert_eq!(raw.status(), 404);
+    // Once the begin commits, the stroke is drawn from 0.
+    faults.clear();
+    ws.begin(stroke).await;
+    ws.wait_ack(stroke, 0).await;
+    send_from(&mut ws, stroke, &samples, 0).await;
+    ws.wait_ack(stroke, 12).await;
+    assert_stored_prefix(&proxy, &session, stroke, &samples, 12).await;
+}
+
+#[tokio::test]
+async fn samples_the_log_cannot_move_are_set_aside_and_other_pens_go_on() {
+    // Arrange: a stroke with acknowledged samples in the append log loses its row behind the
+    // writer's back (what a begin that failed left before the writer checked), while a pen of
+    // another session draws on.
+    let proxy = spawn_faulty_proxy_on(TestDatabase::fresh().await, None, |_| {}).await;
+    let session = proxy.create_session().await;
+    let orphan = Uuid::new_v4();
+    let mut idle = proxy.drawing(&session, orphan).await;
+    idle.points(orphan, 0, &stroke_samples(8)).await;
+    idle.wait_ack(orphan, 8).await;
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(&proxy.db.url).await.unwrap();
+    sqlx::query("DELETE FROM strokes WHERE id = $1")
+        .bind(orphan.to_string())
+        .execute(&pool)
+        .await
+        .unwrap();
+    let other = proxy.create_session().await;
+    let mut pen = proxy.connect(&other).await;
+    pen.hello(vec![]).await;
+
+    // Act: eight strokes of a second each, a batch every 50 ms, past several of the writer's
+    // moves of the log.
+    let samples = stroke_samples(80);
+    let mut errors = Vec::new();
+    for _ in 0..8 {
+        let stroke = Uuid::new_v4();
+        pen.begin(stroke).await;
+        for (i, batch) in samples.chunks(BATCH).enumerate() {
+            pen.points(stroke, (i * BATCH) as u64, batch).await;
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        pen.end(stroke, samples.len() as u64).await;
+        loop {
+            match pen.recv().await {
+                ServerMessage::StrokeDone(done) if done.stroke == stroke => break,
+                ServerMessage::Error(err) if err.stroke == Some(stroke) => {
+                    errors.push(err);
+                    break;
+                }
+                ServerMessage::Error(err) => errors.push(err),
+                _ => {}
+            }
+        }
+    }
+
+    // Assert: the other pen saw no error; the orphan's samples are set aside, counted, and no
+    // longer hold the log's records (the log is trimmed as usual).
+    assert!(errors.is_empty(), "{errors:?}");
+    let set_aside: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM stroke_log_set_aside WHERE stroke_id = $1")
+            .bind(orphan.to_string())
+            .fetch_one(&pool)
+            .await
+            .unwrap();
+    assert!(set_aside >= 1, "the orphan's log entries are kept aside");
+    let records: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM stroke_log").fetch_one(&pool).await.unwrap();
+    assert!(records < 100, "the log holds {records} records: it is not trimmed");
+    assert!(proxy.metrics().await.contains("penmesh_log_set_aside_total"));
+    pool.close().await;
+    drop(idle);
+}
