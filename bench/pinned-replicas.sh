@@ -53,7 +53,7 @@ for i in $(seq 1 "$replicas"); do
     port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
     RUST_LOG=warn taskset -c 0 "$penmesh" serve-proxy --host 127.0.0.1 --port "$port" \
         --database-url "$pg/$db${PENMESH_PG_QUERY:-}" --max-connections-per-session 64 --session-rate-per-minute 0 \
-        --max-connections 10000 --idle-timeout-secs 600 "$@" > "$work/replica-$i.log" 2>&1 &
+        --max-connections 10000 --max-connections-per-address 0 --idle-timeout-secs 600 "$@" > "$work/replica-$i.log" 2>&1 &
     pids+=($!)
     ports+=("$port")
 done

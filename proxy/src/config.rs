@@ -182,6 +182,17 @@ pub struct Config {
     #[arg(long, env = "PENMESH_MAX_CONNECTIONS", default_value_t = 10_000)]
     pub max_connections: usize,
 
+    /// Most WebSocket connections at once from one client address on this replica (the address
+    /// of `session_rate_per_minute`: the peer, or the trusted `X-Forwarded-For`); past it an
+    /// upgrade gets 503. 0: no limit (where the client's address cannot be known).
+    #[arg(long, env = "PENMESH_MAX_CONNECTIONS_PER_ADDRESS", default_value_t = 100)]
+    pub max_connections_per_address: usize,
+
+    /// A WebSocket connection that has not sent `Hello` this many seconds after the upgrade is
+    /// closed.
+    #[arg(long, env = "PENMESH_HELLO_TIMEOUT_SECS", default_value_t = 10)]
+    pub hello_timeout_secs: u64,
+
     /// An HTTP connection that has not sent a whole request head (request line and headers)
     /// this many seconds after it opened, or after its previous request, is closed (slowloris).
     #[arg(long, env = "PENMESH_HEADER_TIMEOUT_SECS", default_value_t = 10)]
@@ -222,8 +233,11 @@ pub struct Config {
     #[arg(long, env = "PENMESH_WRITER_QUEUE_BYTES", default_value_t = 64 * 1024 * 1024)]
     pub writer_queue_bytes: usize,
 
-    /// A connection that sends nothing for this many seconds is closed.
-    #[arg(long, env = "PENMESH_IDLE_TIMEOUT_SECS", default_value_t = 60)]
+    /// A connection that does no work for this many seconds is closed: only a `Hello`,
+    /// `StrokeBegin`, `Points` or `StrokeEnd` the proxy carries out counts, not a `Ping`
+    /// message nor a WebSocket ping or pong (those keep the heartbeat's peer alive, not its
+    /// slot).
+    #[arg(long, env = "PENMESH_IDLE_TIMEOUT_SECS", default_value_t = 300)]
     pub idle_timeout_secs: u64,
 
     /// A connection heard nothing from (not even a pong) for this long is pinged, and after
@@ -238,6 +252,12 @@ pub struct Config {
     /// Outgoing messages queued per connection; a reader slower than this is disconnected.
     #[arg(long, env = "PENMESH_OUTGOING_QUEUE", default_value_t = 1024)]
     pub outgoing_queue: usize,
+
+    /// Bytes of outgoing messages queued per connection, next to the count `outgoing_queue`
+    /// (a message enters while fewer are queued, so at most this plus one message); the
+    /// session's events waiting for the connection are bounded by as many bytes of samples.
+    #[arg(long, env = "PENMESH_OUTGOING_QUEUE_BYTES", default_value_t = 1024 * 1024)]
+    pub outgoing_queue_bytes: usize,
 
     /// A connection whose outgoing queue stays full for this long (ms) while answers wait is a
     /// slow reader, and is disconnected (a full queue alone is not: a group commit can
@@ -351,6 +371,8 @@ impl Config {
         // A zero period or deadline would time out every wait, or ping without pause.
         for (value, setting) in [
             (self.heartbeat_ms, "--heartbeat-ms (PENMESH_HEARTBEAT_MS)"),
+            (self.hello_timeout_secs, "--hello-timeout-secs (PENMESH_HELLO_TIMEOUT_SECS)"),
+            (self.idle_timeout_secs, "--idle-timeout-secs (PENMESH_IDLE_TIMEOUT_SECS)"),
             (self.db_timeout_ms, "--db-timeout-ms (PENMESH_DB_TIMEOUT_MS)"),
             (self.listener_heartbeat_ms, "--listener-heartbeat-ms (PENMESH_LISTENER_HEARTBEAT_MS)"),
             (self.header_timeout_secs, "--header-timeout-secs (PENMESH_HEADER_TIMEOUT_SECS)"),
@@ -512,6 +534,8 @@ mod tests {
             ("--angle-deg", "91", "PENMESH_ANGLE_DEG"),
             ("--pressure-tolerance", "-0.5", "PENMESH_PRESSURE_TOLERANCE"),
             ("--heartbeat-ms", "0", "PENMESH_HEARTBEAT_MS"),
+            ("--hello-timeout-secs", "0", "PENMESH_HELLO_TIMEOUT_SECS"),
+            ("--idle-timeout-secs", "0", "PENMESH_IDLE_TIMEOUT_SECS"),
             ("--db-timeout-ms", "0", "PENMESH_DB_TIMEOUT_MS"),
             ("--listener-heartbeat-ms", "0", "PENMESH_LISTENER_HEARTBEAT_MS"),
             ("--header-timeout-secs", "0", "PENMESH_HEADER_TIMEOUT_SECS"),

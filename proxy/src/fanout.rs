@@ -7,13 +7,13 @@
 //! peer never sees what a crash could still lose, and events reach every replica in commit
 //! order.
 //!
-//! A queue that is full is not waited for: its subscriber is marked lagged and dropped from the
-//! session, the other subscribers go on. The connection then resyncs from the database
+//! A queue that is full (in events, or in bytes of samples) is not waited for: its subscriber
+//! is marked lagged and dropped from the session, the other subscribers go on. The connection then resyncs from the database
 //! ([`crate::ws`]), filtering with a [`PeerView`] of what its client already has, so the
 //! client receives neither a gap nor a repeat.
 
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use penmesh::protocol::{
@@ -212,6 +212,15 @@ impl SessionEvent {
         }
     }
 
+    /// The bytes of samples the event holds (what a subscriber's queue counts; the frames
+    /// encoded from them are counted by each connection's outgoing queue).
+    pub fn sample_bytes(&self) -> usize {
+        match &self.kind {
+            EventKind::Retained { points, .. } => std::mem::size_of_val(points.as_slice()),
+            _ => 0,
+        }
+    }
+
     /// The stroke the event is about, if any.
     pub fn stroke(&self) -> Option<StrokeId> {
         match &self.kind {
@@ -269,6 +278,23 @@ struct Subscriber {
     connection: Option<u64>,
     tx: mpsc::Sender<Arc<Published>>,
     lag: Arc<AtomicU8>,
+    /// Bytes of samples of the events in the queue ([`SessionEvent::sample_bytes`]).
+    queued: Arc<AtomicUsize>,
+    /// The most `queued` may reach with a further event (an event larger than that is taken
+    /// by an empty queue).
+    byte_limit: usize,
+}
+
+impl Subscriber {
+    /// Counts `bytes` more in the queue if they fit.
+    fn admit(&self, bytes: usize) -> bool {
+        let queued = self.queued.load(Ordering::Acquire);
+        if queued > 0 && queued + bytes > self.byte_limit {
+            return false;
+        }
+        self.queued.fetch_add(bytes, Ordering::AcqRel);
+        true
+    }
 }
 
 #[derive(Debug, Default)]
@@ -291,29 +317,34 @@ pub struct Subscription {
     id: u64,
     rx: mpsc::Receiver<Arc<Published>>,
     lag: Arc<AtomicU8>,
+    queued: Arc<AtomicUsize>,
 }
 
 impl Fanout {
-    /// Subscribes to `session`'s events with a queue of `capacity` events, for `connection`:
-    /// events that connection caused are not handed back to it.
+    /// Subscribes to `session`'s events with a queue of `capacity` events and `byte_limit`
+    /// bytes of samples, for `connection`: events that connection caused are not handed back
+    /// to it.
     pub fn subscribe(
         &self,
         session: Uuid,
         capacity: usize,
+        byte_limit: usize,
         connection: Option<u64>,
     ) -> Subscription {
         let (tx, rx) = mpsc::channel(capacity.max(1));
         let lag = Arc::new(AtomicU8::new(LIVE));
+        let queued = Arc::new(AtomicUsize::new(0));
         let mut registry = self.registry.lock().expect("fanout lock");
         registry.next_id += 1;
         let id = registry.next_id;
-        let subscriber = Subscriber { id, connection, tx, lag: lag.clone() };
+        let subscriber =
+            Subscriber { id, connection, tx, lag: lag.clone(), queued: queued.clone(), byte_limit };
         registry.sessions.entry(session).or_default().push(subscriber);
-        Subscription { fanout: self.clone(), session, id, rx, lag }
+        Subscription { fanout: self.clone(), session, id, rx, lag, queued }
     }
 
     /// Hands `event` to every subscriber of its session, never waiting: a subscriber whose
-    /// queue is full is marked lagged and removed.
+    /// queue is full, in events or in bytes, is marked lagged and removed.
     pub fn dispatch(&self, event: SessionEvent) {
         let session = event.session;
         let mut registry = self.registry.lock().expect("fanout lock");
@@ -323,12 +354,18 @@ impl Fanout {
         if subscribers.iter().all(is_origin) {
             return; // Only the connection that caused it listens: nobody to tell.
         }
+        let bytes = event.sample_bytes();
         let event = Arc::new(Published::new(event));
         subscribers.retain(|s| {
             if is_origin(s) {
                 return true;
             }
-            match s.tx.try_send(event.clone()) {
+            // Counted before it is sent: the subscriber may take it at once.
+            let sent = match s.admit(bytes) {
+                true => s.tx.try_send(event.clone()),
+                false => Err(mpsc::error::TrySendError::Full(event.clone())),
+            };
+            match sent {
                 Ok(()) => true,
                 Err(mpsc::error::TrySendError::Full(_)) => {
                     metrics::counter!("penmesh_fanout_lagged_total").increment(1);
@@ -382,7 +419,10 @@ impl Subscription {
             return Err(lag);
         }
         match self.rx.recv().await {
-            Some(event) => Ok(event),
+            Some(event) => {
+                self.queued.fetch_sub(event.event.sample_bytes(), Ordering::AcqRel);
+                Ok(event)
+            }
             None => Err(self.lagged().unwrap_or(Lag::Gap)),
         }
     }
@@ -638,8 +678,8 @@ mod tests {
     async fn a_full_queue_lags_its_subscriber_only() {
         let fanout = Fanout::default();
         let session = Uuid::nil();
-        let mut slow = fanout.subscribe(session, 2, None);
-        let mut fast = fanout.subscribe(session, 100, None);
+        let mut slow = fanout.subscribe(session, 2, usize::MAX, None);
+        let mut fast = fanout.subscribe(session, 100, usize::MAX, None);
         for i in 0..5 {
             fanout.dispatch(retained(Uuid::nil(), i, 1));
             fast.recv().await.unwrap();
@@ -649,11 +689,30 @@ mod tests {
     }
 
     #[tokio::test]
+    async fn a_queue_full_in_bytes_of_samples_lags_its_subscriber_only() {
+        let fanout = Fanout::default();
+        let session = Uuid::nil();
+        let sample = std::mem::size_of::<Sample>();
+        // Room for 10 samples: the events of 4, 4 and 3 samples do not fit together.
+        let mut slow = fanout.subscribe(session, 100, 10 * sample, None);
+        let mut fast = fanout.subscribe(session, 100, 10 * sample, None);
+        for (first, n) in [(0, 4), (4, 4), (8, 3)] {
+            fanout.dispatch(retained(Uuid::nil(), first, n));
+            fast.recv().await.unwrap();
+        }
+        assert_eq!(slow.queued(), 2, "the two events that fit");
+        assert_eq!(slow.recv().await.unwrap_err(), Lag::Overflow);
+        // An event larger than the whole limit reaches a subscriber whose queue is empty.
+        fanout.dispatch(retained(Uuid::nil(), 11, 50));
+        assert_eq!(fast.recv().await.unwrap().event.sample_bytes(), 50 * sample);
+    }
+
+    #[tokio::test]
     async fn an_event_is_not_handed_back_to_the_connection_that_caused_it() {
         let fanout = Fanout::default();
         let session = Uuid::nil();
-        let mut drawer = fanout.subscribe(session, 10, Some(1));
-        let mut peer = fanout.subscribe(session, 10, Some(2));
+        let mut drawer = fanout.subscribe(session, 10, usize::MAX, Some(1));
+        let mut peer = fanout.subscribe(session, 10, usize::MAX, Some(2));
         let mut theirs = retained(Uuid::new_v4(), 0, 1);
         theirs.origin = Some(1);
         fanout.dispatch(theirs.clone());

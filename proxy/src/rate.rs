@@ -2,11 +2,12 @@
 //! bucket per client address (the `governor` crate), `session_burst` deep, refilled at
 //! `session_rate_per_minute`.
 //!
-//! The client address is the TCP peer's. Behind a reverse proxy or load balancer that is the
-//! proxy's, so every client shares one bucket, unless `trust_forwarded_for` is on: then it is
-//! the last address of `X-Forwarded-For` (the one the nearest proxy appended: the ones before
-//! it are whatever the client wrote), else `X-Real-IP`, else the peer. IPv6 addresses count by
-//! their /64, which one client usually holds whole.
+//! The client address ([`client_key`], which the per-address WebSocket cap of
+//! `max_connections_per_address` counts by too) is the TCP peer's. Behind a reverse proxy or
+//! load balancer that is the proxy's, so every client shares one bucket, unless
+//! `trust_forwarded_for` is on: then it is the last address of `X-Forwarded-For` (the one the
+//! nearest proxy appended: the ones before it are whatever the client wrote), else `X-Real-IP`,
+//! else the peer. IPv6 addresses count by their /64, which one client usually holds whole.
 
 use std::net::{IpAddr, Ipv6Addr, SocketAddr};
 use std::num::NonZeroU32;

@@ -1,8 +1,10 @@
 //! The state every handler shares: settings, store, writer, shutdown signal, the session
-//! fan-out, the per-session connection counts and the registry of strokes held by live
-//! connections (with PostgreSQL backed by advisory locks, so it holds across replicas).
+//! fan-out, the per-session connection counts, the WebSocket slots (per replica and per client
+//! address) and the registry of strokes held by live connections (with PostgreSQL backed by
+//! advisory locks, so it holds across replicas).
 
 use std::collections::{HashMap, HashSet};
+use std::net::IpAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -46,6 +48,8 @@ pub struct Inner {
     pub session_limiter: crate::rate::SessionLimiter,
     /// One permit per WebSocket connection on this replica (`max_connections`).
     connections: Arc<tokio::sync::Semaphore>,
+    /// Live WebSocket connections per client address on this replica (with a limit only).
+    addresses: Mutex<HashMap<IpAddr, usize>>,
     next_connection: AtomicU64,
 }
 
@@ -87,6 +91,7 @@ impl AppState {
                 fanout,
                 hubs: Mutex::new(HashMap::new()),
                 connections,
+                addresses: Mutex::new(HashMap::new()),
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -97,10 +102,21 @@ impl AppState {
         self.next_connection.fetch_add(1, Ordering::Relaxed)
     }
 
-    /// A WebSocket connection's slot on this replica, unless `max_connections` are open;
-    /// the slot frees when the permit is dropped.
-    pub fn connection_slot(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
-        self.connections.clone().try_acquire_owned().ok()
+    /// A WebSocket connection's slot on this replica for a client at `address`, unless
+    /// `max_connections` are open, or `max_connections_per_address` from that address; the
+    /// slot frees when it is dropped.
+    pub fn connection_slot(&self, address: IpAddr) -> Result<ConnectionSlot, NoSlot> {
+        let per_address = self.config.max_connections_per_address;
+        let mut addresses = self.addresses.lock().expect("addresses lock");
+        if per_address > 0 && addresses.get(&address).is_some_and(|&n| n >= per_address) {
+            return Err(NoSlot::Address);
+        }
+        let permit = self.connections.clone().try_acquire_owned().map_err(|_| NoSlot::Replica)?;
+        let address = (per_address > 0).then(|| {
+            *addresses.entry(address).or_default() += 1;
+            address
+        });
+        Ok(ConnectionSlot { state: self.clone(), address, _permit: permit })
     }
 
     /// Counts a new connection in its session, unless the session is full.
@@ -112,6 +128,38 @@ impl AppState {
         }
         *connections += 1;
         Some(SessionGuard { state: self.clone(), session })
+    }
+}
+
+/// Why a WebSocket connection gets no slot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoSlot {
+    /// `max_connections` are open on this replica.
+    Replica,
+    /// `max_connections_per_address` are open from the client's address.
+    Address,
+}
+
+/// A WebSocket connection's slot on this replica (and under its client address's limit);
+/// dropping it frees both.
+#[derive(Debug)]
+pub struct ConnectionSlot {
+    state: AppState,
+    /// The address counted (none without a per-address limit).
+    address: Option<IpAddr>,
+    _permit: tokio::sync::OwnedSemaphorePermit,
+}
+
+impl Drop for ConnectionSlot {
+    fn drop(&mut self) {
+        let Some(address) = self.address else { return };
+        let mut addresses = self.state.addresses.lock().expect("addresses lock");
+        if let Some(n) = addresses.get_mut(&address) {
+            *n -= 1;
+            if *n == 0 {
+                addresses.remove(&address);
+            }
+        }
     }
 }
 

@@ -1,8 +1,11 @@
 //! `GET /v1/sessions/{session}/ws`: authenticate, upgrade, and axum's WebSocket as a
 //! `Sink`/`Stream` of [`Frame`]s for [`serve`].
 
+use std::net::{Ipv4Addr, SocketAddr};
+
+use axum::Extension;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, State};
+use axum::extract::{ConnectInfo, Path, State};
 use axum::http::HeaderMap;
 use axum::response::{IntoResponse, Response};
 use futures_util::{Sink, SinkExt, Stream, StreamExt};
@@ -11,13 +14,14 @@ use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, encode_server_js
 use super::error::ReadError;
 use super::{Frame, close_code, serve};
 use crate::http::{AppError, authorize_session};
-use crate::state::AppState;
+use crate::state::{AppState, NoSlot};
 
 /// `GET /v1/sessions/{session}/ws`: authenticates, then upgrades.
 pub async fn ws_handler(
     State(state): State<AppState>,
     Path(session): Path<String>,
     headers: HeaderMap,
+    peer: Option<Extension<ConnectInfo<SocketAddr>>>,
     upgrade: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
 ) -> Result<Response, AppError> {
     if state.shutdown.is_cancelled() {
@@ -31,11 +35,22 @@ pub async fn ws_handler(
         Ok(upgrade) => upgrade,
         Err(rejection) => return Ok(rejection.into_response()),
     };
-    let slot = state.connection_slot().ok_or_else(|| {
-        AppError::Busy(format!(
-            "this replica has {} WebSocket connections, the limit (--max-connections)",
-            state.config.max_connections
-        ))
+    // The serve loop always gives the peer; a request handed to the router directly (a test)
+    // counts as the unspecified address.
+    let peer = peer.map_or((Ipv4Addr::UNSPECIFIED, 0).into(), |Extension(ConnectInfo(p))| p);
+    let address = crate::rate::client_key(peer, &headers, state.config.trust_forwarded_for);
+    let slot = state.connection_slot(address).map_err(|why| {
+        AppError::Busy(match why {
+            NoSlot::Replica => format!(
+                "this replica has {} WebSocket connections, the limit (--max-connections)",
+                state.config.max_connections
+            ),
+            NoSlot::Address => format!(
+                "this replica has {} WebSocket connections from {address}, the limit per client \
+                 address (--max-connections-per-address)",
+                state.config.max_connections_per_address
+            ),
+        })
     })?;
     let hard = state.config.hard_message_limit();
     let guard = state.join_session(session);

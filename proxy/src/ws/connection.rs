@@ -14,6 +14,7 @@ use uuid::Uuid;
 use super::Frame;
 use super::error::{ConnError, End};
 use super::outgoing::Outgoing;
+use super::serve::Heartbeat;
 use crate::fanout::{PeerView, Subscription};
 use crate::ingest::StrokeState;
 use crate::state::{AppState, ConnectionClaims, SessionGuard};
@@ -147,14 +148,15 @@ impl Connection {
     }
 
     /// Sends, waiting for room in the outgoing queue (history and resyncs, which can be long),
-    /// after the overflowed answers, so that the order holds. A client that reads nothing for
-    /// the idle timeout is dropped as a slow reader.
+    /// after the overflowed answers, so that the order holds. A client that takes nothing for
+    /// as long as the heartbeat gives a silent one (three periods: the loop, and with it the
+    /// heartbeat, waits meanwhile) is dropped as a slow reader.
     pub async fn send_wait(&mut self, msg: ServerMessage) {
         if self.end.is_some() {
             return;
         }
         let frame = self.outgoing.encode(&msg);
-        let patience = Duration::from_secs(self.state.config.idle_timeout_secs);
+        let patience = Duration::from_millis(self.state.config.heartbeat_ms) * Heartbeat::MISSED;
         if let Err(end) = self.outgoing.send_wait(frame, patience).await {
             self.end_with(end);
         }

@@ -5,11 +5,11 @@
 //! - `adapter.rs`: `GET /v1/sessions/{session}/ws` ([`ws_handler`]): authenticate, upgrade,
 //!   and axum's WebSocket turned into a `Sink`/`Stream` of [`Frame`]s.
 //! - `serve.rs`: [`serve`], the connection loop, written against a generic `Sink`/`Stream`
-//!   of frames (so a test drives it with channels): decode, `Hello`, the heartbeat, the idle
-//!   timeout, the wind-down.
+//!   of frames (so a test drives it with channels): decode, `Hello`, the heartbeat, the hello
+//!   deadline, the idle timeout (which only work resets, not pings), the wind-down.
 //! - `connection.rs`: one connection's state and what every part uses to answer (`send`,
 //!   `fail`, how it ends).
-//! - `outgoing.rs`: the bounded outgoing queue, its overflow of answers already owed, and the
+//! - `outgoing.rs`: the outgoing queue (bounded in frames and bytes), its overflow of answers already owed, and the
 //!   task that writes frames to the socket.
 //! - `strokes.rs`: the stroke lifecycle: begin, points, end, resume, acks after commit.
 //! - `peers.rs`: the session's events to this client, and the resync after a gap.
@@ -20,9 +20,10 @@
 //! - Every bad input is answered with `Error {code, message, stroke}` and the connection goes
 //!   on. The connection is closed only for: a first message that is not `Hello` or a protocol
 //!   version this proxy does not speak (close 1002), a message past the hard size limit (1009),
-//!   a full session (1008), the idle timeout (1000), shutdown (1001), a reader too slow for its
-//!   outgoing queue (dropped without a close frame, since the queue is full), and a peer that
-//!   answers nothing, not even the heartbeat's pings (dropped: it is gone).
+//!   a full session (1008), no `Hello` by the hello deadline (1008), the idle timeout (1000),
+//!   shutdown (1001), a reader too slow for its outgoing queue (dropped without a close frame,
+//!   since the queue is full), and a peer that answers nothing, not even the heartbeat's pings
+//!   (dropped: it is gone).
 //! - Answers go out in the form (binary or JSON) of the client's latest frame.
 //! - `StrokeBegin` is acknowledged with `Ack {upto_seq}` once the stroke row is committed.
 //! - Resume: a stroke named in `Hello.resume` (or begun again with `StrokeBegin`) that is
@@ -39,7 +40,7 @@
 //! through the connection's [`PeerView`](crate::fanout::PeerView) (per stroke: begun, how many
 //! retained samples, done, mesh time), which drops what the client already has and trims
 //! overlaps, so history and live events neither overlap nor leave a gap. Peer events leave a
-//! quarter of the outgoing queue to the connection's own answers; when the socket is too slow,
+//! quarter of the outgoing queue (frames and bytes) to the connection's own answers; when the socket is too slow,
 //! events wait in the fan-out queue, and when that overflows the client gets `Error {lagged}`
 //! and the same resync (only what it lacks; past 3 overflows a minute it is dropped instead).
 //! Stroke events are published once committed (by the writer), in order.

@@ -1,18 +1,26 @@
 //! What goes out to one client: a bounded queue of frames, written to the socket by a task of
 //! its own ([`forward`]), and the overflow of answers already owed.
 //!
-//! The bound: the queue holds at most its capacity. An answer that finds it full waits in the
+//! The bound: the queue holds at most its capacity in frames, and takes a frame only while it
+//! holds fewer bytes than its byte limit, so at most the limit plus one frame (a frame larger
+//! than the whole limit still goes out). An answer that finds it full waits in the
 //! overflow, in order, and while the overflow is not empty the connection reads no frame and
-//! takes no peer event, so only the answers already owed (at most `max_inflight` acks) can
-//! join it. A socket that takes none of them for `slow_reader_ms` belongs to a slow reader; one
-//! that does was only behind by a burst (a group commit acknowledges many batches at once).
+//! takes no peer event, so only the answers already owed (at most `max_inflight` acks, and the
+//! one peer event being sent) can join it. A socket that takes none of them for
+//! `slow_reader_ms` belongs to a slow reader; one that does was only behind by a burst (a group
+//! commit acknowledges many batches at once).
+//!
+//! Peer events leave a quarter of the queue, in frames and in bytes, to the connection's own
+//! answers ([`Outgoing::has_room_for_events`]).
 
 use std::collections::VecDeque;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use futures_util::{Sink, SinkExt};
 use penmesh::protocol::{ServerMessage, encode_server, encode_server_json};
-use tokio::sync::mpsc;
+use tokio::sync::{Notify, mpsc};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 
@@ -32,7 +40,11 @@ pub(super) enum Form {
 pub(super) struct Closed;
 
 pub(super) struct Outgoing {
-    out: mpsc::Sender<Frame>,
+    out: mpsc::Sender<Queued>,
+    /// The bytes of the frames in `out`.
+    bytes: Arc<QueuedBytes>,
+    /// Frames of the queue kept for the connection's own answers.
+    reserve: usize,
     /// Answers that found the queue full, in order, and since when.
     overflow: VecDeque<Frame>,
     overflow_since: Option<Instant>,
@@ -42,13 +54,83 @@ pub(super) struct Outgoing {
     sent: (metrics::Counter, metrics::Counter),
 }
 
+/// The bytes of the frames in a queue, and their limit: given back, with a wake-up, when the
+/// writing task takes a frame.
+#[derive(Debug)]
+struct QueuedBytes {
+    queued: AtomicUsize,
+    limit: usize,
+    taken: Notify,
+}
+
+impl QueuedBytes {
+    fn below(&self, threshold: usize) -> bool {
+        self.queued.load(Ordering::Acquire) < threshold
+    }
+
+    /// Ready once fewer than `threshold` bytes are queued (one task waits: the connection's).
+    async fn wait_below(&self, threshold: usize) {
+        loop {
+            let taken = self.taken.notified();
+            if self.below(threshold) {
+                return;
+            }
+            taken.await;
+        }
+    }
+}
+
+/// A frame in the queue, counted in the queue's bytes until [`forward`] takes it out.
+#[derive(Debug)]
+pub(super) struct Queued {
+    frame: Frame,
+    bytes: Arc<QueuedBytes>,
+}
+
+impl Queued {
+    fn new(frame: Frame, bytes: &Arc<QueuedBytes>) -> Queued {
+        bytes.queued.fetch_add(frame_bytes(&frame), Ordering::AcqRel);
+        Queued { frame, bytes: bytes.clone() }
+    }
+}
+
+impl From<Queued> for Frame {
+    fn from(queued: Queued) -> Frame {
+        let Queued { frame, bytes } = queued;
+        bytes.queued.fetch_sub(frame_bytes(&frame), Ordering::AcqRel);
+        bytes.taken.notify_one();
+        frame
+    }
+}
+
+/// The bytes a frame counts for: its payload.
+fn frame_bytes(frame: &Frame) -> usize {
+    match frame {
+        Frame::Text(text) => text.len(),
+        Frame::Binary(bytes) | Frame::Ping(bytes) | Frame::Pong(bytes) => bytes.len(),
+        Frame::Close(close) => close.as_ref().map_or(0, |(_, reason)| reason.len()),
+    }
+}
+
 impl Outgoing {
-    /// A queue of `capacity` frames, and its other end for [`forward`].
-    pub fn new(capacity: usize, counters: &HotCounters) -> (Outgoing, mpsc::Receiver<Frame>) {
-        let (out, rx) = mpsc::channel(capacity.max(1));
+    /// A queue of `capacity` frames and `byte_limit` bytes, and its other end for [`forward`].
+    pub fn new(
+        capacity: usize,
+        byte_limit: usize,
+        counters: &HotCounters,
+    ) -> (Outgoing, mpsc::Receiver<Queued>) {
+        let capacity = capacity.max(1);
+        let (out, rx) = mpsc::channel(capacity);
+        let bytes = Arc::new(QueuedBytes {
+            queued: AtomicUsize::new(0),
+            limit: byte_limit.max(1),
+            taken: Notify::new(),
+        });
         let sent = (counters.frames_out_binary.clone(), counters.frames_out_text.clone());
         let outgoing = Outgoing {
             out,
+            bytes,
+            reserve: capacity / 4,
             overflow: VecDeque::new(),
             overflow_since: None,
             form: Form::Binary,
@@ -71,18 +153,18 @@ impl Outgoing {
             self.overflow.push_back(frame);
             return Ok(());
         }
-        match self.out.try_send(frame) {
-            Ok(()) => {
-                self.count_sent();
-                Ok(())
-            }
-            Err(mpsc::error::TrySendError::Full(frame)) => {
+        let permit = match self.out.try_reserve() {
+            Ok(permit) if self.bytes.below(self.bytes.limit) => permit,
+            Ok(_) | Err(mpsc::error::TrySendError::Full(())) => {
                 self.overflow.push_back(frame);
                 self.overflow_since = Some(Instant::now());
-                Ok(())
+                return Ok(());
             }
-            Err(mpsc::error::TrySendError::Closed(_)) => Err(Closed),
-        }
+            Err(mpsc::error::TrySendError::Closed(())) => return Err(Closed),
+        };
+        permit.send(Queued::new(frame, &self.bytes));
+        self.count_sent();
+        Ok(())
     }
 
     /// Answers wait in the overflow.
@@ -95,29 +177,43 @@ impl Outgoing {
         self.overflow_since.map(|since| since + slow_reader)
     }
 
-    /// The queue has room for more than `reserve` frames.
-    pub fn has_room_beyond(&self, reserve: usize) -> bool {
-        self.out.capacity() > reserve
+    /// Below this many queued bytes a peer event may be taken.
+    fn event_bytes(&self) -> usize {
+        self.bytes.limit - self.bytes.limit / 4
     }
 
-    /// Ready once the queue has room for `n` frames (the permits are given back at once).
-    pub fn room(&self, n: usize) -> impl Future<Output = ()> + use<> {
-        let out = self.out.clone();
+    /// The queue has room for a peer event beyond what it keeps for the connection's answers:
+    /// more than a quarter of its frames free, and fewer than three quarters of its bytes
+    /// queued.
+    pub fn has_room_for_events(&self) -> bool {
+        self.out.capacity() > self.reserve && self.bytes.below(self.event_bytes())
+    }
+
+    /// Ready once [`Outgoing::has_room_for_events`] holds (the frame permits are given back at
+    /// once).
+    pub fn room_for_events(&self) -> impl Future<Output = ()> + use<> {
+        let (out, bytes, n, threshold) =
+            (self.out.clone(), self.bytes.clone(), self.reserve + 1, self.event_bytes());
         async move {
             let _ = out.reserve_many(n).await;
+            bytes.wait_below(threshold).await;
         }
     }
 
     /// Ready with a place in the queue for the oldest overflowed answer (cancel safe).
-    pub fn place(&self) -> impl Future<Output = Result<mpsc::OwnedPermit<Frame>, Closed>> + use<> {
-        let out = self.out.clone();
-        async move { out.reserve_owned().await.map_err(|_| Closed) }
+    pub fn place(&self) -> impl Future<Output = Result<mpsc::OwnedPermit<Queued>, Closed>> + use<> {
+        let (out, bytes) = (self.out.clone(), self.bytes.clone());
+        async move {
+            let permit = out.reserve_owned().await.map_err(|_| Closed)?;
+            bytes.wait_below(bytes.limit).await;
+            Ok(permit)
+        }
     }
 
     /// Moves the oldest overflowed answer into the queue.
-    pub fn flush_one(&mut self, permit: mpsc::OwnedPermit<Frame>) {
+    pub fn flush_one(&mut self, permit: mpsc::OwnedPermit<Queued>) {
         if let Some(frame) = self.overflow.pop_front() {
-            permit.send(frame);
+            permit.send(Queued::new(frame, &self.bytes));
             self.count_sent();
         }
         if self.overflow.is_empty() {
@@ -132,8 +228,15 @@ impl Outgoing {
         self.overflow_since = None;
         frames.push_back(frame);
         for frame in frames {
-            match tokio::time::timeout(patience, self.out.send(frame)).await {
-                Ok(Ok(())) => self.count_sent(),
+            let place = async {
+                self.bytes.wait_below(self.bytes.limit).await;
+                self.out.reserve().await
+            };
+            match tokio::time::timeout(patience, place).await {
+                Ok(Ok(permit)) => {
+                    permit.send(Queued::new(frame, &self.bytes));
+                    self.count_sent();
+                }
                 Ok(Err(_)) => return Err(End::Gone),
                 Err(_) => return Err(End::SlowReader),
             }
@@ -149,11 +252,11 @@ impl Outgoing {
             sender.abort();
             return;
         };
-        let Outgoing { out, overflow, .. } = self;
+        let Outgoing { out, bytes, overflow, .. } = self;
         let frames = overflow.into_iter().chain([Frame::Close(Some((*code, reason.clone())))]);
         let _ = tokio::time::timeout(grace, async {
             for frame in frames {
-                if out.send(frame).await.is_err() {
+                if out.send(Queued::new(frame, &bytes)).await.is_err() {
                     break;
                 }
             }
@@ -178,10 +281,12 @@ impl Outgoing {
 /// session's events fan out), up to this many.
 const FRAMES_PER_FLUSH: usize = 64;
 
-/// Writes queued frames to the socket until the queue closes or a close frame went out.
-pub async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
+/// Writes queued frames to the socket until the queue closes or a close frame went out. A
+/// frame leaves the queue's count ([`Queued`]) as it is handed to the socket.
+pub async fn forward<F: Into<Frame>, Si: Sink<Frame>>(mut rx: mpsc::Receiver<F>, sink: Si) {
     let mut sink = std::pin::pin!(sink);
     'frames: while let Some(frame) = rx.recv().await {
+        let frame = frame.into();
         let mut closing = matches!(frame, Frame::Close(_));
         if sink.feed(frame).await.is_err() {
             break;
@@ -191,6 +296,7 @@ pub async fn forward<Si: Sink<Frame>>(mut rx: mpsc::Receiver<Frame>, sink: Si) {
                 break;
             }
             let Ok(frame) = rx.try_recv() else { break };
+            let frame = frame.into();
             closing = matches!(frame, Frame::Close(_));
             if sink.feed(frame).await.is_err() {
                 break 'frames;
@@ -212,13 +318,13 @@ mod tests {
     }
 
     /// Everything queued, in the order sent.
-    fn drain(rx: &mut mpsc::Receiver<Frame>) -> Vec<Frame> {
-        std::iter::from_fn(|| rx.try_recv().ok()).collect()
+    fn drain<F: Into<Frame>>(rx: &mut mpsc::Receiver<F>) -> Vec<Frame> {
+        std::iter::from_fn(|| rx.try_recv().ok().map(Into::into)).collect()
     }
 
     #[test]
     fn answers_past_the_bound_wait_in_order_and_none_is_lost() {
-        let (mut outgoing, mut rx) = Outgoing::new(4, &HotCounters::register());
+        let (mut outgoing, mut rx) = Outgoing::new(4, usize::MAX, &HotCounters::register());
         for i in 0..10 {
             outgoing.send(text(i)).unwrap();
         }
@@ -236,8 +342,73 @@ mod tests {
     }
 
     #[test]
+    fn the_queue_holds_no_more_than_its_bytes_and_one_frame_and_none_is_lost() {
+        let big = |i: usize| Frame::Binary(vec![i as u8; 300]);
+        let (mut outgoing, mut rx) = Outgoing::new(100, 1000, &HotCounters::register());
+        for i in 0..10 {
+            outgoing.send(big(i)).unwrap();
+        }
+        // 0, 300, 600 and 900 bytes were queued when each of the first four went in.
+        assert_eq!(rx.len(), 4, "frames go in while fewer than 1000 bytes are queued");
+        assert_eq!(outgoing.bytes.queued.load(Ordering::Acquire), 1200);
+        assert!(outgoing.is_behind());
+        let mut got = drain(&mut rx);
+        assert_eq!(
+            outgoing.bytes.queued.load(Ordering::Acquire),
+            0,
+            "taken frames are not counted"
+        );
+        while outgoing.is_behind() {
+            let permit = outgoing.out.clone().try_reserve_owned().expect("room after a drain");
+            outgoing.flush_one(permit);
+            got.extend(drain(&mut rx));
+        }
+        assert_eq!(got, (0..10).map(big).collect::<Vec<_>>());
+        // A frame larger than the whole limit still goes out.
+        outgoing.send(Frame::Binary(vec![0; 5000])).unwrap();
+        assert!(!outgoing.is_behind());
+    }
+
+    #[test]
+    fn peer_events_leave_a_quarter_of_the_bytes_to_the_answers() {
+        let (mut outgoing, mut rx) = Outgoing::new(100, 1000, &HotCounters::register());
+        assert!(outgoing.has_room_for_events());
+        outgoing.send(Frame::Binary(vec![0; 700])).unwrap();
+        assert!(outgoing.has_room_for_events(), "700 of 1000 bytes queued");
+        outgoing.send(Frame::Binary(vec![0; 50])).unwrap();
+        assert!(!outgoing.has_room_for_events(), "750 of 1000 bytes queued");
+        // The answers still have the rest.
+        outgoing.send(Frame::Binary(vec![0; 200])).unwrap();
+        assert!(!outgoing.is_behind());
+        drain(&mut rx);
+        assert!(outgoing.has_room_for_events());
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn the_wait_for_room_ends_when_the_writer_takes_bytes() {
+        let (mut outgoing, mut rx) = Outgoing::new(100, 1000, &HotCounters::register());
+        outgoing.send(Frame::Binary(vec![0; 900])).unwrap();
+        let room = outgoing.room_for_events();
+        let mut room = std::pin::pin!(room);
+        assert!(futures_util::poll!(room.as_mut()).is_pending());
+        drain(&mut rx);
+        tokio::time::timeout(Duration::from_secs(1), room).await.expect("woken by the take");
+        // The same for the oldest overflowed answer.
+        outgoing.send(Frame::Binary(vec![0; 1000])).unwrap();
+        outgoing.send(text(1)).unwrap();
+        assert!(outgoing.is_behind());
+        let place = outgoing.place();
+        let mut place = std::pin::pin!(place);
+        assert!(futures_util::poll!(place.as_mut()).is_pending());
+        drain(&mut rx);
+        let permit = tokio::time::timeout(Duration::from_secs(1), place).await.unwrap().unwrap();
+        outgoing.flush_one(permit);
+        assert_eq!(drain(&mut rx), vec![text(1)]);
+    }
+
+    #[test]
     fn an_answer_after_an_overflow_waits_behind_it_even_when_the_queue_has_room() {
-        let (mut outgoing, mut rx) = Outgoing::new(1, &HotCounters::register());
+        let (mut outgoing, mut rx) = Outgoing::new(1, usize::MAX, &HotCounters::register());
         outgoing.send(text(0)).unwrap();
         outgoing.send(text(1)).unwrap();
         assert_eq!(drain(&mut rx), vec![text(0)]);
@@ -249,7 +420,7 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn the_slow_reader_deadline_counts_from_the_first_overflow() {
-        let (mut outgoing, _rx) = Outgoing::new(1, &HotCounters::register());
+        let (mut outgoing, _rx) = Outgoing::new(1, usize::MAX, &HotCounters::register());
         outgoing.send(text(0)).unwrap();
         assert_eq!(outgoing.slow_reader_deadline(Duration::from_secs(1)), None);
         let first = Instant::now();
@@ -264,14 +435,14 @@ mod tests {
 
     #[tokio::test(start_paused = true)]
     async fn send_wait_goes_after_the_overflow_and_gives_up_on_a_reader_that_takes_nothing() {
-        let (mut outgoing, mut rx) = Outgoing::new(2, &HotCounters::register());
+        let (mut outgoing, mut rx) = Outgoing::new(2, usize::MAX, &HotCounters::register());
         for i in 0..3 {
             outgoing.send(text(i)).unwrap();
         }
         let reader = tokio::spawn(async move {
             let mut got = Vec::new();
             while let Some(frame) = rx.recv().await {
-                got.push(frame);
+                got.push(Frame::from(frame));
                 if got.len() == 4 {
                     break;
                 }

@@ -90,8 +90,10 @@ impl Connection {
             return;
         }
         metrics::counter!("penmesh_fanout_syncs_total").increment(1);
-        let capacity = self.state.config.outgoing_queue;
-        self.events = Some(self.state.fanout.subscribe(self.session, capacity, Some(self.id)));
+        let (capacity, bytes) =
+            (self.state.config.outgoing_queue, self.state.config.outgoing_queue_bytes);
+        self.events =
+            Some(self.state.fanout.subscribe(self.session, capacity, bytes, Some(self.id)));
         let history = match self.state.store.session_history(self.session).await {
             Ok(history) => history,
             Err(err) => {

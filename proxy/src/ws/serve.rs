@@ -31,38 +31,40 @@ pub async fn serve<Si, St, E>(
     St: Stream<Item = Result<Frame, E>> + Unpin + Send,
     E: Into<ReadError>,
 {
-    let (outgoing, out_rx) = Outgoing::new(state.config.outgoing_queue, &state.counters);
+    let config = &state.config;
+    let (outgoing, out_rx) =
+        Outgoing::new(config.outgoing_queue, config.outgoing_queue_bytes, &state.counters);
     let sender = tokio::spawn(forward(out_rx, sink));
     let mut conn = Connection::new(state.clone(), session, guard, outgoing);
     metrics::gauge!("penmesh_ws_connections").increment(1.0);
     metrics::counter!("penmesh_ws_connections_total").increment(1);
     tracing::debug!(connection = conn.id, %session, "connected");
-    let idle = Duration::from_secs(state.config.idle_timeout_secs);
-    let mut heartbeat = Heartbeat::new(Duration::from_millis(state.config.heartbeat_ms));
-    let mut last_heard = Instant::now();
-    let mut last_message = last_heard;
+    let idle = Duration::from_secs(config.idle_timeout_secs);
+    let hello_timeout = Duration::from_secs(config.hello_timeout_secs);
+    let mut heartbeat = Heartbeat::new(Duration::from_millis(config.heartbeat_ms));
+    let opened = Instant::now();
+    let mut last_heard = opened;
+    // The last work done (a message carried out that is not a ping): what holds the slot.
+    let mut last_work = opened;
     let shutdown = state.shutdown.clone();
     let mut shutting_down = std::pin::pin!(shutdown.cancelled());
-    // One timer for the heartbeat and the idle timeout, moved only when it fired or must fire
-    // sooner: a new timer per frame (a timer-wheel entry made and cleared each time) cost more
-    // than the rest of the loop's bookkeeping. It may fire early (the client spoke since it
-    // was set); the branch looks at the clock and sets it again.
-    let mut watch = std::pin::pin!(tokio::time::sleep_until(last_message + idle));
-    // A quarter of the outgoing queue stays free for the connection's own answers.
-    let reserve = state.config.outgoing_queue.max(1) / 4;
-    let slow_reader = Duration::from_millis(state.config.slow_reader_ms);
+    // One timer for the heartbeat, the hello deadline and the idle timeout, moved only when it
+    // fired or must fire sooner: a new timer per frame (a timer-wheel entry made and cleared
+    // each time) cost more than the rest of the loop's bookkeeping. It may fire early (the
+    // client spoke since it was set); the branch looks at the clock and sets it again.
+    let mut watch = std::pin::pin!(tokio::time::sleep_until(opened + hello_timeout));
+    let slow_reader = Duration::from_millis(config.slow_reader_ms);
     while conn.end.is_none() {
         let behind = conn.outgoing.is_behind();
-        let can_read = !behind && conn.pending.len() < state.config.max_inflight.max(1);
+        let can_read = !behind && conn.pending.len() < config.max_inflight.max(1);
+        let idle_at = if conn.hello { last_work + idle } else { opened + hello_timeout };
         // A connection that waits for its commits does not hear its client, which is not the
         // client's silence: the heartbeat counts only while reading.
-        let idle_at = last_message + idle;
         let wake = if can_read { heartbeat.due(last_heard).min(idle_at) } else { idle_at };
         if watch.is_elapsed() || watch.deadline() > wake {
             watch.as_mut().reset(wake);
         }
-        let can_forward =
-            !behind && conn.events.is_some() && conn.outgoing.has_room_beyond(reserve);
+        let can_forward = !behind && conn.events.is_some() && conn.outgoing.has_room_for_events();
         let wait_room = !behind && conn.events.is_some() && !can_forward;
         tokio::select! {
             biased;
@@ -81,7 +83,7 @@ pub async fn serve<Si, St, E>(
             // The socket was too slow to take peer events: wake up when it caught up. (These
             // two futures are made only when their branch is enabled: `select!` builds every
             // branch's future each round, and each holds a clone of the queue's sender.)
-            Some(()) = OptionFuture::from(wait_room.then(|| conn.outgoing.room(reserve + 1))), if wait_room => {}
+            Some(()) = OptionFuture::from(wait_room.then(|| conn.outgoing.room_for_events())), if wait_room => {}
             Some(permit) = OptionFuture::from(behind.then(|| conn.outgoing.place())), if behind => match permit {
                 Ok(permit) => conn.outgoing.flush_one(permit),
                 Err(_) => conn.end_with(End::Gone),
@@ -98,17 +100,30 @@ pub async fn serve<Si, St, E>(
                     // The answer to the heartbeat's ping: the client is there, nothing to do.
                     Some(Ok(Frame::Pong(_))) => {}
                     Some(Ok(frame)) => {
-                        last_message = last_heard;
-                        conn.on_frame(frame).await;
+                        if conn.on_frame(frame).await {
+                            last_work = Instant::now();
+                        }
                     }
                 }
             }
             _ = &mut watch => {
                 let now = Instant::now();
-                if now >= last_message + idle {
+                if now >= idle_at && !conn.hello {
+                    conn.fail(ConnError::fatal(
+                        ErrorCode::Protocol,
+                        format!(
+                            "no hello within {} s of connecting (--hello-timeout-secs)",
+                            hello_timeout.as_secs()
+                        ),
+                        End::Close(close_code::POLICY, "no hello".into()),
+                    ));
+                } else if now >= idle_at {
                     conn.fail(ConnError::fatal(
                         ErrorCode::IdleTimeout,
-                        format!("nothing received for {} s", idle.as_secs()),
+                        format!(
+                            "no stroke drawn for {} s (pings do not count); reconnect to draw",
+                            idle.as_secs()
+                        ),
                         End::Close(close_code::NORMAL, "idle timeout".into()),
                     ));
                 } else if can_read && heartbeat.is_dead(last_heard, now) {
@@ -138,14 +153,14 @@ pub async fn serve<Si, St, E>(
 /// that is there answers a ping at once, whatever it is doing, so silence that long means the
 /// peer vanished without a FIN, and its strokes must not stay claimed until the idle timeout).
 #[derive(Debug, Clone, Copy)]
-struct Heartbeat {
+pub(super) struct Heartbeat {
     period: Duration,
     /// When the last ping went out.
     pinged: Option<Instant>,
 }
 
 impl Heartbeat {
-    const MISSED: u32 = 3;
+    pub(super) const MISSED: u32 = 3;
 
     fn new(period: Duration) -> Heartbeat {
         Heartbeat { period, pinged: None }
@@ -187,7 +202,9 @@ impl Connection {
         }
     }
 
-    async fn on_frame(&mut self, frame: Frame) {
+    /// Carries out a frame's message; `true` when that was work (not a ping, not refused),
+    /// which is what keeps the connection from the idle timeout.
+    async fn on_frame(&mut self, frame: Frame) -> bool {
         let limit = self.state.config.max_message_bytes;
         let decoded = match &frame {
             Frame::Binary(bytes) => {
@@ -203,15 +220,19 @@ impl Connection {
                     .map_err(|e| decode_error(e, ErrorCode::BadJson))
             }
             // The WebSocket library answers pings itself.
-            Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return,
+            Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return false,
         };
         let done = match decoded {
-            Ok(msg) => self.on_message(msg).await,
+            Ok(msg) => {
+                let work = !matches!(msg, ClientMessage::Ping(_));
+                self.on_message(msg).await.map(|()| work)
+            }
             Err(err) => Err(err),
         };
-        if let Err(err) = done {
+        done.unwrap_or_else(|err| {
             self.fail(err);
-        }
+            false
+        })
     }
 
     async fn on_message(&mut self, msg: ClientMessage) -> Result<(), ConnError> {

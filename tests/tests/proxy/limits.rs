@@ -3,9 +3,10 @@ use std::time::Duration;
 use futures_util::SinkExt;
 use penmesh::Sample;
 use penmesh::protocol::{
-    ClientMessage, ErrorCode, PointBatch, Points, ServerMessage, StrokeBegin, encode_client,
+    ClientMessage, ErrorCode, Ping, PointBatch, Points, ServerMessage, StrokeBegin, encode_client,
 };
-use penmesh_e2e::{Incoming, WsClient, spawn_proxy_with, stroke_samples};
+use penmesh_e2e::{Incoming, TestProxy, TestSession, WsClient, spawn_proxy_with, stroke_samples};
+use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use uuid::Uuid;
@@ -461,6 +462,218 @@ async fn websocket_connections_per_replica_are_limited_before_the_upgrade() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     assert!(again, "a slot frees when a connection ends");
+}
+
+/// One client address may hold `--max-connections-per-address` WebSockets of a replica; past
+/// it an upgrade is refused with 503 naming the limit and the address, before the upgrade,
+/// while other addresses (here told apart by a trusted `X-Forwarded-For`) connect as before.
+#[tokio::test]
+async fn websocket_connections_per_client_address_are_limited_before_the_upgrade() {
+    let proxy = spawn_proxy_with(|c| {
+        c.max_connections_per_address = 2;
+        c.trust_forwarded_for = true;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let stranger = "198.51.100.7";
+    let mut first = connect_from(&proxy, &session, Some(stranger)).await.unwrap();
+    first.hello(vec![]).await;
+    let mut second = connect_from(&proxy, &session, Some(stranger)).await.unwrap();
+    second.hello(vec![]).await;
+    match connect_from(&proxy, &session, Some(stranger)).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => {
+            assert_eq!(response.status(), 503);
+            let body = String::from_utf8_lossy(response.body().as_deref().unwrap_or_default());
+            assert!(
+                body.contains("busy")
+                    && body.contains("max-connections-per-address")
+                    && body.contains(stranger),
+                "{body}"
+            );
+        }
+        other => panic!("expected 503, got {:?}", other.map(|_| "an open socket")),
+    }
+    // Other addresses are not affected: another forwarded one, and the peer's own.
+    connect_from(&proxy, &session, Some("203.0.113.9")).await.unwrap().hello(vec![]).await;
+    connect_from(&proxy, &session, None).await.unwrap().hello(vec![]).await;
+    // A slot frees when a connection ends.
+    first.ws.close(None).await.unwrap();
+    drop(first);
+    let mut again = false;
+    for _ in 0..50 {
+        if let Ok(mut ws) = connect_from(&proxy, &session, Some(stranger)).await {
+            ws.hello(vec![]).await;
+            again = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(again, "a slot of the address frees when its connection ends");
+}
+
+/// A connection to the session's WebSocket, with `X-Forwarded-For: forwarded` when given.
+async fn connect_from(
+    proxy: &TestProxy,
+    session: &TestSession,
+    forwarded: Option<&str>,
+) -> Result<WsClient, tokio_tungstenite::tungstenite::Error> {
+    let mut request = penmesh_e2e::ws_request(proxy.port, session);
+    if let Some(address) = forwarded {
+        request.headers_mut().insert("x-forwarded-for", address.parse().unwrap());
+    }
+    let (ws, _) = tokio_tungstenite::connect_async(request).await?;
+    Ok(WsClient { ws, json: false, key: Some(session.key.clone()) })
+}
+
+/// Sends a WebSocket ping, and a `Ping` message too when `ping_message`, every 250 ms,
+/// collecting what comes back, until the proxy closes the connection or `within` has passed.
+/// Returns the messages and the close code (1006 when the socket ended without a close frame;
+/// `None` while it is still open).
+async fn ping_until_closed(
+    ws: &mut WsClient,
+    ping_message: bool,
+    within: Duration,
+) -> (Vec<ServerMessage>, Option<u16>) {
+    let ping = encode_client(&ClientMessage::Ping(Ping { nonce: 1 }));
+    let mut messages = Vec::new();
+    let deadline = Instant::now() + within;
+    while Instant::now() < deadline {
+        let _ = ws.ws.send(Message::Ping(Vec::new().into())).await;
+        if ping_message {
+            let _ = ws.ws.send(Message::Binary(ping.clone().into())).await;
+        }
+        let until = Instant::now() + Duration::from_millis(250);
+        while let Ok(incoming) = tokio::time::timeout_at(until, ws.next()).await {
+            match incoming {
+                Incoming::Message(msg) => messages.push(msg),
+                Incoming::Closed(close) => return (messages, Some(close.map_or(1006, |c| c.0))),
+            }
+        }
+    }
+    (messages, None)
+}
+
+/// A connection that never says hello is closed at the hello deadline, however it pings, and
+/// its slot frees.
+#[tokio::test]
+async fn a_connection_that_never_says_hello_is_closed_at_the_hello_deadline() {
+    let proxy = spawn_proxy_with(|c| {
+        c.hello_timeout_secs = 1;
+        c.max_connections = 1;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await;
+    let started = Instant::now();
+    let (messages, close) = ping_until_closed(&mut ws, false, Duration::from_secs(6)).await;
+    let waited = started.elapsed();
+    assert_eq!(close, Some(1008), "closed at the hello deadline, not open after {waited:?}");
+    assert!(waited >= Duration::from_millis(900), "closed after {waited:?}");
+    let error = messages.iter().find_map(|m| match m {
+        ServerMessage::Error(e) => Some(e),
+        _ => None,
+    });
+    let error = error.expect("the close is explained");
+    assert_eq!(error.code, ErrorCode::Protocol);
+    assert!(error.message.contains("hello") && error.message.contains("1 s"), "{}", error.message);
+    let mut again = false;
+    for _ in 0..50 {
+        if let Ok(mut ws) = proxy.try_connect(&session).await {
+            ws.hello(vec![]).await;
+            again = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(again, "the replica's only slot frees");
+}
+
+/// Pings keep a connection's peer alive, not its slot: a connection that only pings (a `Ping`
+/// message and a WebSocket ping every 250 ms, each answered) is closed at the idle timeout and
+/// frees its slot, while one that draws as slowly, a batch every 500 ms, stays.
+#[tokio::test]
+async fn a_connection_that_only_pings_is_closed_at_the_idle_timeout_and_frees_its_slot() {
+    let proxy = spawn_proxy_with(|c| {
+        c.idle_timeout_secs = 2;
+        c.max_connections = 2;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let mut pinger = proxy.connect(&session).await;
+    pinger.hello(vec![]).await;
+    let drawer_session = session.stranger();
+    let stroke = Uuid::new_v4();
+    let mut drawer = proxy.drawing(&drawer_session, stroke).await;
+    assert!(proxy.try_connect(&session).await.is_err(), "both slots are taken");
+    let samples = stroke_samples(40);
+    let started = Instant::now();
+    let drawing = async {
+        for (k, batch) in samples.chunks(4).enumerate() {
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            drawer.points(stroke, (4 * k) as u64, batch).await;
+            drawer.wait_ack(stroke, (4 * k + batch.len()) as u64).await;
+        }
+    };
+    let pinging = ping_until_closed(&mut pinger, true, Duration::from_secs(8));
+    let ((), (messages, close)) = tokio::join!(drawing, pinging);
+    assert!(started.elapsed() >= Duration::from_secs(5), "the drawer drew for 5 s");
+    assert_eq!(close, Some(1000), "a connection that only pings is closed at the idle timeout");
+    assert!(messages.iter().any(|m| matches!(m, ServerMessage::Pong(_))), "its pings were heard");
+    let idle = messages.iter().any(|m| {
+        matches!(m, ServerMessage::Error(e) if e.code == ErrorCode::IdleTimeout
+            && e.message.contains("2 s"))
+    });
+    assert!(idle, "{messages:?}");
+    // The drawer, as idle in time but working, is still there.
+    drawer.end(stroke, samples.len() as u64).await;
+    drawer.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    assert_eq!(proxy.raw_samples(&drawer_session, stroke).await, samples);
+    let mut again = false;
+    for _ in 0..50 {
+        if let Ok(mut ws) = proxy.try_connect(&session).await {
+            ws.hello(vec![]).await;
+            again = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(again, "the pinger's slot frees");
+}
+
+/// The byte bound of the outgoing queue never drops an answer owed: a drawer whose answers
+/// (JSON, every sample retained) are far larger than the bound, and many at once (one group
+/// commit acknowledges many batches), still gets every ack and retained sample, in order.
+#[tokio::test]
+async fn answers_larger_than_the_outgoing_bytes_all_reach_a_reader() {
+    let proxy = spawn_proxy_with(|c| {
+        c.outgoing_queue_bytes = 1024;
+        c.commit_interval_ms = 50;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let mut ws = proxy.connect(&session).await.json();
+    ws.hello(vec![]).await;
+    let stroke = Uuid::new_v4();
+    // A zigzag on the codec's grid: every sample is retained.
+    let samples: Vec<Sample> = (0..600)
+        .map(|i| Sample::new(i as f64 * 4.0, if i % 2 == 0 { 0.0 } else { 50.0 }, i as f64, 0.5))
+        .collect();
+    ws.begin(stroke).await;
+    let mut retained = ws.wait_ack(stroke, 0).await;
+    for (k, batch) in samples.chunks(20).enumerate() {
+        ws.points(stroke, (20 * k) as u64, batch).await;
+    }
+    retained.extend(ws.wait_ack(stroke, samples.len() as u64).await);
+    ws.end(stroke, samples.len() as u64).await;
+    let (_, rest) = ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    for msg in rest {
+        if let ServerMessage::Retained(r) = msg {
+            retained.push((r.first, r.points.0));
+        }
+    }
+    assert_eq!(penmesh_e2e::assemble_retained(&retained), samples);
+    assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
+    assert!(!proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
 }
 
 /// Slowloris: a connection that does not finish its request head within the header timeout

@@ -55,6 +55,7 @@ pub(super) fn spawn_server(args: &LoadArgs, plan: &Plan) -> anyhow::Result<(Stri
             .args(["--max-connections-per-session", &per_session.to_string()])
             // One address creates every session and opens every connection of the run.
             .args(["--session-rate-per-minute", "0"])
+            .args(["--max-connections-per-address", "0"])
             .args(["--max-connections", &plan.clients.saturating_add(64).max(10_000).to_string()])
             .args(["--idle-timeout-secs", &idle.to_string()])
             .args(&args.proxy_arg);
