@@ -42,7 +42,9 @@ use crate::wire::{self, OpenError, Socket};
 
 /// Longest wait for a handshake or a `Welcome`.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
-/// A ping keeps an idle connection (a pen at rest) from the proxy's idle timeout.
+/// A ping on a quiet connection (a pen at rest) shows a live peer to the proxy's heartbeat and
+/// to any proxy or load balancer between; it does not reset the proxy's idle timeout, which
+/// only work does (past it the client reconnects and resumes).
 const KEEPALIVE: Duration = Duration::from_secs(20);
 
 /// Draws everything `source` produces into the session, and reconstructs each stroke.
