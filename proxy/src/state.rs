@@ -19,6 +19,10 @@ use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::store::{Store, Writer};
 
+/// An HTTP body larger than this needs one of `max_large_bodies` permits
+/// ([`AppState::large_body`]).
+pub const LARGE_BODY_BYTES: u64 = 1 << 20;
+
 /// Cheap to clone: everything lives behind one `Arc`.
 #[derive(Debug, Clone)]
 pub struct AppState {
@@ -46,6 +50,8 @@ pub struct Inner {
     pub session_limiter: crate::rate::SessionLimiter,
     /// One permit per WebSocket connection on this replica (`max_connections`).
     connections: Arc<tokio::sync::Semaphore>,
+    /// One permit per large HTTP body being handled (`max_large_bodies`).
+    large_bodies: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -69,6 +75,9 @@ impl AppState {
         let connections = Arc::new(tokio::sync::Semaphore::new(
             config.max_connections.min(tokio::sync::Semaphore::MAX_PERMITS),
         ));
+        let large_bodies = Arc::new(tokio::sync::Semaphore::new(
+            config.max_large_bodies.min(tokio::sync::Semaphore::MAX_PERMITS),
+        ));
         let session_limiter = crate::rate::SessionLimiter::new(
             config.session_rate_per_minute,
             config.session_burst,
@@ -87,6 +96,7 @@ impl AppState {
                 fanout,
                 hubs: Mutex::new(HashMap::new()),
                 connections,
+                large_bodies,
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -101,6 +111,16 @@ impl AppState {
     /// the slot frees when the permit is dropped.
     pub fn connection_slot(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
         self.connections.clone().try_acquire_owned().ok()
+    }
+
+    /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up
+    /// to [`LARGE_BODY_BYTES`]; past `max_large_bodies` such bodies at once, `None`. The
+    /// permit frees when it is dropped, with the body.
+    pub fn large_body(&self, bytes: u64) -> Option<Option<tokio::sync::OwnedSemaphorePermit>> {
+        if bytes <= LARGE_BODY_BYTES {
+            return Some(None);
+        }
+        self.large_bodies.clone().try_acquire_owned().ok().map(Some)
     }
 
     /// Counts a new connection in its session, unless the session is full.

@@ -92,7 +92,7 @@ impl Connection {
         metrics::counter!("penmesh_fanout_syncs_total").increment(1);
         let capacity = self.state.config.outgoing_queue;
         self.events = Some(self.state.fanout.subscribe(self.session, capacity, Some(self.id)));
-        let history = match self.state.store.session_history(self.session).await {
+        let mut history = match self.state.store.session_history(self.session).await {
             Ok(history) => history,
             Err(err) => {
                 self.events = None;
@@ -104,6 +104,10 @@ impl Connection {
                 ));
             }
         };
+        if !history.keep.is_empty() {
+            // Kept for the next history; nobody waits for the commit.
+            drop(self.state.writer.submit(std::mem::take(&mut history.keep)).await);
+        }
         for (stroke, _why) in &history.unreadable {
             // Said, not hidden: the client knows the stroke exists and is missing. In order
             // with the history, so waiting for room like it.
