@@ -257,8 +257,9 @@ const SAMPLES_PER_PIECE: usize = 4096;
 /// large body's permit is held while most of it is written, not only while it is made.
 fn held_body(bytes: Bytes, permit: Option<OwnedSemaphorePermit>) -> Body {
     const PIECE: usize = 256 * 1024;
-    let pieces = (0..bytes.len().div_ceil(PIECE))
-        .map(move |i| Ok::<_, std::io::Error>(bytes.slice(i * PIECE..((i + 1) * PIECE).min(bytes.len()))));
+    let pieces = (0..bytes.len().div_ceil(PIECE)).map(move |i| {
+        Ok::<_, std::io::Error>(bytes.slice(i * PIECE..((i + 1) * PIECE).min(bytes.len())))
+    });
     Body::from_stream(futures_util::stream::iter(pieces).map(move |piece| {
         let _held = &permit;
         piece
@@ -284,7 +285,8 @@ async fn samples_response(
     let samples = tokio::task::spawn_blocking(move || samples.collect_all())
         .await
         .map_err(anyhow::Error::from)??;
-    let msg = ServerMessage::Retained(Retained { stroke: id, first: 0, points: PointBatch(samples) });
+    let msg =
+        ServerMessage::Retained(Retained { stroke: id, first: 0, points: PointBatch(samples) });
     let body = held_body(Bytes::from(encode_server(&msg)), permit);
     let mut response = ([(header::CONTENT_TYPE, "application/octet-stream")], body).into_response();
     let h = response.headers_mut();
@@ -556,4 +558,43 @@ pub async fn readyz(State(state): State<AppState>) -> Response {
 #[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text")))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], state.metrics.render()).into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // The streamed JSON of a stroke's samples is, byte for byte, what serde writes whole.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn streamed_samples_are_the_json_serde_writes() {
+        let samples: Vec<penmesh::Sample> = (0..SAMPLES_PER_PIECE * 2 + 7)
+            .map(|i| penmesh::Sample::new(i as f64 * 0.5, -(i as f64), i as f64 * 8.125, 0.25))
+            .collect();
+        let (id, session, participant) = (Uuid::new_v4(), Uuid::new_v4(), Uuid::new_v4());
+        let stroke = || StrokeInfo {
+            id,
+            session,
+            participant,
+            status: penmesh::protocol::StrokeStatus::Done,
+            n_points: samples.len() as u64,
+            n_retained: 3,
+            brush: penmesh::Brush::default(),
+            params: penmesh::AcutsParams::default(),
+            device: Some("pen \"1\"".into()),
+            has_mesh: false,
+            created_at: 1,
+            updated_at: 2,
+        };
+        for indices in [None, Some(vec![0, 5, 9])] {
+            let whole = StrokeSamples {
+                stroke: stroke(),
+                indices: indices.clone(),
+                samples: samples.clone(),
+            };
+            let expected = serde_json::to_vec(&whole).unwrap();
+            let body = json_samples_body(stroke(), indices, samples.clone().into(), None);
+            let streamed = axum::body::to_bytes(body.unwrap(), usize::MAX).await.unwrap();
+            assert_eq!(String::from_utf8_lossy(&streamed), String::from_utf8_lossy(&expected));
+        }
+    }
 }

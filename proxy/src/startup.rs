@@ -27,9 +27,9 @@ use utoipa::OpenApi;
 use crate::cluster::{StrokeLocks, start_listener, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
+use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, Store, WriterTask, start_checkpointer};
-use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::{http, mesh_build, metrics, send_deadline, web, ws};
 
 /// A bound, ready-to-run proxy.

@@ -485,9 +485,9 @@ impl Store {
         let row = sqlx::query(
             "SELECT indices, layout, data FROM simplified WHERE stroke_id = $1 AND upto IS NULL",
         )
-            .bind(stroke.to_string())
-            .fetch_optional(&self.pool)
-            .await?;
+        .bind(stroke.to_string())
+        .fetch_optional(&self.pool)
+        .await?;
         let Some(row) = row else { return Ok(None) };
         let indices: Vec<u8> = row.try_get("indices")?;
         let data: Vec<u8> = row.try_get("data")?;
@@ -498,11 +498,12 @@ impl Store {
 
     /// The size in bytes of a stroke's mesh, without reading it.
     pub async fn mesh_bytes(&self, stroke: Uuid) -> anyhow::Result<Option<u64>> {
-        let bytes: Option<i64> =
-            sqlx::query_scalar("SELECT CAST(length(glb) AS BIGINT) FROM meshes WHERE stroke_id = $1")
-                .bind(stroke.to_string())
-                .fetch_optional(&self.pool)
-                .await?;
+        let bytes: Option<i64> = sqlx::query_scalar(
+            "SELECT CAST(length(glb) AS BIGINT) FROM meshes WHERE stroke_id = $1",
+        )
+        .bind(stroke.to_string())
+        .fetch_optional(&self.pool)
+        .await?;
         Ok(bytes.map(|b| b as u64))
     }
 
@@ -583,7 +584,10 @@ impl Store {
         let (log, kept_before) = if open.is_empty() {
             (log::StrokeEntries::new(), HashMap::new())
         } else {
-            (log::read_log(&mut conn, Some(&open), None).await?, kept_before(&mut conn, session).await?)
+            (
+                log::read_log(&mut conn, Some(&open), None).await?,
+                kept_before(&mut conn, session).await?,
+            )
         };
         let unreadable = |row: &sqlx::any::AnyRow, err: anyhow::Error| {
             let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
@@ -893,7 +897,12 @@ async fn read_raw(
     for row in rows {
         let seq = row.try_get::<i64, _>("seq")? as u64;
         let n = row.try_get::<i64, _>("n")? as u64;
-        pieces.push(Stored::Chunk { seq, n, layout: row.try_get("layout")?, data: row.try_get("data")? });
+        pieces.push(Stored::Chunk {
+            seq,
+            n,
+            layout: row.try_get("layout")?,
+            data: row.try_get("data")?,
+        });
     }
     for (_, _, entry) in log.get(&stroke).into_iter().flatten() {
         pieces.push(Stored::Log(log::Piece { seq: entry.seq, samples: entry.samples.clone() }));
@@ -1127,6 +1136,45 @@ mod tests {
         };
         assert_eq!(page_size(Store::connect(&config(2048)).await.unwrap()).await, 2048);
         assert_eq!(page_size(Store::connect(&config(1024)).await.unwrap()).await, 2048);
+    }
+
+    // The raw samples come piece by piece, each stored piece decoded when its turn comes:
+    // copies of a sample in two pieces must agree, and a hole ends the samples with an error.
+    #[test]
+    fn raw_samples_come_in_order_from_overlapping_pieces() {
+        let s: Vec<Sample> = (0..10).map(|i| Sample::new(i as f64, 0.0, i as f64, 0.5)).collect();
+        let chunk = |seq: usize, n: usize| {
+            let (layout, data) = encode_samples(&s[seq..seq + n]);
+            Stored::Chunk { seq: seq as u64, n: n as u64, layout, data }
+        };
+        let entry = |seq: usize, n: usize| {
+            Stored::Log(log::Piece { seq: seq as u64, samples: s[seq..seq + n].to_vec() })
+        };
+        let raw = |pieces: Vec<Stored>| RawSamples {
+            stroke: Uuid::nil(),
+            pieces: pieces.into_iter(),
+            last: None,
+            next: 0,
+        };
+        // Chunks [0, 6) and [2, 4) (moved twice), log entries [4, 8) and [8, 10).
+        let pieces = raw(vec![chunk(0, 6), chunk(2, 2), entry(4, 4), entry(8, 2)]);
+        let lengths: Vec<usize> = pieces.map(|p| p.unwrap().len()).collect();
+        assert_eq!(lengths, vec![6, 2, 2], "each piece adds only what is new");
+        let all = raw(vec![chunk(0, 6), chunk(2, 2), entry(4, 4), entry(8, 2)]);
+        assert_eq!(all.collect_all().unwrap(), s);
+        let hole = raw(vec![chunk(0, 4), entry(5, 5)]).collect_all().unwrap_err();
+        assert!(hole.to_string().contains("from 5 follow 4"), "{hole}");
+        let mut other = s[2..5].to_vec();
+        other[1].x += 1.0;
+        let differs = raw(vec![chunk(0, 4), Stored::Log(log::Piece { seq: 2, samples: other })]);
+        assert!(differs.collect_all().unwrap_err().to_string().contains("differ"));
+        let mut broken = raw(vec![chunk(0, 4), chunk(4, 6)]);
+        if let Some(Stored::Chunk { data, .. }) = broken.pieces.as_mut_slice().get_mut(1) {
+            data.truncate(2);
+        }
+        assert!(broken.next().unwrap().is_ok());
+        assert!(broken.next().unwrap().is_err(), "a piece that cannot be decoded");
+        assert!(broken.next().is_none(), "and then nothing");
     }
 
     #[test]

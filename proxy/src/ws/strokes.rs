@@ -223,7 +223,8 @@ impl Connection {
             }
             Some(row) => {
                 // Begun before on another connection: resume it.
-                let state = self.take_over(stroke, row.params, row.participant, row.n_points).await?;
+                let state =
+                    self.take_over(stroke, row.params, row.participant, row.n_points).await?;
                 let kept = state.kept().to_vec();
                 let upto_seq = state.committed_seq;
                 self.strokes.insert(stroke, state);
