@@ -15,6 +15,7 @@
 mod black_hole;
 mod check;
 mod child;
+mod costs;
 mod disk_full;
 mod forwarder;
 mod kill;
