@@ -249,6 +249,22 @@ pub struct Config {
     #[arg(long, env = "PENMESH_MAX_BODY_BYTES", default_value_t = 16 * 1024 * 1024)]
     pub max_body_bytes: usize,
 
+    /// Large HTTP bodies (over 1 MiB: the raw samples of a long stroke, a large mesh, sent or
+    /// received) handled at once on this replica; past it such a request gets 503 with
+    /// `Retry-After`.
+    #[arg(long, env = "PENMESH_MAX_LARGE_BODIES", default_value_t = 4)]
+    pub max_large_bodies: usize,
+
+    /// Most bytes of meshes one session may store; an upload past it gets 413
+    /// `quota_exceeded`.
+    #[arg(long, env = "PENMESH_MAX_SESSION_MESH_BYTES", default_value_t = 256 * 1024 * 1024)]
+    pub max_session_mesh_bytes: u64,
+
+    /// Long unfinished strokes (2048 stored samples or more) replayed at once on this replica
+    /// to rebuild what ACUTS retained (a session's history, a resume); more wait their turn.
+    #[arg(long, env = "PENMESH_MAX_REPLAYS", default_value_t = 2)]
+    pub max_replays: usize,
+
     /// Outgoing messages queued per connection; a reader slower than this is disconnected.
     #[arg(long, env = "PENMESH_OUTGOING_QUEUE", default_value_t = 1024)]
     pub outgoing_queue: usize,
@@ -368,7 +384,8 @@ impl Config {
     /// Refuses settings that cannot work, naming the setting, so that a bad value stops the
     /// proxy at start-up instead of refusing every stroke later.
     pub fn check(&self) -> anyhow::Result<()> {
-        // A zero period or deadline would time out every wait, or ping without pause.
+        // A zero period or deadline would time out every wait, or ping without pause; no
+        // permit at all would refuse every large body, or make every long replay wait forever.
         for (value, setting) in [
             (self.heartbeat_ms, "--heartbeat-ms (PENMESH_HEARTBEAT_MS)"),
             (self.hello_timeout_secs, "--hello-timeout-secs (PENMESH_HELLO_TIMEOUT_SECS)"),
@@ -377,6 +394,8 @@ impl Config {
             (self.listener_heartbeat_ms, "--listener-heartbeat-ms (PENMESH_LISTENER_HEARTBEAT_MS)"),
             (self.header_timeout_secs, "--header-timeout-secs (PENMESH_HEADER_TIMEOUT_SECS)"),
             (self.request_timeout_secs, "--request-timeout-secs (PENMESH_REQUEST_TIMEOUT_SECS)"),
+            (self.max_large_bodies as u64, "--max-large-bodies (PENMESH_MAX_LARGE_BODIES)"),
+            (self.max_replays as u64, "--max-replays (PENMESH_MAX_REPLAYS)"),
         ] {
             anyhow::ensure!(value > 0, "bad setting {setting}: must be above 0");
         }
@@ -540,6 +559,8 @@ mod tests {
             ("--listener-heartbeat-ms", "0", "PENMESH_LISTENER_HEARTBEAT_MS"),
             ("--header-timeout-secs", "0", "PENMESH_HEADER_TIMEOUT_SECS"),
             ("--request-timeout-secs", "0", "PENMESH_REQUEST_TIMEOUT_SECS"),
+            ("--max-large-bodies", "0", "PENMESH_MAX_LARGE_BODIES"),
+            ("--max-replays", "0", "PENMESH_MAX_REPLAYS"),
         ] {
             let setting = format!("{flag}={value}");
             let config = load_without_env(&["penmesh-proxy", &setting]).unwrap();

@@ -8,6 +8,11 @@
 use axum::Json;
 use std::net::SocketAddr;
 
+use anyhow::Context;
+use axum::body::{Body, Bytes};
+use futures_util::StreamExt;
+use tokio::sync::OwnedSemaphorePermit;
+
 use axum::extract::{ConnectInfo, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -23,8 +28,10 @@ pub(crate) use penmesh::protocol::{
 
 use crate::fanout::{EventKind, SessionEvent};
 use crate::identity::{KeyError, request_participant};
-use crate::state::AppState;
-use crate::store::{Backend, MeshRow, StrokeRow, hash_token, now_ms};
+use crate::state::{AppState, LARGE_BODY_BYTES};
+use crate::store::{
+    MeshRow, RawPiece, RawSamples, StrokeRow, WriteError, WriteOp, hash_token, now_ms,
+};
 
 /// Every failure a handler can answer with.
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +49,9 @@ pub enum AppError {
     Conflict(String),
     #[error("{0}")]
     TooLarge(String),
+    /// A storage quota would be passed (the message names it).
+    #[error("{0}")]
+    QuotaExceeded(String),
     #[error("the proxy is shutting down")]
     ShuttingDown,
     /// A rate limit: the client may try again after this long.
@@ -63,6 +73,7 @@ impl IntoResponse for AppError {
             AppError::BadRequest(_) => (StatusCode::BAD_REQUEST, "bad_request"),
             AppError::Conflict(_) => (StatusCode::CONFLICT, "conflict"),
             AppError::TooLarge(_) => (StatusCode::PAYLOAD_TOO_LARGE, "too_large"),
+            AppError::QuotaExceeded(_) => (StatusCode::PAYLOAD_TOO_LARGE, "quota_exceeded"),
             AppError::ShuttingDown => (StatusCode::SERVICE_UNAVAILABLE, "shutting_down"),
             AppError::Busy(_) => (StatusCode::SERVICE_UNAVAILABLE, "busy"),
             AppError::TooManyRequests(_) => (StatusCode::TOO_MANY_REQUESTS, "too_many_requests"),
@@ -76,6 +87,9 @@ impl IntoResponse for AppError {
         let mut response = (status, Json(body)).into_response();
         if let AppError::TooManyRequests(wait) = &self {
             response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(wait.as_secs()));
+        }
+        if let AppError::Busy(_) = &self {
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(1));
         }
         if status == StatusCode::UNAUTHORIZED {
             response
@@ -222,30 +236,131 @@ pub async fn list_strokes(
     Ok(Json(StrokeList { strokes: rows.into_iter().map(StrokeInfo::from).collect() }))
 }
 
-fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
-    if !wants_binary(headers) {
-        return Json(body).into_response();
-    }
-    // The binary form is the wire codec's `Retained` message carrying every sample; the
-    // metadata travels in headers.
-    let msg = ServerMessage::Retained(Retained {
-        stroke: body.stroke.id,
-        first: 0,
-        points: PointBatch(body.samples),
+/// The permit to handle a body of about `bytes` ([`AppState::large_body`]), or 503 `busy`.
+fn large_body(state: &AppState, bytes: u64) -> Result<Option<OwnedSemaphorePermit>, AppError> {
+    state.large_body(bytes).ok_or_else(|| {
+        AppError::Busy(format!(
+            "{} bodies over {LARGE_BODY_BYTES} bytes are being sent or received, the limit; \
+             try again shortly",
+            state.config.max_large_bodies
+        ))
+    })
+}
+
+/// About how many bytes a sample takes in a JSON body (`[x, y, t, p]` with their digits).
+const JSON_BYTES_PER_SAMPLE: u64 = 48;
+
+/// Samples handed to the socket at once by a streamed body: about 200 KB of JSON.
+const SAMPLES_PER_PIECE: usize = 4096;
+
+/// A body of `bytes` handed out in pieces, holding `permit` until the last one is taken: a
+/// large body's permit is held while most of it is written, not only while it is made.
+fn held_body(bytes: Bytes, permit: Option<OwnedSemaphorePermit>) -> Body {
+    const PIECE: usize = 256 * 1024;
+    let pieces = (0..bytes.len().div_ceil(PIECE)).map(move |i| {
+        Ok::<_, std::io::Error>(bytes.slice(i * PIECE..((i + 1) * PIECE).min(bytes.len())))
     });
-    let mut response =
-        ([(header::CONTENT_TYPE, "application/octet-stream")], encode_server(&msg)).into_response();
+    Body::from_stream(futures_util::stream::iter(pieces).map(move |piece| {
+        let _held = &permit;
+        piece
+    }))
+}
+
+/// A stroke's samples as the body of a response: JSON ([`StrokeSamples`]) or, on `Accept:
+/// application/octet-stream`, the wire codec's `Retained` message carrying every sample, the
+/// metadata in headers. The JSON of `samples` is written piece by piece as they are decoded,
+/// never whole; the binary form is made whole (the codec predicts each sample from the ones
+/// before it, and it takes a few bytes a sample). `permit` is held until the body is sent.
+async fn samples_response(
+    headers: &HeaderMap,
+    stroke: StrokeInfo,
+    indices: Option<Vec<u64>>,
+    samples: RawSamples,
+    permit: Option<OwnedSemaphorePermit>,
+) -> Result<Response, AppError> {
+    if !wants_binary(headers) {
+        return Ok(json_samples_body(stroke, indices, samples, permit)?.into_response());
+    }
+    let id = stroke.id;
+    let samples = tokio::task::spawn_blocking(move || samples.collect_all())
+        .await
+        .map_err(anyhow::Error::from)??;
+    let msg =
+        ServerMessage::Retained(Retained { stroke: id, first: 0, points: PointBatch(samples) });
+    let body = held_body(Bytes::from(encode_server(&msg)), permit);
+    let mut response = ([(header::CONTENT_TYPE, "application/octet-stream")], body).into_response();
     let h = response.headers_mut();
     for (name, value) in [
-        ("x-penmesh-status", body.stroke.status.as_str().to_string()),
-        ("x-penmesh-n-points", body.stroke.n_points.to_string()),
-        ("x-penmesh-n-retained", body.stroke.n_retained.to_string()),
+        ("x-penmesh-status", stroke.status.as_str().to_string()),
+        ("x-penmesh-n-points", stroke.n_points.to_string()),
+        ("x-penmesh-n-retained", stroke.n_retained.to_string()),
     ] {
         if let Ok(value) = HeaderValue::from_str(&value) {
             h.insert(name, value);
         }
     }
-    response
+    Ok(response)
+}
+
+/// The JSON of [`StrokeSamples`], byte for byte as serde writes it, streamed: the head, then
+/// the samples [`SAMPLES_PER_PIECE`] at a time as each stored piece is decoded (on the
+/// blocking pool), then the end. A stored piece that cannot be read ends the body with an
+/// error, so the client sees a broken body, never a short one.
+fn json_samples_body(
+    stroke: StrokeInfo,
+    indices: Option<Vec<u64>>,
+    samples: RawSamples,
+    permit: Option<OwnedSemaphorePermit>,
+) -> anyhow::Result<Body> {
+    let id = stroke.id;
+    let head = serde_json::to_string(&StrokeSamples { stroke, indices, samples: Vec::new() })?;
+    // `samples` is the last field: the head is everything before its empty list closes.
+    let head = head.strip_suffix("]}").context("the samples close the JSON")?.to_string();
+    struct Sending {
+        samples: Option<RawSamples>,
+        piece: Option<(RawPiece, usize)>,
+        first: bool,
+        _permit: Option<OwnedSemaphorePermit>,
+    }
+    let start = Sending { samples: Some(samples), piece: None, first: true, _permit: permit };
+    let pieces = futures_util::stream::try_unfold(start, move |mut sending| async move {
+        loop {
+            if let Some((piece, at)) = sending.piece.take() {
+                let end = (at + SAMPLES_PER_PIECE).min(piece.len());
+                let mut json = Vec::with_capacity((end - at) * JSON_BYTES_PER_SAMPLE as usize);
+                for sample in &piece[at..end] {
+                    if !std::mem::take(&mut sending.first) {
+                        json.push(b',');
+                    }
+                    serde_json::to_writer(&mut json, sample).map_err(std::io::Error::other)?;
+                }
+                if end < piece.len() {
+                    sending.piece = Some((piece, end));
+                }
+                return Ok(Some((Bytes::from(json), sending)));
+            }
+            let Some(mut samples) = sending.samples.take() else { return Ok(None) };
+            let (samples, next) = tokio::task::spawn_blocking(move || {
+                let next = samples.next();
+                (samples, next)
+            })
+            .await
+            .map_err(std::io::Error::other)?;
+            match next {
+                Some(Ok(piece)) => {
+                    sending.samples = Some(samples);
+                    sending.piece = Some((piece, 0));
+                }
+                Some(Err(err)) => {
+                    tracing::error!(error = %err, stroke = %id, "a stored piece of a stroke being sent is unreadable");
+                    return Err(std::io::Error::other(format!("stroke {id} cannot be read")));
+                }
+                None => return Ok(Some((Bytes::from_static(b"]}"), sending))),
+            }
+        }
+    });
+    let head = futures_util::stream::once(async move { Ok(Bytes::from(head)) });
+    Ok(Body::from_stream(head.chain(pieces)))
 }
 
 /// The simplified stroke (once the stroke is done). JSON, or the wire codec's `Retained`
@@ -253,13 +368,16 @@ fn samples_response(headers: &HeaderMap, body: StrokeSamples) -> Response {
 #[utoipa::path(get, path = "/v1/strokes/{id}/simplified", tag = "strokes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody),
-        (status = 404, body = ErrorBody), (status = 409, description = "stroke not done", body = ErrorBody)))]
+        (status = 404, body = ErrorBody), (status = 409, description = "stroke not done", body = ErrorBody),
+        (status = 503, description = "too many large bodies at once (`Retry-After`)", body = ErrorBody)))]
 pub async fn simplified(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
+    // The samples and, in JSON, about 8 bytes of index each.
+    let permit = large_body(&state, row.n_retained * (JSON_BYTES_PER_SAMPLE + 8))?;
     let Some(simplified) = state.store.simplified(row.id).await? else {
         return Err(AppError::Conflict(format!(
             "stroke {} is {}: it has no simplified form until it is done",
@@ -267,26 +385,24 @@ pub async fn simplified(
             row.status.as_str()
         )));
     };
-    let body = StrokeSamples {
-        stroke: row.into(),
-        indices: Some(simplified.indices),
-        samples: simplified.samples,
-    };
-    Ok(samples_response(&headers, body))
+    let samples = RawSamples::from(simplified.samples);
+    samples_response(&headers, row.into(), Some(simplified.indices), samples, permit).await
 }
 
 /// Every committed raw (resampled) sample of a stroke.
 #[utoipa::path(get, path = "/v1/strokes/{id}/raw", tag = "strokes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
-    responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody), (status = 404, body = ErrorBody)))]
+    responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),
+        (status = 503, description = "too many large bodies at once (`Retry-After`)", body = ErrorBody)))]
 pub async fn raw(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let samples = state.store.raw_samples(row.id).await?;
-    Ok(samples_response(&headers, StrokeSamples { stroke: row.into(), indices: None, samples }))
+    let permit = large_body(&state, row.n_points * JSON_BYTES_PER_SAMPLE)?;
+    let samples = state.store.raw(row.id).await?;
+    samples_response(&headers, row.into(), None, samples, permit).await
 }
 
 /// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
@@ -299,7 +415,9 @@ pub async fn raw(
     request_body(content = Vec<u8>, content_type = "model/gltf-binary"),
     responses((status = 200, body = MeshInfo), (status = 400, body = ErrorBody), (status = 401, body = ErrorBody),
         (status = 403, description = "not the stroke's drawer", body = ErrorBody),
-        (status = 404, body = ErrorBody), (status = 409, body = ErrorBody), (status = 413, description = "body too large")))]
+        (status = 404, body = ErrorBody), (status = 409, body = ErrorBody),
+        (status = 413, description = "body too large (`too_large`), or the session's meshes would pass its quota (`quota_exceeded`)", body = ErrorBody),
+        (status = 503, description = "too many large bodies at once (`Retry-After`)", body = ErrorBody)))]
 pub async fn put_mesh(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -310,6 +428,9 @@ pub async fn put_mesh(
     // body is read.
     let (row, participant) = owned_stroke(&state, &headers, &id).await?;
     let limit = state.config.max_body_bytes;
+    // As large as it says, or as the limit when it does not say.
+    let length = headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse().ok());
+    let _permit = large_body(&state, length.unwrap_or(limit as u64).min(limit as u64))?;
     let body = axum::body::to_bytes(body, limit).await.map_err(|err| {
         if std::error::Error::source(&err)
             .is_some_and(|e| e.is::<http_body_util::LengthLimitError>())
@@ -348,8 +469,9 @@ pub(crate) async fn store_mesh(
         uploader: uploader.clone(),
         created_at: now_ms(),
     };
-    // Peers hear of the mesh once it is stored: with PostgreSQL by a notification of the same
-    // transaction, with SQLite through the writer, which orders it after the stroke's end.
+    // Peers hear of the mesh once it is stored (the writer publishes the event with the
+    // commit, after the stroke's end). Through the group commit like every write: a mesh never
+    // holds the database's write lock on its own.
     let event = SessionEvent::new(
         row.session_id,
         EventKind::Mesh {
@@ -358,12 +480,12 @@ pub(crate) async fn store_mesh(
             created_at: mesh.created_at,
         },
     );
-    let postgres = state.store.backend() == Backend::Postgres;
-    let notified = if postgres { std::slice::from_ref(&event) } else { &[] };
-    state.store.put_mesh(row.id, &mesh, notified).await?;
-    if !postgres {
-        state.writer.write_with(Vec::new(), vec![event]).await.map_err(anyhow::Error::from)?;
-    }
+    let quota = state.config.max_session_mesh_bytes;
+    let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, quota };
+    state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
+        WriteError::Quota(why) => AppError::QuotaExceeded(why),
+        err => AppError::Internal(err.into()),
+    })?;
     metrics::counter!("penmesh_meshes_total").increment(1);
     Ok(MeshInfo {
         stroke: row.id,
@@ -378,19 +500,20 @@ pub(crate) async fn store_mesh(
 #[utoipa::path(get, path = "/v1/strokes/{id}/mesh", tag = "meshes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, content_type = "model/gltf-binary", body = Vec<u8>), (status = 401, body = ErrorBody),
-        (status = 404, body = ErrorBody)))]
+        (status = 404, body = ErrorBody),
+        (status = 503, description = "too many large bodies at once (`Retry-After`)", body = ErrorBody)))]
 pub async fn get_mesh(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let mesh = state
-        .store
-        .mesh(row.id)
-        .await?
-        .ok_or_else(|| AppError::NotFound(format!("stroke {} has no mesh", row.id)))?;
-    let mut response = ([(header::CONTENT_TYPE, "model/gltf-binary")], mesh.glb).into_response();
+    let no_mesh = || AppError::NotFound(format!("stroke {} has no mesh", row.id));
+    let bytes = state.store.mesh_bytes(row.id).await?.ok_or_else(no_mesh)?;
+    let permit = large_body(&state, bytes)?;
+    let mesh = state.store.mesh(row.id).await?.ok_or_else(no_mesh)?;
+    let body = held_body(Bytes::from(mesh.glb), permit);
+    let mut response = ([(header::CONTENT_TYPE, "model/gltf-binary")], body).into_response();
     let h = response.headers_mut();
     h.insert("x-penmesh-vertices", HeaderValue::from(mesh.vertices));
     h.insert("x-penmesh-triangles", HeaderValue::from(mesh.triangles));
@@ -435,4 +558,43 @@ pub async fn readyz(State(state): State<AppState>) -> Response {
 #[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text")))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], state.metrics.render()).into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // The streamed JSON of a stroke's samples is, byte for byte, what serde writes whole.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn streamed_samples_are_the_json_serde_writes() {
+        let samples: Vec<penmesh::Sample> = (0..SAMPLES_PER_PIECE * 2 + 7)
+            .map(|i| penmesh::Sample::new(i as f64 * 0.5, -(i as f64), i as f64 * 8.125, 0.25))
+            .collect();
+        let (id, session, participant) = (Uuid::new_v4(), Uuid::new_v4(), Uuid::new_v4());
+        let stroke = || StrokeInfo {
+            id,
+            session,
+            participant,
+            status: penmesh::protocol::StrokeStatus::Done,
+            n_points: samples.len() as u64,
+            n_retained: 3,
+            brush: penmesh::Brush::default(),
+            params: penmesh::AcutsParams::default(),
+            device: Some("pen \"1\"".into()),
+            has_mesh: false,
+            created_at: 1,
+            updated_at: 2,
+        };
+        for indices in [None, Some(vec![0, 5, 9])] {
+            let whole = StrokeSamples {
+                stroke: stroke(),
+                indices: indices.clone(),
+                samples: samples.clone(),
+            };
+            let expected = serde_json::to_vec(&whole).unwrap();
+            let body = json_samples_body(stroke(), indices, samples.clone().into(), None);
+            let streamed = axum::body::to_bytes(body.unwrap(), usize::MAX).await.unwrap();
+            assert_eq!(String::from_utf8_lossy(&streamed), String::from_utf8_lossy(&expected));
+        }
+    }
 }

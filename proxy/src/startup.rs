@@ -27,9 +27,10 @@ use utoipa::OpenApi;
 use crate::cluster::{StrokeLocks, start_listener, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
+use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, Store, WriterTask, start_checkpointer};
-use crate::{http, mesh_build, metrics, web, ws};
+use crate::{http, mesh_build, metrics, send_deadline, web, ws};
 
 /// A bound, ready-to-run proxy.
 #[derive(Debug)]
@@ -243,11 +244,16 @@ async fn serve(
             tracing::debug!("cannot set TCP_NODELAY: {err}");
         }
         let router = router.clone();
+        let deadline = SendDeadline::default();
+        let io = TokioIo::new(DeadlineIo::new(tcp, deadline.clone()));
         let service = hyper::service::service_fn(move |mut request: Request<Incoming>| {
+            // The previous response is written: no deadline until a route sets one.
+            deadline.set(None);
             request.extensions_mut().insert(ConnectInfo(peer));
+            request.extensions_mut().insert(deadline.clone());
             router.clone().oneshot(request.map(axum::body::Body::new))
         });
-        let connection = builder.serve_connection(TokioIo::new(tcp), service).with_upgrades();
+        let connection = builder.serve_connection(io, service).with_upgrades();
         let stop = stop.clone();
         connections.spawn(async move {
             let mut connection = std::pin::pin!(connection);
@@ -306,6 +312,7 @@ pub fn router(state: AppState) -> Router {
         .route("/readyz", get(http::readyz))
         .route("/metrics", get(http::metrics))
         .layer(TimeoutLayer::with_status_code(StatusCode::REQUEST_TIMEOUT, request_timeout))
+        .layer(axum::middleware::from_fn_with_state(request_timeout, send_deadline::arm))
         .merge(websocket)
         .layer(DefaultBodyLimit::max(body_limit))
         .layer(trace_layer())

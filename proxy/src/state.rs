@@ -21,6 +21,10 @@ use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::store::{Store, Writer};
 
+/// An HTTP body larger than this needs one of `max_large_bodies` permits
+/// ([`AppState::large_body`]).
+pub const LARGE_BODY_BYTES: u64 = 1 << 20;
+
 /// Cheap to clone: everything lives behind one `Arc`.
 #[derive(Debug, Clone)]
 pub struct AppState {
@@ -50,6 +54,8 @@ pub struct Inner {
     connections: Arc<tokio::sync::Semaphore>,
     /// Live WebSocket connections per client address on this replica (with a limit only).
     addresses: Mutex<HashMap<IpAddr, usize>>,
+    /// One permit per large HTTP body being handled (`max_large_bodies`).
+    large_bodies: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -73,6 +79,9 @@ impl AppState {
         let connections = Arc::new(tokio::sync::Semaphore::new(
             config.max_connections.min(tokio::sync::Semaphore::MAX_PERMITS),
         ));
+        let large_bodies = Arc::new(tokio::sync::Semaphore::new(
+            config.max_large_bodies.min(tokio::sync::Semaphore::MAX_PERMITS),
+        ));
         let session_limiter = crate::rate::SessionLimiter::new(
             config.session_rate_per_minute,
             config.session_burst,
@@ -92,6 +101,7 @@ impl AppState {
                 hubs: Mutex::new(HashMap::new()),
                 connections,
                 addresses: Mutex::new(HashMap::new()),
+                large_bodies,
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -117,6 +127,16 @@ impl AppState {
             address
         });
         Ok(ConnectionSlot { state: self.clone(), address, _permit: permit })
+    }
+
+    /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up
+    /// to [`LARGE_BODY_BYTES`]; past `max_large_bodies` such bodies at once, `None`. The
+    /// permit frees when it is dropped, with the body.
+    pub fn large_body(&self, bytes: u64) -> Option<Option<tokio::sync::OwnedSemaphorePermit>> {
+        if bytes <= LARGE_BODY_BYTES {
+            return Some(None);
+        }
+        self.large_bodies.clone().try_acquire_owned().ok().map(Some)
     }
 
     /// Counts a new connection in its session, unless the session is full.

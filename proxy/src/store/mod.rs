@@ -10,6 +10,7 @@ mod writer;
 
 use std::collections::{HashMap, HashSet};
 use std::str::FromStr;
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -51,6 +52,8 @@ pub struct Store {
     /// The longest one database round trip may take (`--db-timeout-ms`): taking a pool
     /// connection, and the writer's transactions.
     deadline: Duration,
+    /// One permit per replay of a long stroke at once (`--max-replays`, [`Store::replay`]).
+    replays: Arc<tokio::sync::Semaphore>,
 }
 
 /// A stroke's row.
@@ -84,7 +87,17 @@ pub struct SessionHistory {
     pub events: Vec<SessionEvent>,
     /// The strokes that could not be read (`None`: not even its id), and why.
     pub unreadable: Vec<(Option<Uuid>, String)>,
+    /// What the long unfinished strokes it replayed retain, for the caller to keep
+    /// ([`WriteOp::KeepRetained`]), so that the next history reads it instead.
+    pub keep: Vec<WriteOp>,
 }
+
+/// Stored samples of an unfinished stroke from which replaying it (to rebuild what ACUTS
+/// retained: a session's history, a resume) counts as long: it waits for one of
+/// `--max-replays` permits and runs on the blocking pool, and a history keeps what it retains
+/// ([`WriteOp::KeepRetained`]). A shorter one is replayed on the spot (at most a few
+/// milliseconds; see docs/reliability.md).
+pub const LONG_STROKE_SAMPLES: u64 = 2048;
 
 /// A stored mesh.
 #[derive(Debug, Clone, PartialEq)]
@@ -246,7 +259,8 @@ impl Store {
             );
         }
         let page_size = file_page_size;
-        Ok(Store { pool, backend, options, synchronous, page_size, deadline })
+        let replays = Arc::new(tokio::sync::Semaphore::new(config.max_replays.max(1)));
+        Ok(Store { pool, backend, options, synchronous, page_size, deadline, replays })
     }
 
     /// Opens the group-commit writer's connection, outside the pool. With SQLite, sqlx runs each
@@ -376,6 +390,12 @@ impl Store {
 
     /// Every stored raw sample of a stroke, in order.
     pub async fn raw_samples(&self, stroke: Uuid) -> anyhow::Result<Vec<Sample>> {
+        self.raw(stroke).await?.collect_all()
+    }
+
+    /// The stored raw samples of a stroke, read with one pool connection (given back before
+    /// this returns) and decoded one stored piece at a time ([`RawSamples`]).
+    pub async fn raw(&self, stroke: Uuid) -> anyhow::Result<RawSamples> {
         let mut conn = self.pool.acquire().await?;
         let status: Option<String> = sqlx::query_scalar("SELECT status FROM strokes WHERE id = $1")
             .bind(stroke.to_string())
@@ -388,7 +408,7 @@ impl Store {
         } else {
             log::StrokeEntries::new()
         };
-        self.raw_samples_with(&mut conn, stroke, &log).await
+        read_raw(&mut conn, stroke, &log).await
     }
 
     /// A stroke's raw samples from its chunks and its entries in `log` (read by the caller).
@@ -398,13 +418,7 @@ impl Store {
         stroke: Uuid,
         log: &log::StrokeEntries,
     ) -> anyhow::Result<Vec<Sample>> {
-        let rows =
-            sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
-        let mut pieces = pieces_from_chunks(stroke, &rows)?;
-        for (_, _, entry) in log.get(&stroke).into_iter().flatten() {
-            pieces.push(log::Piece { seq: entry.seq, samples: entry.samples.clone() });
-        }
-        log::assemble(stroke, pieces)
+        read_raw(conn, stroke, log).await?.collect_all()
     }
 
     /// Where the samples of the strokes in progress among `rows` end: `n_points` from the
@@ -418,20 +432,33 @@ impl Store {
         let mut conn = self.pool.acquire().await?;
         let log = log::read_log(&mut conn, Some(&open), None).await?;
         for row in rows.iter_mut() {
-            let mut entries: Vec<(u64, u64)> = log
-                .get(&row.id)
-                .into_iter()
-                .flatten()
-                .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
-                .collect();
-            entries.sort_unstable();
-            for (seq, n) in entries {
-                if seq <= row.n_points {
-                    row.n_points = row.n_points.max(seq + n);
-                }
-            }
+            row.n_points = end_with_log(row.n_points, row.id, &log);
         }
         Ok(())
+    }
+
+    /// Replays the stored samples of `stroke` (`n_points` of them, as far as the caller
+    /// knows) through a fresh simplifier ([`crate::ingest::StrokeState::replay`]). A long
+    /// stroke ([`LONG_STROKE_SAMPLES`]) first waits for one of `--max-replays` permits, before
+    /// it takes a pool connection, and is replayed on the blocking pool: however many ask, the
+    /// replica replays that many long strokes at once, holding that many of them in memory.
+    pub async fn replay(
+        &self,
+        stroke: Uuid,
+        params: penmesh::AcutsParams,
+        n_points: u64,
+    ) -> anyhow::Result<crate::ingest::StrokeState> {
+        use crate::ingest::StrokeState;
+        if n_points < LONG_STROKE_SAMPLES {
+            let samples = self.raw_samples(stroke).await?;
+            return Ok(StrokeState::replay(params, &samples));
+        }
+        let _permit = self.replays.acquire().await.context("the replay permits are closed")?;
+        let samples = self.raw_samples(stroke).await?;
+        metrics::counter!("penmesh_replayed_samples_total").increment(samples.len() as u64);
+        tokio::task::spawn_blocking(move || StrokeState::replay(params, &samples))
+            .await
+            .context("replaying a stroke")
     }
 
     /// SQLite, at start: strokes left in the log by a process that stopped without moving them
@@ -455,11 +482,14 @@ impl Store {
         Ok(moved)
     }
 
+    /// The simplified stroke of a done stroke.
     pub async fn simplified(&self, stroke: Uuid) -> anyhow::Result<Option<Simplified>> {
-        let row = sqlx::query("SELECT indices, layout, data FROM simplified WHERE stroke_id = $1")
-            .bind(stroke.to_string())
-            .fetch_optional(&self.pool)
-            .await?;
+        let row = sqlx::query(
+            "SELECT indices, layout, data FROM simplified WHERE stroke_id = $1 AND upto IS NULL",
+        )
+        .bind(stroke.to_string())
+        .fetch_optional(&self.pool)
+        .await?;
         let Some(row) = row else { return Ok(None) };
         let indices: Vec<u8> = row.try_get("indices")?;
         let data: Vec<u8> = row.try_get("data")?;
@@ -468,35 +498,15 @@ impl Store {
         Ok(Some(Simplified { indices: decode_indices(&indices), samples }))
     }
 
-    /// Stores (or replaces) a stroke's mesh; with PostgreSQL `events` are notified in the same
-    /// transaction (with SQLite the caller publishes them after).
-    pub async fn put_mesh(
-        &self,
-        stroke: Uuid,
-        mesh: &MeshRow,
-        events: &[SessionEvent],
-    ) -> anyhow::Result<()> {
-        let mut conn = self.pool.acquire().await?;
-        let mut tx = sqlx::Connection::begin_with(&mut *conn, self.begin_statement()).await?;
-        if self.backend == Backend::Postgres {
-            notify(&mut tx, events).await?;
-        }
-        sqlx::query(
-            "INSERT INTO meshes (stroke_id, glb, vertices, triangles, uploader, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6) \
-             ON CONFLICT (stroke_id) DO UPDATE SET glb = excluded.glb, vertices = excluded.vertices, \
-             triangles = excluded.triangles, uploader = excluded.uploader, created_at = excluded.created_at",
+    /// The size in bytes of a stroke's mesh, without reading it.
+    pub async fn mesh_bytes(&self, stroke: Uuid) -> anyhow::Result<Option<u64>> {
+        let bytes: Option<i64> = sqlx::query_scalar(
+            "SELECT CAST(length(glb) AS BIGINT) FROM meshes WHERE stroke_id = $1",
         )
         .bind(stroke.to_string())
-        .bind(mesh.glb.clone())
-        .bind(mesh.vertices as i64)
-        .bind(mesh.triangles as i64)
-        .bind(mesh.uploader.clone())
-        .bind(mesh.created_at)
-        .execute(&mut *tx)
+        .fetch_optional(&self.pool)
         .await?;
-        tx.commit().await?;
-        Ok(())
+        Ok(bytes.map(|b| b as u64))
     }
 
     pub async fn mesh(&self, stroke: Uuid) -> anyhow::Result<Option<MeshRow>> {
@@ -518,14 +528,20 @@ impl Store {
 
     /// What a newcomer to `session` is owed: the participants present, then every stroke
     /// (finished ones with their simplified samples and mesh, open ones with the samples
-    /// retained from what is committed so far, rebuilt by replaying it), as events in order.
+    /// retained from what is committed so far), as events in order.
     /// A stroke that cannot be read is left out and named in `unreadable`; it does not hide
     /// the others.
     ///
-    /// It reads through one pooled connection, taken once: a reader that holds a connection
-    /// while it waits for a second one deadlocks the pool when as many newcomers arrive at
-    /// once as the pool has connections (issue 25's join storm). Its queries are a fixed few,
-    /// whatever the number of strokes.
+    /// What an unfinished stroke retains is read where a history before kept it for as many
+    /// samples as are stored (an interrupted stroke, or one not drawn since), else rebuilt by
+    /// replaying its samples: a short stroke on the spot, a long one ([`LONG_STROKE_SAMPLES`])
+    /// through [`Store::replay`] after the connection is given back, and what it retains goes
+    /// into `keep`.
+    ///
+    /// It reads through one pooled connection, taken once and given back before a long
+    /// replay: a reader that holds a connection while it waits for a second one deadlocks the
+    /// pool when as many newcomers arrive at once as the pool has connections (issue 25's join
+    /// storm). Its queries are a fixed few, whatever the number of strokes.
     pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
         let mut conn = self.pool.acquire().await?;
         let mut history = SessionHistory::default();
@@ -564,27 +580,6 @@ impl Store {
             let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
             mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
         }
-        // The finished strokes' simplified samples, in one query; a row that cannot be
-        // decoded is reported with its stroke below.
-        let simplified_rows = sqlx::query(
-            "SELECT sm.stroke_id, sm.layout, sm.data FROM simplified sm \
-             JOIN strokes s ON s.id = sm.stroke_id WHERE s.session_id = $1",
-        )
-        .bind(session.to_string())
-        .fetch_all(&mut *conn)
-        .await?;
-        let mut simplified = HashMap::new();
-        for row in simplified_rows {
-            let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
-            let samples = (|| {
-                let data: Vec<u8> = row.try_get("data")?;
-                decode_samples(row.try_get("layout")?, &data)
-            })();
-            simplified.insert(
-                stroke,
-                samples.with_context(|| format!("stroke {stroke}: simplified samples")),
-            );
-        }
         // The log, once, for the strokes in progress (a stroke whose row cannot be read is
         // reported below).
         let open: HashSet<Uuid> = strokes
@@ -598,80 +593,167 @@ impl Store {
         } else {
             log::read_log(&mut conn, Some(&open), None).await?
         };
-        let stored = StoredHistory { mesh_at, simplified, log };
+        let simplified = simplified_rows(&mut conn, session).await?;
+        let unreadable = |row: &sqlx::any::AnyRow, err: anyhow::Error| {
+            let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
+            tracing::error!(error = %err, stroke = ?id, "a stroke of a session's history is unreadable");
+            (id, format!("{err:#}"))
+        };
+        // Each readable stroke and what it retains (`None`: a long replay, below).
+        let mut parts: Vec<(StrokeRow, Option<Vec<Sample>>)> = Vec::with_capacity(strokes.len());
         for row in &strokes {
-            match self.stroke_history(&mut conn, session, row, &stored).await {
-                Ok(events) => history.events.extend(events),
-                Err(err) => {
-                    let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
-                    tracing::error!(error = %err, stroke = ?id, "a stroke of a session's history is unreadable");
-                    history.unreadable.push((id, format!("{err:#}")));
-                }
+            match self.stroke_points(&mut conn, row, &log, &simplified).await {
+                Ok(part) => parts.push(part),
+                Err(err) => history.unreadable.push(unreadable(row, err)),
             }
+        }
+        drop(conn);
+        for (row, points) in parts {
+            let points = match points {
+                Some(points) => points,
+                None => match self.replay(row.id, row.params, row.n_points).await {
+                    Ok(state) => {
+                        let kept = state.kept().to_vec();
+                        let points = kept.iter().map(|k| k.sample).collect();
+                        let upto = state.next_seq();
+                        history.keep.push(WriteOp::KeepRetained { stroke: row.id, upto, kept });
+                        points
+                    }
+                    Err(err) => {
+                        tracing::error!(error = %err, stroke = %row.id, "a stroke of a session's history is unreadable");
+                        history.unreadable.push((Some(row.id), format!("{err:#}")));
+                        continue;
+                    }
+                },
+            };
+            history.events.extend(stroke_events(session, &row, points, &mesh_at));
         }
         Ok(history)
     }
 
-    /// One stroke's part of [`Store::session_history`].
-    async fn stroke_history(
+    /// What one stroke of [`Store::session_history`] retains: its simplified samples when it is
+    /// done; else what a history kept for as many samples as are stored, or a replay of a short
+    /// stroke; `None` for a long one to replay.
+    async fn stroke_points(
         &self,
         conn: &mut AnyConnection,
-        session: Uuid,
         row: &sqlx::any::AnyRow,
-        stored: &StoredHistory,
-    ) -> anyhow::Result<Vec<SessionEvent>> {
-        let row = stroke_from_row(row)?;
-        let (participant, stroke) = (row.participant, row.id);
-        let mut events = vec![SessionEvent::new(
-            session,
-            EventKind::StrokeBegin { participant, stroke, brush: row.brush },
-        )];
-        let done = row.status == StrokeStatus::Done;
-        let points: Vec<Sample> = if done {
-            match stored.simplified.get(&stroke) {
-                Some(Ok(samples)) => samples.clone(),
-                Some(Err(err)) => anyhow::bail!("{err:#}"),
+        log: &log::StrokeEntries,
+        simplified: &HashMap<Uuid, SimplifiedRow>,
+    ) -> anyhow::Result<(StrokeRow, Option<Vec<Sample>>)> {
+        let mut row = stroke_from_row(row)?;
+        let stroke = row.id;
+        if row.status == StrokeStatus::Done {
+            let points = match simplified.get(&stroke) {
+                Some(found) => decode_samples(found.layout, &found.data)
+                    .with_context(|| format!("stroke {stroke}: simplified samples"))?,
                 None => Vec::new(),
-            }
-        } else {
-            let raw = self.raw_samples_with(conn, stroke, &stored.log).await?;
-            crate::ingest::StrokeState::replay(row.params, &raw)
-                .kept()
-                .iter()
-                .map(|k| k.sample)
-                .collect()
-        };
-        let n_retained = points.len() as u64;
-        if !points.is_empty() {
-            events.push(SessionEvent::new(
-                session,
-                EventKind::Retained { participant, stroke, first: 0, points },
-            ));
+            };
+            return Ok((row, Some(points)));
         }
-        if done {
-            events.push(SessionEvent::new(
-                session,
-                EventKind::StrokeDone { participant, stroke, n_retained },
-            ));
-            if let Some(&created_at) = stored.mesh_at.get(&stroke) {
-                events.push(SessionEvent::new(
-                    session,
-                    EventKind::Mesh { participant, stroke, created_at },
-                ));
-            }
+        row.n_points = end_with_log(row.n_points, stroke, log);
+        let kept =
+            simplified.get(&stroke).filter(|k| k.upto.is_some_and(|upto| upto >= row.n_points));
+        if let Some(SimplifiedRow { layout, data, .. }) = kept {
+            let points = decode_samples(*layout, data)
+                .with_context(|| format!("stroke {stroke}: the samples it retained"))?;
+            return Ok((row, Some(points)));
         }
-        Ok(events)
+        if row.n_points >= LONG_STROKE_SAMPLES {
+            return Ok((row, None));
+        }
+        let raw = self.raw_samples_with(conn, stroke, log).await?;
+        let kept = crate::ingest::StrokeState::replay(row.params, &raw);
+        let points = kept.kept().iter().map(|k| k.sample).collect();
+        Ok((row, Some(points)))
     }
 }
 
-/// What [`Store::session_history`] reads for all of a session's strokes at once.
-struct StoredHistory {
-    /// When each stroke's mesh was stored.
-    mesh_at: HashMap<Uuid, i64>,
-    /// The finished strokes' simplified samples (or why they cannot be read).
-    simplified: HashMap<Uuid, anyhow::Result<Vec<Sample>>>,
-    /// The append log's entries of the strokes in progress.
-    log: log::StrokeEntries,
+/// The events of one stroke of a session's history, `points` being what it retains.
+fn stroke_events(
+    session: Uuid,
+    row: &StrokeRow,
+    points: Vec<Sample>,
+    mesh_at: &HashMap<Uuid, i64>,
+) -> Vec<SessionEvent> {
+    let (participant, stroke) = (row.participant, row.id);
+    let mut events = vec![SessionEvent::new(
+        session,
+        EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+    )];
+    let done = row.status == StrokeStatus::Done;
+    let n_retained = points.len() as u64;
+    if !points.is_empty() {
+        events.push(SessionEvent::new(
+            session,
+            EventKind::Retained { participant, stroke, first: 0, points },
+        ));
+    }
+    if done {
+        events.push(SessionEvent::new(
+            session,
+            EventKind::StrokeDone { participant, stroke, n_retained },
+        ));
+        if let Some(&created_at) = mesh_at.get(&stroke) {
+            events.push(SessionEvent::new(
+                session,
+                EventKind::Mesh { participant, stroke, created_at },
+            ));
+        }
+    }
+    events
+}
+
+/// A `simplified` row of a session's history ([`simplified_rows`]): a finished stroke's
+/// simplified samples, or what a history kept of an unfinished one ([`WriteOp::KeepRetained`]).
+struct SimplifiedRow {
+    /// For a kept row, how many stored samples it covers.
+    upto: Option<u64>,
+    layout: i64,
+    data: Vec<u8>,
+}
+
+/// Every `simplified` row of the session's strokes, in one query.
+async fn simplified_rows(
+    conn: &mut AnyConnection,
+    session: Uuid,
+) -> anyhow::Result<HashMap<Uuid, SimplifiedRow>> {
+    let rows = sqlx::query(
+        "SELECT f.stroke_id, f.upto, f.layout, f.data FROM simplified f \
+         JOIN strokes s ON s.id = f.stroke_id WHERE s.session_id = $1",
+    )
+    .bind(session.to_string())
+    .fetch_all(&mut *conn)
+    .await?;
+    let mut found = HashMap::with_capacity(rows.len());
+    for row in rows {
+        let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+        let upto = row.try_get::<Option<i64>, _>("upto")?.map(|n| n as u64);
+        found.insert(
+            stroke,
+            SimplifiedRow { upto, layout: row.try_get("layout")?, data: row.try_get("data")? },
+        );
+    }
+    Ok(found)
+}
+
+/// Where the stored samples of `stroke` end: `n_points` from its chunks, extended by its
+/// entries in `log`.
+fn end_with_log(n_points: u64, stroke: Uuid, log: &log::StrokeEntries) -> u64 {
+    let mut entries: Vec<(u64, u64)> = log
+        .get(&stroke)
+        .into_iter()
+        .flatten()
+        .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
+        .collect();
+    entries.sort_unstable();
+    let mut end = n_points;
+    for (seq, n) in entries {
+        if seq <= end {
+            end = end.max(seq + n);
+        }
+    }
+    end
 }
 
 /// Moves the samples of `stroke` that only its log `entries` hold into `stroke_chunks`, as one
@@ -702,6 +784,153 @@ pub(crate) async fn move_log_tail(
     .execute(&mut *conn)
     .await?;
     Ok(true)
+}
+
+/// A stroke's stored samples as read: its chunk rows still encoded (a few bytes a sample),
+/// and its log entries. As an iterator it gives the samples in order, one stored piece at a
+/// time, decoding each piece only when it comes: the samples of a long stroke are never all
+/// in memory at once. Where two pieces hold the same sample the copies must be equal, and
+/// there must be no hole (as [`log::assemble`]); after an error it ends.
+#[derive(Debug)]
+pub struct RawSamples {
+    stroke: Uuid,
+    /// In `seq` order (chunks before log entries at the same seq).
+    pieces: std::vec::IntoIter<Stored>,
+    /// The piece that holds the last sample given (`seq`, samples), to check the copies in
+    /// the pieces after it against.
+    last: Option<(u64, Arc<Vec<Sample>>)>,
+    /// Samples given so far.
+    next: u64,
+}
+
+/// Samples `from..` of a decoded stored piece: the ones it adds to those before it.
+#[derive(Debug, Clone)]
+pub struct RawPiece {
+    samples: Arc<Vec<Sample>>,
+    from: usize,
+}
+
+impl std::ops::Deref for RawPiece {
+    type Target = [Sample];
+    fn deref(&self) -> &[Sample] {
+        &self.samples[self.from..]
+    }
+}
+
+#[derive(Debug)]
+enum Stored {
+    Chunk { seq: u64, n: u64, layout: i64, data: Vec<u8> },
+    Log(log::Piece),
+}
+
+impl Stored {
+    fn seq(&self) -> u64 {
+        match self {
+            Stored::Chunk { seq, .. } => *seq,
+            Stored::Log(piece) => piece.seq,
+        }
+    }
+}
+
+impl RawSamples {
+    /// Every sample, in one vector.
+    pub fn collect_all(self) -> anyhow::Result<Vec<Sample>> {
+        let mut samples = Vec::new();
+        for piece in self {
+            samples.extend_from_slice(&piece?);
+        }
+        Ok(samples)
+    }
+
+    fn next_piece(&mut self) -> anyhow::Result<Option<RawPiece>> {
+        let stroke = self.stroke;
+        for stored in self.pieces.by_ref() {
+            let (seq, samples) = match stored {
+                Stored::Chunk { seq, n, layout, data } => {
+                    let samples = decode_samples(layout, &data)
+                        .with_context(|| format!("stroke {stroke}: chunk at seq {seq}"))?;
+                    anyhow::ensure!(
+                        samples.len() as u64 == n,
+                        "stroke {stroke}: chunk at seq {seq} has a bad length"
+                    );
+                    (seq, samples)
+                }
+                Stored::Log(piece) => (piece.seq, piece.samples),
+            };
+            let end = seq + samples.len() as u64;
+            anyhow::ensure!(
+                seq <= self.next,
+                "stroke {stroke}: samples from {seq} follow {} samples",
+                self.next
+            );
+            // The samples it holds that were given already lie in the last piece, which
+            // begins at or before it (the order is by seq) and ends at `next`.
+            let copies = (end.min(self.next) - seq) as usize;
+            if let Some((last_seq, last)) = &self.last {
+                let at = (seq - last_seq) as usize;
+                anyhow::ensure!(
+                    last[at..at + copies] == samples[..copies],
+                    "stroke {stroke}: two stored copies of samples {seq}..{} differ",
+                    seq + copies as u64
+                );
+            }
+            if end <= self.next {
+                continue;
+            }
+            let samples = Arc::new(samples);
+            self.next = end;
+            self.last = Some((seq, samples.clone()));
+            return Ok(Some(RawPiece { samples, from: copies }));
+        }
+        Ok(None)
+    }
+}
+
+/// Samples already in memory (a simplified stroke), as one piece.
+impl From<Vec<Sample>> for RawSamples {
+    fn from(samples: Vec<Sample>) -> RawSamples {
+        let piece = Stored::Log(log::Piece { seq: 0, samples });
+        RawSamples { stroke: Uuid::nil(), pieces: vec![piece].into_iter(), last: None, next: 0 }
+    }
+}
+
+impl Iterator for RawSamples {
+    type Item = anyhow::Result<RawPiece>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        match self.next_piece() {
+            Ok(piece) => piece.map(Ok),
+            Err(err) => {
+                self.pieces = Vec::new().into_iter();
+                Some(Err(err))
+            }
+        }
+    }
+}
+
+/// A stroke's [`RawSamples`]: its chunk rows, and its entries in `log` (read by the caller).
+async fn read_raw(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    log: &log::StrokeEntries,
+) -> anyhow::Result<RawSamples> {
+    let rows = sqlx::query(CHUNKS_SELECT).bind(stroke.to_string()).fetch_all(&mut *conn).await?;
+    let mut pieces = Vec::with_capacity(rows.len());
+    for row in rows {
+        let seq = row.try_get::<i64, _>("seq")? as u64;
+        let n = row.try_get::<i64, _>("n")? as u64;
+        pieces.push(Stored::Chunk {
+            seq,
+            n,
+            layout: row.try_get("layout")?,
+            data: row.try_get("data")?,
+        });
+    }
+    for (_, _, entry) in log.get(&stroke).into_iter().flatten() {
+        pieces.push(Stored::Log(log::Piece { seq: entry.seq, samples: entry.samples.clone() }));
+    }
+    pieces.sort_by_key(Stored::seq); // stable: chunks before log entries at the same seq
+    Ok(RawSamples { stroke, pieces: pieces.into_iter(), last: None, next: 0 })
 }
 
 /// A stroke's pieces from its `stroke_chunks` rows (`seq, n, layout, data`), decoded.
@@ -929,6 +1158,45 @@ mod tests {
         };
         assert_eq!(page_size(Store::connect(&config(2048)).await.unwrap()).await, 2048);
         assert_eq!(page_size(Store::connect(&config(1024)).await.unwrap()).await, 2048);
+    }
+
+    // The raw samples come piece by piece, each stored piece decoded when its turn comes:
+    // copies of a sample in two pieces must agree, and a hole ends the samples with an error.
+    #[test]
+    fn raw_samples_come_in_order_from_overlapping_pieces() {
+        let s: Vec<Sample> = (0..10).map(|i| Sample::new(i as f64, 0.0, i as f64, 0.5)).collect();
+        let chunk = |seq: usize, n: usize| {
+            let (layout, data) = encode_samples(&s[seq..seq + n]);
+            Stored::Chunk { seq: seq as u64, n: n as u64, layout, data }
+        };
+        let entry = |seq: usize, n: usize| {
+            Stored::Log(log::Piece { seq: seq as u64, samples: s[seq..seq + n].to_vec() })
+        };
+        let raw = |pieces: Vec<Stored>| RawSamples {
+            stroke: Uuid::nil(),
+            pieces: pieces.into_iter(),
+            last: None,
+            next: 0,
+        };
+        // Chunks [0, 6) and [2, 4) (moved twice), log entries [4, 8) and [8, 10).
+        let pieces = raw(vec![chunk(0, 6), chunk(2, 2), entry(4, 4), entry(8, 2)]);
+        let lengths: Vec<usize> = pieces.map(|p| p.unwrap().len()).collect();
+        assert_eq!(lengths, vec![6, 2, 2], "each piece adds only what is new");
+        let all = raw(vec![chunk(0, 6), chunk(2, 2), entry(4, 4), entry(8, 2)]);
+        assert_eq!(all.collect_all().unwrap(), s);
+        let hole = raw(vec![chunk(0, 4), entry(5, 5)]).collect_all().unwrap_err();
+        assert!(hole.to_string().contains("from 5 follow 4"), "{hole}");
+        let mut other = s[2..5].to_vec();
+        other[1].x += 1.0;
+        let differs = raw(vec![chunk(0, 4), Stored::Log(log::Piece { seq: 2, samples: other })]);
+        assert!(differs.collect_all().unwrap_err().to_string().contains("differ"));
+        let mut broken = raw(vec![chunk(0, 4), chunk(4, 6)]);
+        if let Some(Stored::Chunk { data, .. }) = broken.pieces.as_mut_slice().get_mut(1) {
+            data.truncate(2);
+        }
+        assert!(broken.next().unwrap().is_ok());
+        assert!(broken.next().unwrap().is_err(), "a piece that cannot be decoded");
+        assert!(broken.next().is_none(), "and then nothing");
     }
 
     #[test]

@@ -42,7 +42,7 @@ use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
 use super::log::{self, MOVE_AFTER, Piece};
-use super::{Backend, Store, encode_indices, encode_samples, notify, now_ms};
+use super::{Backend, MeshRow, Store, encode_indices, encode_samples, notify, now_ms};
 use crate::fanout::{Fanout, SessionEvent};
 
 /// One change to the database.
@@ -68,6 +68,14 @@ pub enum WriteOp {
     Join { connection: Uuid, participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
     /// A participant's connection ended.
     Leave { connection: Uuid },
+    /// Stores (or replaces) a done stroke's mesh, unless the meshes of `session` would then
+    /// hold more than `quota` bytes (refused: [`WriteError::Quota`]). A request of its own: it
+    /// is written where it is planned, as only the write tells whether it fits.
+    PutMesh { stroke: Uuid, session: Uuid, mesh: MeshRow, quota: u64 },
+    /// Keeps what ACUTS retains of a stroke's first `upto` samples before its end (`kept`), so
+    /// that the next history of its session need not replay them (`Store::session_history`).
+    /// Never replaces the simplified stroke of a stroke that is done.
+    KeepRetained { stroke: Uuid, upto: u64, kept: Vec<Kept> },
 }
 
 impl WriteOp {
@@ -75,7 +83,17 @@ impl WriteOp {
     fn sample_bytes(&self) -> usize {
         match self {
             WriteOp::Append { samples, .. } => std::mem::size_of_val(samples.as_slice()),
-            WriteOp::Finish { kept, .. } => std::mem::size_of_val(kept.as_slice()),
+            WriteOp::Finish { kept, .. } | WriteOp::KeepRetained { kept, .. } => {
+                std::mem::size_of_val(kept.as_slice())
+            }
+            _ => 0,
+        }
+    }
+
+    /// Bytes of mesh the op writes.
+    fn mesh_bytes(&self) -> usize {
+        match self {
+            WriteOp::PutMesh { mesh, .. } => mesh.glb.len(),
             _ => 0,
         }
     }
@@ -105,6 +123,9 @@ pub enum WriteError {
     /// writer's own, fit for the client.
     #[error("{0}")]
     Refused(String),
+    /// The write would pass a storage quota (the message names it); nothing was written.
+    #[error("{0}")]
+    Quota(String),
 }
 
 /// The answer to a submitted request: ready once it is committed (or failed). A named type, not
@@ -462,17 +483,24 @@ fn closes(op: &WriteOp) -> Option<Uuid> {
     }
 }
 
+/// Most bytes of meshes one transaction writes (more go in the next): what a mesh upload may
+/// add to the commit of everyone's samples that shares its transaction.
+const MESH_BYTES_PER_COMMIT: usize = 16 << 20;
+
 /// How many of `batch`'s requests go in one transaction: up to (not including) the first that
 /// appends to a stroke an earlier request closed, so that a transaction moves a stroke out of
-/// the log after all of its appends.
+/// the log after all of its appends, or that would take the meshes past
+/// [`MESH_BYTES_PER_COMMIT`].
 fn first_group(batch: &[WriteRequest]) -> usize {
     let mut closed = std::collections::HashSet::new();
+    let mut mesh_bytes = 0;
     for (i, req) in batch.iter().enumerate() {
         let reopens = req
             .ops
             .iter()
             .any(|op| matches!(op, WriteOp::Append { stroke, .. } if closed.contains(stroke)));
-        if reopens && i > 0 {
+        mesh_bytes += req.ops.iter().map(WriteOp::mesh_bytes).sum::<usize>();
+        if (reopens || mesh_bytes > MESH_BYTES_PER_COMMIT) && i > 0 {
             return i;
         }
         closed.extend(req.ops.iter().filter_map(closes));
@@ -678,6 +706,13 @@ impl WriterLoop {
             req_creates.clear();
             let mut refusal = None;
             for op in &req.ops {
+                if let WriteOp::PutMesh { stroke, session, mesh, quota } = op {
+                    if let Err(why) = put_mesh(&mut tx, *stroke, *session, mesh, *quota).await? {
+                        refusal = Some(why);
+                        break;
+                    }
+                    continue;
+                }
                 let WriteOp::Append { stroke, seq, samples } = op else {
                     match op {
                         WriteOp::BeginStroke { stroke, .. } => {
@@ -1025,7 +1060,7 @@ async fn finish(
     sqlx::query(
         "INSERT INTO simplified (stroke_id, indices, layout, data) VALUES ($1, $2, $3, $4) \
          ON CONFLICT (stroke_id) DO UPDATE SET indices = excluded.indices, \
-         layout = excluded.layout, data = excluded.data",
+         layout = excluded.layout, data = excluded.data, upto = NULL",
     )
     .bind(stroke.to_string())
     .bind(encode_indices(&indices))
@@ -1121,6 +1156,53 @@ async fn insert_chunks(
     Ok(())
 }
 
+/// Stores a done stroke's mesh unless the meshes of its session would then hold more than
+/// `quota` bytes: one statement, which sees the meshes this transaction wrote before it.
+/// `Err`: refused, nothing written.
+async fn put_mesh(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    session: Uuid,
+    mesh: &MeshRow,
+    quota: u64,
+) -> anyhow::Result<Result<(), WriteError>> {
+    // `length` of a blob is its size in bytes in both SQLite and PostgreSQL, read without
+    // loading the blob.
+    const OTHERS: &str = "SELECT COALESCE(SUM(length(m.glb)), 0) FROM meshes m \
+         JOIN strokes s ON s.id = m.stroke_id WHERE s.session_id = $1 AND m.stroke_id <> $2";
+    let written = sqlx::query(&format!(
+        "INSERT INTO meshes (stroke_id, glb, vertices, triangles, uploader, created_at) \
+         SELECT $2, $3, $4, $5, $6, $7 WHERE ({OTHERS}) + $8 <= $9 \
+         ON CONFLICT (stroke_id) DO UPDATE SET glb = excluded.glb, vertices = excluded.vertices, \
+         triangles = excluded.triangles, uploader = excluded.uploader, \
+         created_at = excluded.created_at"
+    ))
+    .bind(session.to_string())
+    .bind(stroke.to_string())
+    .bind(mesh.glb.as_slice())
+    .bind(mesh.vertices as i64)
+    .bind(mesh.triangles as i64)
+    .bind(mesh.uploader.clone())
+    .bind(mesh.created_at)
+    .bind(mesh.glb.len() as i64)
+    .bind(i64::try_from(quota).unwrap_or(i64::MAX))
+    .execute(&mut *conn)
+    .await?;
+    if written.rows_affected() > 0 {
+        return Ok(Ok(()));
+    }
+    let others: i64 = sqlx::query_scalar(OTHERS)
+        .bind(session.to_string())
+        .bind(stroke.to_string())
+        .fetch_one(&mut *conn)
+        .await?;
+    Ok(Err(WriteError::Quota(format!(
+        "the meshes of this session hold {others} bytes (this stroke's own not counted); with \
+         this one of {} bytes they would pass the session's quota of {quota} bytes",
+        mesh.glb.len()
+    ))))
+}
+
 /// Applies an op other than an append or a finish. `true`: it created a stroke.
 async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Result<bool> {
     match op {
@@ -1142,6 +1224,28 @@ async fn apply(conn: &mut AnyConnection, op: &WriteOp, now: i64) -> anyhow::Resu
             return Ok(created.rows_affected() == 1);
         }
         WriteOp::Append { .. } => anyhow::bail!("an append goes into the log record"),
+        WriteOp::PutMesh { .. } => anyhow::bail!("a mesh is written where it is planned"),
+        WriteOp::KeepRetained { stroke, upto, kept } => {
+            let indices: Vec<u64> = kept.iter().map(|k| k.index as u64).collect();
+            let samples: Vec<Sample> = kept.iter().map(|k| k.sample).collect();
+            let (layout, data) = encode_samples(&samples);
+            // Never over the simplified stroke of a done stroke (`upto` NULL), nor over what
+            // covers more samples.
+            sqlx::query(
+                "INSERT INTO simplified (stroke_id, indices, layout, data, upto) \
+                 VALUES ($1, $2, $3, $4, $5) ON CONFLICT (stroke_id) DO UPDATE SET \
+                 indices = excluded.indices, layout = excluded.layout, data = excluded.data, \
+                 upto = excluded.upto \
+                 WHERE simplified.upto IS NOT NULL AND simplified.upto < excluded.upto",
+            )
+            .bind(stroke.to_string())
+            .bind(encode_indices(&indices))
+            .bind(layout)
+            .bind(data)
+            .bind(*upto as i64)
+            .execute(&mut *conn)
+            .await?;
+        }
         WriteOp::Finish { .. } => anyhow::bail!("a finish goes through `finish`"),
         WriteOp::Join { connection, participant, session, name, replica } => {
             sqlx::query(

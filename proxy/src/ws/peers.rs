@@ -94,7 +94,7 @@ impl Connection {
             (self.state.config.outgoing_queue, self.state.config.outgoing_queue_bytes);
         self.events =
             Some(self.state.fanout.subscribe(self.session, capacity, bytes, Some(self.id)));
-        let history = match self.state.store.session_history(self.session).await {
+        let mut history = match self.state.store.session_history(self.session).await {
             Ok(history) => history,
             Err(err) => {
                 self.events = None;
@@ -106,6 +106,10 @@ impl Connection {
                 ));
             }
         };
+        if !history.keep.is_empty() {
+            // Kept for the next history; nobody waits for the commit.
+            drop(self.state.writer.submit(std::mem::take(&mut history.keep)).await);
+        }
         for (stroke, _why) in &history.unreadable {
             // Said, not hidden: the client knows the stroke exists and is missing. In order
             // with the history, so waiting for room like it.

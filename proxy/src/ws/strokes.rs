@@ -69,7 +69,7 @@ impl Connection {
             if status != StrokeStatus::Done
                 && self.strokes.len() < self.state.config.max_open_strokes
             {
-                match self.take_over(stroke, row.params, row.participant).await {
+                match self.take_over(stroke, row.params, row.participant, row.n_points).await {
                     Ok(state) => {
                         next_seq = state.next_seq();
                         status = StrokeStatus::Open;
@@ -85,12 +85,14 @@ impl Connection {
     }
 
     /// Claims a stroke of this connection's participant (`owner`: the stroke's) that is not on
-    /// this connection, and rebuilds its state from the database. Marks it `open` again.
+    /// this connection, and rebuilds its state from the database (its `n_points` stored
+    /// samples, as last read). Marks it `open` again.
     async fn take_over(
         &mut self,
         stroke: StrokeId,
         params: penmesh::AcutsParams,
         owner: ParticipantId,
+        n_points: u64,
     ) -> Result<StrokeState, ConnError> {
         if owner != self.participant {
             return Err(self.not_owner(stroke));
@@ -107,13 +109,14 @@ impl Connection {
             )
         };
         let result = async {
-            let samples = self.state.store.raw_samples(stroke).await.map_err(|e| internal(&e))?;
+            let store = &self.state.store;
+            let state = store.replay(stroke, params, n_points).await.map_err(|e| internal(&e))?;
             self.state
                 .writer
                 .write(vec![WriteOp::SetStatus { stroke, status: StrokeStatus::Open }])
                 .await
                 .map_err(|e| internal(&e))?;
-            Ok(StrokeState::replay(params, &samples))
+            Ok(state)
         }
         .await;
         if result.is_err() {
@@ -215,7 +218,8 @@ impl Connection {
             }
             Some(row) => {
                 // Begun before on another connection: resume it.
-                let state = self.take_over(stroke, row.params, row.participant).await?;
+                let state =
+                    self.take_over(stroke, row.params, row.participant, row.n_points).await?;
                 let kept = state.kept().to_vec();
                 let upto_seq = state.committed_seq;
                 self.strokes.insert(stroke, state);

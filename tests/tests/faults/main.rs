@@ -18,6 +18,7 @@ mod black_hole;
 mod check;
 mod child;
 mod client;
+mod costs;
 mod disk_full;
 mod forwarder;
 mod kill;

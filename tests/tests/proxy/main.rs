@@ -4,6 +4,7 @@
 
 mod auth;
 mod bad_input;
+mod costs;
 mod deploy;
 mod http;
 mod identity;

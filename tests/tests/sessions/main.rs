@@ -8,6 +8,7 @@
 //! `cargo test --release -p penmesh-e2e --test sessions -- --ignored --nocapture fanout_latency`.
 
 mod helpers;
+mod history_cost;
 mod history_pool;
 mod latency;
 mod replicas;
