@@ -4,6 +4,7 @@
 //! bytes per raw sample. What `docs/performance.md` reports for issue 26.
 
 use super::*;
+use penmesh::GlbEncoding;
 
 /// Scales every stroke about its first sample so that the larger side of its bounding box is
 /// `size` px (a stroke that is one point stays as it is).
@@ -46,7 +47,10 @@ pub struct GlbSizeRow {
 
 /// The encodings measured, by name.
 fn encodings() -> Vec<(&'static str, GlbOptions)> {
-    vec![("plain", GlbOptions::default()), ("quantised", GlbOptions::default().quantize(true))]
+    [("plain", GlbEncoding::Plain), ("quantised", GlbEncoding::Quantized), ("meshopt", GlbEncoding::Meshopt)]
+        .into_iter()
+        .map(|(name, encoding)| (name, GlbOptions::default().encoding(encoding)))
+        .collect()
 }
 
 /// Sizes of every stroke's GLB, per data set and over all of them.
