@@ -326,7 +326,7 @@ pub async fn put_mesh(
             row.status.as_str()
         )));
     }
-    let counts = crate::glb::inspect(&body)
+    let counts = crate::glb::inspect(&body, limit)
         .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
     store_mesh(&state, &row, body.to_vec(), counts, Some(participant.to_string())).await.map(Json)
 }

@@ -188,10 +188,21 @@ fn quantized_vertices(mesh: &StrokeMesh, lo: [f32; 3], step: f32) -> Vertices {
     Vertices { bytes, stride: QUANTIZED_STRIDE, normal_offset: 8, position_bounds: bounds }
 }
 
+/// Whether `indices` are whole triangles of `n_vertices` vertices: what meshoptimizer's
+/// functions need (they read out of bounds otherwise). A [`StrokeMesh`] from
+/// [`crate::solid_mesh`] always is; one that is not is written unreordered, its indices
+/// uncompressed.
+fn whole_triangles(indices: &[u32], n_vertices: usize) -> bool {
+    indices.len() % 3 == 0 && indices.iter().all(|&i| (i as usize) < n_vertices)
+}
+
 /// The mesh renumbered for meshoptimizer's codecs: triangles in its vertex cache order, then
-/// vertices in the order the triangles first use them (a vertex no triangle uses is dropped).
+/// vertices in the order the triangles first use them (any vertex no triangle uses last).
 fn codec_order(mesh: &StrokeMesh) -> StrokeMesh {
-    let n_vertices = mesh.positions.len();
+    let n_vertices = mesh.positions.len().min(mesh.normals.len());
+    if !whole_triangles(&mesh.indices, n_vertices) {
+        return mesh.clone();
+    }
     let mut indices = meshopt::optimize_vertex_cache(&mesh.indices, n_vertices);
     let mut new_index = vec![u32::MAX; n_vertices];
     let mut order = Vec::with_capacity(n_vertices);
@@ -203,6 +214,7 @@ fn codec_order(mesh: &StrokeMesh) -> StrokeMesh {
         }
         *index = *slot;
     }
+    order.extend((0..n_vertices).filter(|&v| new_index[v] == u32::MAX));
     StrokeMesh {
         positions: order.iter().map(|&v| mesh.positions[v]).collect(),
         normals: order.iter().map(|&v| mesh.normals[v]).collect(),
@@ -327,7 +339,11 @@ impl DocumentWriter {
             extensions: None,
             extras: None,
         };
-        if self.encoding == GlbEncoding::Meshopt {
+        let compress = match data {
+            ViewData::Vertices { .. } => true,
+            ViewData::Triangles { indices, n_vertices, .. } => whole_triangles(indices, n_vertices),
+        };
+        if self.encoding == GlbEncoding::Meshopt && compress {
             let (compressed, element, count, mode) = match data {
                 // Only quantised vertices are compressed: `QUANTIZED_STRIDE` bytes each.
                 ViewData::Vertices { bytes, stride } => {
@@ -511,6 +527,31 @@ mod tests {
             let doc: serde_json::Value = serde_json::from_slice(&glb[20..]).unwrap();
             assert_eq!(doc["nodes"][0]["extras"]["author"], "ada");
             assert!(doc.get("meshes").is_none() && doc.get("buffers").is_none());
+        }
+    }
+
+    #[test]
+    fn meshes_that_are_not_whole_triangles_are_written_without_reading_out_of_bounds() {
+        // meshoptimizer reads past the end of such indices: they are written uncompressed, as
+        // given; unused vertices are kept.
+        let vertices = |n: usize| (0..n).map(|i| [i as f32, 0.0, 0.0]).collect::<Vec<_>>();
+        let normals = |n: usize| vec![[0.0, 0.0, 1.0]; n];
+        for (n_vertices, indices) in
+            [(4, vec![0, 1, 2, 0, 9, 1]), (4, vec![0, 1, 2, 3]), (5, vec![0, 1, 2])]
+        {
+            let mesh = StrokeMesh {
+                positions: vertices(n_vertices),
+                normals: normals(n_vertices),
+                indices: indices.clone(),
+            };
+            let glb = stroke_glb(&mesh, &meta(), &GlbOptions::default());
+            let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+            let doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+            assert_eq!(doc["accessors"][0]["count"], n_vertices, "{indices:?}");
+            assert_eq!(doc["accessors"][2]["count"], indices.len());
+            let compressed =
+                doc["bufferViews"][1]["extensions"].get(EXT_MESHOPT_COMPRESSION).is_some();
+            assert_eq!(compressed, indices.len() == 3, "{indices:?}");
         }
     }
 

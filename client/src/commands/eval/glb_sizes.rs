@@ -45,20 +45,36 @@ pub struct GlbSizeRow {
     pub max_vertices: usize,
 }
 
-/// The encodings measured, by name.
-fn encodings() -> Vec<(&'static str, GlbOptions)> {
-    [("plain", GlbEncoding::Plain), ("quantised", GlbEncoding::Quantized), ("meshopt", GlbEncoding::Meshopt)]
-        .into_iter()
-        .map(|(name, encoding)| (name, GlbOptions::default().encoding(encoding)))
-        .collect()
+/// What is measured, by name: each encoding of the default solid, and the default encoding of
+/// the solid that keeps every centreline point (solid tolerance 0), to show what leaving out
+/// the points no pixel shows saves. Only the first three are written by `--glb-out`.
+fn encodings() -> Vec<(&'static str, GlbOptions, SolidOptions)> {
+    let every_point = SolidOptions::default().tolerance(0.0);
+    [
+        ("plain", GlbEncoding::Plain, SolidOptions::default()),
+        ("quantised", GlbEncoding::Quantized, SolidOptions::default()),
+        ("meshopt", GlbEncoding::Meshopt, SolidOptions::default()),
+        ("meshopt, every centreline point", GlbEncoding::Meshopt, every_point),
+    ]
+    .into_iter()
+    .map(|(name, encoding, solid)| (name, GlbOptions::default().encoding(encoding), solid))
+    .collect()
 }
 
-/// Sizes of every stroke's GLB, per data set and over all of them.
+/// How many of [`encodings`] `--glb-out` writes.
+const WRITTEN: usize = 3;
+
+/// Sizes of every stroke's GLB, per data set and over all of them; each GLB is written into
+/// `out` too, when given.
 pub(super) fn glb_size_rows(
     data_sets: &[DataSet],
     resample: f64,
     params: &AcutsParams,
-) -> Vec<GlbSizeRow> {
+    out: Option<&Path>,
+) -> anyhow::Result<Vec<GlbSizeRow>> {
+    if let Some(dir) = out {
+        fs_err::create_dir_all(dir)?;
+    }
     let brush = Brush::default();
     let bound = params.tolerance + resample;
     let centreline = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
@@ -69,14 +85,20 @@ pub(super) fn glb_size_rows(
     let mut rows = Vec::new();
     for data_set in data_sets {
         let mut per_encoding: Vec<Vec<(usize, usize, usize)>> = vec![Vec::new(); encodings().len()];
-        for samples in data_set.strokes() {
+        for (stroke_idx, samples) in data_set.strokes().enumerate() {
             let kept = penmesh::acuts(samples, resample, params).kept;
             let outline = penmesh::fitted_outline(samples, &kept, &brush, &outline_options)
                 .expect("ACUTS keeps increasing indices of the stroke");
-            let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
-            for (sizes, (_, options)) in per_encoding.iter_mut().zip(encodings()) {
+            for (k, (sizes, (name, options, solid))) in
+                per_encoding.iter_mut().zip(encodings()).enumerate()
+            {
+                let mesh = penmesh::solid_mesh(&outline, &solid);
                 let glb = penmesh::stroke_glb(&mesh, &meta, &options);
                 sizes.push((glb.len(), samples.len(), mesh.stats().vertices));
+                if let Some(dir) = out.filter(|_| k < WRITTEN) {
+                    let file = format!("{}-{stroke_idx:03}.{name}.glb", data_set.name);
+                    io::write_file(&dir.join(file), &glb)?;
+                }
             }
         }
         for (k, sizes) in per_encoding.into_iter().enumerate() {
@@ -89,7 +111,7 @@ pub(super) fn glb_size_rows(
             rows.push(size_row("all", encodings()[k].0, sizes));
         }
     }
-    rows
+    Ok(rows)
 }
 
 fn size_row(data: &str, encoding: &str, sizes: &[(usize, usize, usize)]) -> GlbSizeRow {

@@ -88,6 +88,11 @@ pub struct EvalArgs {
     /// its bounding box is this many px, as a board of strokes of one size would draw them.
     #[arg(long, value_name = "PX", requires = "glb_sizes")]
     pub stroke_size: Option<f64>,
+    /// With --glb-sizes: also write every stroke's GLB, in each encoding, into this folder
+    /// (DATA-NNN.ENCODING.glb), for the glTF validator and three.js check
+    /// (client/web/test/glb-check.mjs).
+    #[arg(long, value_name = "DIR", requires = "glb_sizes")]
+    pub glb_out: Option<PathBuf>,
 }
 
 /// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
@@ -173,7 +178,8 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
                 scale_strokes_to(data_set, size);
             }
         }
-        let rows = glb_size_rows(&data_sets, args.acuts.resample, &params);
+        let rows =
+            glb_size_rows(&data_sets, args.acuts.resample, &params, args.glb_out.as_deref())?;
         let markdown = glb_size_markdown(&rows);
         print!("{markdown}");
         if let Some(path) = &args.markdown {
