@@ -22,8 +22,8 @@
 //!   leaves out a centreline point when its four rim vertices lie within the tolerance of the
 //!   edges that replace them (in 3D: the rims' offsets, so the radius, and their height
 //!   `thickness * r`), the centreline turns by at most [`MAX_MERGED_TURN_DEG`] in all across the
-//!   merged pieces (so the normals a renderer interpolates across one stay within half a degree
-//!   of the arc's) and at most [`MAX_MERGED_PIECES`] pieces merge. The kept points keep their
+//!   merged pieces (across an arc that turns evenly by 45°, the normals a renderer interpolates
+//!   stay within half a degree of the arc's) and at most [`MAX_MERGED_PIECES`] pieces merge. The kept points keep their
 //!   own normals, radii and offsets; the first and last are always kept. The outline, its
 //!   centreline and their guarantees are unchanged; only the mesh is lighter.
 //!
@@ -42,7 +42,8 @@ pub const DEFAULT_THICKNESS: f64 = 0.5;
 /// Smallest accepted thickness factor: a thinner solid would have (almost) no volume.
 pub const MIN_THICKNESS: f64 = 1e-3;
 /// Most total turning (degrees) of the centreline across the pieces one edge of the solid
-/// replaces: normals interpolated linearly across 45° stay within half a degree of the arc's.
+/// replaces: across an arc that turns evenly by 45°, normals interpolated linearly stay within
+/// half a degree of the arc's.
 pub const MAX_MERGED_TURN_DEG: f64 = 45.0;
 /// Most centreline pieces one edge of the solid replaces (bounds the work per point).
 pub const MAX_MERGED_PIECES: usize = 16;
