@@ -73,6 +73,7 @@ canvas { width: 640px; height: 400px; display: block; border: 1px solid #ccc; }
 </div><script type="module">
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 const data = window.DATA;
 const all = data.raw.flat();
 const xs = all.map((p) => p[0]), ys = all.map((p) => p[1]);
@@ -99,7 +100,8 @@ function ctx2d(id) { const c = document.getElementById(id).getContext('2d'); c.f
   for (const poly of data.freehand) { if (!poly.length) continue; c.beginPath(); c.moveTo(...toCanvas(...poly[0]));
     for (const p of poly.slice(1)) c.lineTo(...toCanvas(...p)); c.closePath(); c.fill('nonzero'); }
 }
-const loader = new GLTFLoader();
+// penmesh's GLBs are meshopt-compressed by default.
+const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
 async function render3d(id, base64) {
   const canvas = document.getElementById(id);
   const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The test command of the README: every test of the workspace on the embedded default (SQLite),
 # then the browser test of the page (client/web/test/browser.mjs, Debian's Chromium through
-# playwright-core; installed here when missing, and a failure when it cannot be had), then, when
+# playwright-core; installed here when missing, and a failure when it cannot be had), the GLB
+# of every real stroke of ../shared/data through the glTF-Validator and three.js, then, when
 # PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
 # database per test; a Postgres test that cannot run fails, it never skips).
 set -euo pipefail
@@ -22,6 +23,12 @@ fi
 cargo build --bin penmesh
 # Fails (never skips) when Chromium is still missing.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
+
+echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
+glbs=$(mktemp -d)
+"${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" eval ../shared/data --glb-sizes --glb-out "$glbs" >/dev/null
+node client/web/test/glb-check.mjs "$glbs"
+rm -rf "$glbs"
 
 if [ -n "$pg_url" ]; then
   echo "== end-to-end suite on PostgreSQL"

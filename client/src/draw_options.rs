@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use indicatif::ProgressBar;
-use penmesh::Brush;
+use penmesh::{Brush, GlbEncoding};
 
 /// Default time between two batches, ms.
 pub const DEFAULT_BATCH_MS: u64 = 16;
@@ -30,6 +30,8 @@ pub struct DrawOptions {
     pub batch_samples: usize,
     /// After a lost connection, keep trying this long without progress.
     pub retry_for: Duration,
+    /// How each stroke's GLB is written (and uploaded).
+    pub glb: GlbEncoding,
     /// Where to write each stroke's GLB.
     pub out_dir: Option<PathBuf>,
     /// Advanced by one per drawn sample.
@@ -49,6 +51,7 @@ impl DrawOptions {
             batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),
             batch_samples: DEFAULT_BATCH_SAMPLES,
             retry_for: Duration::from_secs(DEFAULT_RETRY_SECS),
+            glb: GlbEncoding::default(),
             out_dir: None,
             progress: None,
             interrupts: None,

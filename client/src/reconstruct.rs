@@ -118,7 +118,7 @@ pub async fn reconstruct(
     };
     let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
     let meta = GlbMeta { stroke: id, author: options.name.clone(), brush: options.brush };
-    let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
+    let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default().encoding(options.glb));
 
     since_pen_up("mesh built");
     let glb_path = match &options.out_dir {

@@ -407,7 +407,9 @@ pub async fn raw(
 
 /// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
 /// the stroke's drawer may (its participant key in `x-penmesh-key`). Vertex and triangle counts
-/// are read from the GLB's accessors. The uploader stored is the drawer's participant id.
+/// are read from the GLB's accessors. The uploader stored is the drawer's participant id. The
+/// GLB may require `KHR_mesh_quantization` and `EXT_meshopt_compression` (what penmesh writes)
+/// and no other extension; a compressed view must decode to what it claims.
 #[utoipa::path(put, path = "/v1/strokes/{id}/mesh", tag = "meshes",
     params(("id" = Uuid, Path),
         ("x-penmesh-key" = String, Header, description = "the drawer's participant key (its hello.key)")),
@@ -447,7 +449,7 @@ pub async fn put_mesh(
             row.status.as_str()
         )));
     }
-    let counts = crate::glb::inspect(&body)
+    let counts = crate::glb::inspect(&body, limit)
         .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
     store_mesh(&state, &row, body.to_vec(), counts, Some(participant.to_string())).await.map(Json)
 }
@@ -496,7 +498,9 @@ pub(crate) async fn store_mesh(
     })
 }
 
-/// The stroke's mesh as `model/gltf-binary`.
+/// The stroke's mesh as `model/gltf-binary`, as stored: from penmesh, quantised and compressed
+/// with `EXT_meshopt_compression` unless its uploader chose otherwise (three.js reads it with
+/// `GLTFLoader.setMeshoptDecoder(MeshoptDecoder)`).
 #[utoipa::path(get, path = "/v1/strokes/{id}/mesh", tag = "meshes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, content_type = "model/gltf-binary", body = Vec<u8>), (status = 401, body = ErrorBody),

@@ -70,7 +70,7 @@ pub async fn build_mesh(
     })
     .await
     .map_err(anyhow::Error::from)??;
-    let counts = crate::glb::inspect(&glb)
+    let counts = crate::glb::inspect(&glb, state.config.max_body_bytes)
         .map_err(|e| anyhow::anyhow!("the proxy built an invalid GLB for {}: {e}", row.id))?;
     let info = store_mesh(&state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await?;
     Ok(Json(info))

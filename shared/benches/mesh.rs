@@ -1,5 +1,5 @@
-//! LRPDP mesh path for a 1,000-sample stroke: outline, solid mesh and GLB (plain and
-//! `KHR_mesh_quantization`), timed separately and end to end, with the smooth centreline (the
+//! LRPDP mesh path for a 1,000-sample stroke: outline, solid mesh and GLB (plain,
+//! `KHR_mesh_quantization`, and meshopt-compressed, the default), timed separately and end to end, with the smooth centreline (the
 //! default) and the paper's straight one. Targets: < 100 µs end to end and a GLB of at most
 //! 16 KB. Sizes are printed before the timings, for the raw stroke and for its ACUTS
 //! simplification (the stroke LRPDP is meant to receive).
@@ -20,8 +20,8 @@ mod cpu_time;
 use cpu_time::ThreadCpuTime;
 use criterion::{Criterion, criterion_group, criterion_main};
 use penmesh::{
-    AcutsParams, Brush, GlbMeta, GlbOptions, OutlineOptions, Sample, SolidOptions, fitted_outline,
-    outline, simplify, solid_mesh, stroke_glb, stroke_mesh,
+    AcutsParams, Brush, GlbEncoding, GlbMeta, GlbOptions, OutlineOptions, Sample, SolidOptions,
+    fitted_outline, outline, simplify, solid_mesh, stroke_glb, stroke_mesh,
 };
 
 const N_SAMPLES: usize = 1_000;
@@ -74,11 +74,13 @@ fn report_sizes(label: &str, stroke: &[Sample], options: &OutlineOptions) {
     let out = outline(stroke, &brush, options);
     let mesh = solid_mesh(&out, &SolidOptions::default());
     let stats = mesh.stats();
-    let plain = stroke_glb(&mesh, &meta, &GlbOptions::default()).len();
-    let quantized = stroke_glb(&mesh, &meta, &GlbOptions::default().quantize(true)).len();
+    let size = |encoding| stroke_glb(&mesh, &meta, &GlbOptions::default().encoding(encoding)).len();
+    let plain = size(GlbEncoding::Plain);
+    let quantized = size(GlbEncoding::Quantized);
+    let meshopt = size(GlbEncoding::Meshopt);
     println!(
         "{label}: {} samples -> {} centreline points, {} vertices, {} triangles; GLB {plain} B \
-         plain, {quantized} B quantised",
+         plain, {quantized} B quantised, {meshopt} B meshopt",
         stroke.len(),
         out.n_samples(),
         stats.vertices,
@@ -100,8 +102,9 @@ fn bench_mesh(c: &mut Criterion<ThreadCpuTime>) {
     let brush = Brush::default();
     let solid_options = SolidOptions::default();
     let meta = meta();
-    let plain = GlbOptions::default();
-    let quantized = GlbOptions::default().quantize(true);
+    let plain = GlbOptions::default().encoding(GlbEncoding::Plain);
+    let quantized = GlbOptions::default().encoding(GlbEncoding::Quantized);
+    let meshopt = GlbOptions::default();
 
     let mut group = c.benchmark_group("lrpdp_1000");
     group.bench_function("outline", |b| b.iter(|| outline(black_box(&stroke), &brush, &smooth)));
@@ -112,7 +115,14 @@ fn bench_mesh(c: &mut Criterion<ThreadCpuTime>) {
     group.bench_function("glb_quantized", |b| {
         b.iter(|| stroke_glb(black_box(&mesh), &meta, &quantized))
     });
-    for (name, options) in [("end_to_end_plain", plain), ("end_to_end_quantized", quantized)] {
+    group.bench_function("glb_meshopt", |b| {
+        b.iter(|| stroke_glb(black_box(&mesh), &meta, &meshopt))
+    });
+    for (name, options) in [
+        ("end_to_end_plain", plain),
+        ("end_to_end_quantized", quantized),
+        ("end_to_end_meshopt", meshopt),
+    ] {
         group.bench_function(name, |b| {
             b.iter(|| {
                 let mesh = stroke_mesh(black_box(&stroke), &brush, &smooth, &solid_options);
@@ -151,15 +161,17 @@ fn bench_mesh(c: &mut Criterion<ThreadCpuTime>) {
             })
         });
     }
-    // What the client and `penmesh mesh` run: the smooth centreline checked against the raw
-    // samples.
-    group.bench_function("end_to_end_plain_acuts_smooth_checked", |b| {
-        b.iter(|| {
-            let out = fitted_outline(black_box(&real), &kept, &brush, &smooth)
-                .expect("ACUTS keeps increasing indices");
-            stroke_glb(&solid_mesh(&out, &solid_options), &meta, &plain)
-        })
-    });
+    // What the client, `penmesh mesh` and the proxy run: the smooth centreline checked against
+    // the raw samples, the compressed GLB (and the plain one, to compare).
+    for (label, options) in [("plain", plain), ("meshopt", meshopt)] {
+        group.bench_function(format!("end_to_end_{label}_acuts_smooth_checked"), |b| {
+            b.iter(|| {
+                let out = fitted_outline(black_box(&real), &kept, &brush, &smooth)
+                    .expect("ACUTS keeps increasing indices");
+                stroke_glb(&solid_mesh(&out, &solid_options), &meta, &options)
+            })
+        });
+    }
     group.finish();
 }
 

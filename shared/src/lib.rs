@@ -38,16 +38,18 @@ pub use crate::generator::{
     MAX_GENERATED_SAMPLES, Shape, UnknownShapeError, generate_stroke,
 };
 pub use crate::glb::{
-    GlbMeta, GlbOptions, GlbStroke, KHR_MESH_QUANTIZATION, stroke_glb, strokes_glb,
+    EXT_MESHOPT_COMPRESSION, GlbEncoding, GlbMeta, GlbOptions, GlbStroke, KHR_MESH_QUANTIZATION,
+    POSITION_STEP, stroke_glb, strokes_glb,
 };
 pub use crate::lrpdp::{
-    CloudOptions, DEFAULT_CAP_DENSITY, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS,
-    KeptError, MIN_CAP_POINTS, Outline, OutlineOptions, PointCloud, fitted_outline, outline,
-    point_cloud, point_cloud_ply,
+    CloudOptions, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS, KeptError, MIN_CAP_POINTS,
+    Outline, OutlineOptions, PIXEL_TOLERANCE, PointCloud, fitted_outline, outline, point_cloud,
+    point_cloud_ply,
 };
 pub use crate::mesh::{
-    DEFAULT_THICKNESS, MIN_THICKNESS, MeshDefect, MeshStats, SolidOptions, StrokeMesh, is_closed,
-    mesh_defect, signed_volume, solid_mesh, stroke_mesh,
+    DEFAULT_THICKNESS, MAX_MERGED_PIECES, MAX_MERGED_TURN_DEG, MIN_THICKNESS, MeshDefect,
+    MeshStats, SolidOptions, StrokeMesh, is_closed, mesh_defect, signed_volume, solid_mesh,
+    stroke_mesh, visible_centres,
 };
 pub use crate::metrics::{
     MetricsError, SimplificationMetrics, cdf_error_area, e_max, p_max, pressure_error,

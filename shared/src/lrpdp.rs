@@ -33,10 +33,14 @@ use crate::centreline::{
 };
 use crate::model::{Brush, Sample};
 
-/// Default cap density `I`: points per px of radius on each end cap.
-pub const DEFAULT_CAP_DENSITY: f64 = 2.0;
+/// What no pixel shows at 1 px per unit, px: the default largest distance of an end cap's
+/// polygon from its half circle, and of a centreline point's rims from the edges that replace
+/// them when the solid leaves it out ([`crate::SolidOptions::tolerance`]).
+pub const PIXEL_TOLERANCE: f64 = 0.25;
 /// Smallest number of points on an end cap.
 pub const MIN_CAP_POINTS: usize = 3;
+/// Most points on an end cap, so that memory stays bounded whatever the radius.
+const MAX_CAP_POINTS: usize = 4096;
 /// Default depth of the layered point cloud, as a multiple of the largest radius (`D = 2 max r`).
 pub const DEFAULT_CLOUD_DEPTH_FACTOR: f64 = 2.0;
 /// Default number of layer spacings in the depth (`d_s = D / 4`).
@@ -53,8 +57,10 @@ pub struct OutlineOptions {
     /// Miter correction: offset by `r / cos(theta / 2)` (capped at `2 r`) at a turn of angle
     /// `theta`, so the band keeps its width `2 r` through corners. Off by default.
     pub miter: bool,
-    /// Cap density `I`: each end cap has `max(3, ceil(I * r))` points.
-    pub cap_density: f64,
+    /// Largest distance (px) of an end cap's polygon from its half circle: a cap of radius `r`
+    /// has the fewest points that keep it within this, at least [`MIN_CAP_POINTS`] (see
+    /// [`OutlineOptions::cap_points`]).
+    pub cap_tolerance: f64,
     /// The centreline the sides are offset from: smooth by default.
     pub centreline: Centreline,
 }
@@ -65,8 +71,8 @@ impl OutlineOptions {
         self
     }
 
-    pub fn cap_density(mut self, cap_density: f64) -> OutlineOptions {
-        self.cap_density = cap_density;
+    pub fn cap_tolerance(mut self, cap_tolerance: f64) -> OutlineOptions {
+        self.cap_tolerance = cap_tolerance;
         self
     }
 
@@ -80,12 +86,21 @@ impl OutlineOptions {
         OutlineOptions::default().centreline(Centreline::Straight)
     }
 
-    /// Number of points on an end cap of radius `radius`.
+    /// Number of points on an end cap of radius `radius`: `n` points strictly inside the half
+    /// circle make `n + 1` chords of `pi / (n + 1)` each, whose sagitta
+    /// `r (1 - cos(pi / (2 (n + 1))))` must be at most the tolerance `t`, so
+    /// `n = ceil(pi / (2 acos(1 - t / r))) - 1`, at least [`MIN_CAP_POINTS`]. The spec's
+    /// `max(3, ceil(I r))` grows linearly with the radius; this grows as its square root (4
+    /// points at the default brush's 4 px, 6 at 8 px, 12 at 30 px, against 8, 16 and 60).
     pub fn cap_points(&self, radius: f64) -> usize {
-        let wanted = (self.cap_density * radius).ceil();
-        // Saturating conversion: NaN gives 0, a huge value is capped so memory stays bounded.
-        let wanted = if wanted.is_finite() { wanted.clamp(0.0, 4096.0) as usize } else { 0 };
-        wanted.max(MIN_CAP_POINTS)
+        let ratio = (self.cap_tolerance / radius).min(1.0);
+        let wanted = (std::f64::consts::PI / (2.0 * (1.0 - ratio).acos())).ceil() - 1.0;
+        // NaN (a negative tolerance) gives the floor; a zero tolerance, infinitely many, is
+        // capped so memory stays bounded.
+        if wanted.is_nan() {
+            return MIN_CAP_POINTS;
+        }
+        (wanted.min(MAX_CAP_POINTS as f64) as usize).max(MIN_CAP_POINTS)
     }
 }
 
@@ -93,7 +108,7 @@ impl Default for OutlineOptions {
     fn default() -> OutlineOptions {
         OutlineOptions {
             miter: false,
-            cap_density: DEFAULT_CAP_DENSITY,
+            cap_tolerance: PIXEL_TOLERANCE,
             centreline: Centreline::default(),
         }
     }
@@ -514,18 +529,28 @@ mod tests {
             assert!((out.lower[k] - DVec2::new(2.0 * k as f64, 4.0)).length() < 1e-12);
         }
         let closed = out.closed();
-        assert_eq!(closed.len(), 10 + 2 * 8);
+        assert_eq!(closed.len(), 10 + 2 * 4);
         assert!(shoelace(&closed) > 0.0);
     }
 
     #[test]
-    fn cap_point_count_follows_density_with_a_floor_of_three() {
-        // Caps have max(3, ceil(I r)) points.
+    fn cap_point_count_is_the_fewest_within_the_tolerance_with_a_floor_of_three() {
+        // The cap's chords stay within the tolerance of the half circle, with one point fewer
+        // they would not; small, zero and non-finite values give the floor.
         let options = OutlineOptions::default();
-        assert_eq!(options.cap_points(0.25), 3);
-        assert_eq!(options.cap_points(4.0), 8);
-        assert_eq!(options.cap_points(2.2), 5);
-        assert_eq!(options.cap_density(1.0).cap_points(4.0), 4);
+        assert_eq!([0.25, 2.2, 4.0, 8.0, 30.0].map(|r| options.cap_points(r)), [3, 3, 4, 6, 12]);
+        for radius in [2.2, 4.0, 8.0, 30.0, 300.0] {
+            let sagitta =
+                |n: usize| radius * (1.0 - (std::f64::consts::PI / (2.0 * (n + 1) as f64)).cos());
+            let n = options.cap_points(radius);
+            assert!(sagitta(n) <= PIXEL_TOLERANCE + 1e-12, "{radius}: {n} points");
+            assert!(n == MIN_CAP_POINTS || sagitta(n - 1) > PIXEL_TOLERANCE, "{radius}: {n}");
+        }
+        assert_eq!(options.cap_tolerance(1.0).cap_points(4.0), 3);
+        assert_eq!(options.cap_tolerance(0.0).cap_points(4.0), MAX_CAP_POINTS);
+        assert_eq!(options.cap_tolerance(-1.0).cap_points(4.0), MIN_CAP_POINTS);
+        assert_eq!(options.cap_points(f64::NAN), MIN_CAP_POINTS);
+        assert_eq!(options.cap_points(0.0), MIN_CAP_POINTS);
     }
 
     #[test]
@@ -552,7 +577,7 @@ mod tests {
             &OutlineOptions::default(),
         );
         let closed = out.closed();
-        assert_eq!(closed.len(), 2 + 2 * 8);
+        assert_eq!(closed.len(), 2 + 2 * 4);
         for p in &closed {
             assert!((p.distance(DVec2::new(1.0, 2.0)) - 4.0).abs() < 1e-12);
         }

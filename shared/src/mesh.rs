@@ -16,21 +16,37 @@
 //!   shading reads as a rounded stroke with no duplicated vertices.
 //! - Because no vertex is duplicated, the index buffer is the mesh's topology: [`mesh_defect`]
 //!   checks closedness on indices, and the check means what it says.
+//! - **No vertex that no pixel shows** ([`SolidOptions::tolerance`], 0.25 px by default, at
+//!   1 px per unit): the centreline is tessellated for its own guarantees (no piece turns over
+//!   10°, which in a bend of a few px makes pieces far shorter than a pixel), so the solid
+//!   leaves out a centreline point when its four rim vertices lie within the tolerance of the
+//!   edges that replace them (in 3D: the rims' offsets, so the radius, and their height
+//!   `thickness * r`), the centreline turns by at most [`MAX_MERGED_TURN_DEG`] in all across the
+//!   merged pieces (across an arc that turns evenly by 45°, the normals a renderer interpolates
+//!   stay within half a degree of the arc's) and at most [`MAX_MERGED_PIECES`] pieces merge. The kept points keep their
+//!   own normals, radii and offsets; the first and last are always kept. The outline, its
+//!   centreline and their guarantees are unchanged; only the mesh is lighter.
 //!
 //! Guarantee: for any outline, the mesh is closed and consistently oriented (every directed edge
 //! has exactly one opposite twin). Its signed volume is positive for every stroke we have tried,
 //! including cusps and self-overlapping curves (see the tests), though a pathological outline
 //! could fold a strip quad inside out locally.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
-use crate::lrpdp::{Outline, OutlineOptions, outline};
+use crate::lrpdp::{Outline, OutlineOptions, PIXEL_TOLERANCE, outline};
 use crate::model::{Brush, Sample};
 
 /// Default half-thickness of the solid, as a multiple of the local radius.
 pub const DEFAULT_THICKNESS: f64 = 0.5;
 /// Smallest accepted thickness factor: a thinner solid would have (almost) no volume.
 pub const MIN_THICKNESS: f64 = 1e-3;
+/// Most total turning (degrees) of the centreline across the pieces one edge of the solid
+/// replaces: across an arc that turns evenly by 45°, normals interpolated linearly stay within
+/// half a degree of the arc's.
+pub const MAX_MERGED_TURN_DEG: f64 = 45.0;
+/// Most centreline pieces one edge of the solid replaces (bounds the work per point).
+pub const MAX_MERGED_PIECES: usize = 16;
 
 /// How the solid is built from the outline.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,11 +54,19 @@ pub struct SolidOptions {
     /// Half-thickness as a multiple of the radius: the solid spans `z = ±thickness * r`.
     /// Values below [`MIN_THICKNESS`] are raised to it; a non-finite value means the default.
     pub thickness: f64,
+    /// Largest distance (px) of a left-out centreline point's rim vertices from the edges that
+    /// replace them (see the module docs); 0 keeps every centreline point.
+    pub tolerance: f64,
 }
 
 impl SolidOptions {
     pub fn thickness(mut self, thickness: f64) -> SolidOptions {
         self.thickness = thickness;
+        self
+    }
+
+    pub fn tolerance(mut self, tolerance: f64) -> SolidOptions {
+        self.tolerance = tolerance;
         self
     }
 
@@ -57,7 +81,7 @@ impl SolidOptions {
 
 impl Default for SolidOptions {
     fn default() -> SolidOptions {
-        SolidOptions { thickness: DEFAULT_THICKNESS }
+        SolidOptions { thickness: DEFAULT_THICKNESS, tolerance: PIXEL_TOLERANCE }
     }
 }
 
@@ -105,15 +129,93 @@ impl StrokeMesh {
 
 /// Builds the closed solid of an outline. An empty outline gives an empty mesh.
 ///
-/// Vertex layout: `T_c` at the top (`0..n`), then `T_c` at the bottom (`n..2n`), with
-/// `n = outline.n_closed()`. Triangles: `8 N - 4 + 4 (m_f + m_e)` for `N` samples and end caps
-/// of `m_f`, `m_e` points; vertices `4 N + 2 (m_f + m_e)`.
+/// Vertex layout: the outline of the kept centreline points ([`visible_centres`]) `T_c` at the
+/// top (`0..n`), then at the bottom (`n..2n`), with `n` its closed outline's point count.
+/// Triangles: `8 N - 4 + 4 (m_f + m_e)` for `N` kept centreline points and end caps of `m_f`,
+/// `m_e` points; vertices `4 N + 2 (m_f + m_e)`.
 pub fn solid_mesh(outline: &Outline, options: &SolidOptions) -> StrokeMesh {
+    let thickness = options.effective_thickness();
+    let keep = visible_centres(outline, options.tolerance, thickness);
+    if keep.len() == outline.n_samples() {
+        closed_solid(outline, thickness)
+    } else {
+        closed_solid(&kept_outline(outline, &keep), thickness)
+    }
+}
+
+/// The centreline points the solid keeps (increasing indices into `outline.centres`): see the
+/// module docs. Greedy: from the last kept point, the edge reaches as far as every point it
+/// passes over allows.
+pub fn visible_centres(outline: &Outline, tolerance: f64, thickness: f64) -> Vec<usize> {
+    let n = outline.n_samples();
+    if n <= 2 || tolerance.is_nan() || tolerance <= 0.0 {
+        return (0..n).collect();
+    }
+    let max_turning = MAX_MERGED_TURN_DEG.to_radians();
+    let rim = |side: &[DVec2], k: usize| side[k].extend(thickness * outline.radii[k]);
+    let turn_at = |k: usize| {
+        let (a, b) = (
+            outline.centres[k] - outline.centres[k - 1],
+            outline.centres[k + 1] - outline.centres[k],
+        );
+        a.perp_dot(b).atan2(a.dot(b)).abs()
+    };
+    // Whether the edges from `from` to `to` stay within the tolerance of every rim vertex in
+    // between, on both sides.
+    let covers = |from: usize, to: usize| {
+        [&outline.upper, &outline.lower].into_iter().all(|side| {
+            let (a, b) = (rim(side, from), rim(side, to));
+            (from + 1..to).all(|k| segment_distance(rim(side, k), a, b) <= tolerance)
+        })
+    };
+    let mut keep = vec![0];
+    let mut from = 0;
+    while from < n - 1 {
+        let mut to = from + 1;
+        let mut turning = 0.0;
+        while to + 1 < n && to + 1 - from <= MAX_MERGED_PIECES {
+            turning += turn_at(to);
+            if turning > max_turning || !covers(from, to + 1) {
+                break;
+            }
+            to += 1;
+        }
+        keep.push(to);
+        from = to;
+    }
+    keep
+}
+
+/// Distance from `q` to the segment `a b`, in 3D.
+fn segment_distance(q: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let t = if len2 > 0.0 { ((q - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    q.distance(a + t * ab)
+}
+
+/// The outline with only the centreline points `keep` (increasing indices), caps unchanged.
+fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
+    let pick = |values: &[DVec2]| keep.iter().map(|&k| values[k]).collect();
+    Outline {
+        centres: pick(&outline.centres),
+        radii: keep.iter().map(|&k| outline.radii[k]).collect(),
+        normals: pick(&outline.normals),
+        upper: pick(&outline.upper),
+        lower: pick(&outline.lower),
+        start_cap: outline.start_cap.clone(),
+        end_cap: outline.end_cap.clone(),
+        start_cap_normals: outline.start_cap_normals.clone(),
+        end_cap_normals: outline.end_cap_normals.clone(),
+    }
+}
+
+/// The closed solid of every point of `outline` (see [`solid_mesh`]).
+fn closed_solid(outline: &Outline, thickness: f64) -> StrokeMesh {
     let n_samples = outline.n_samples();
     if n_samples == 0 {
         return StrokeMesh::default();
     }
-    let thickness = options.effective_thickness();
     let n_start = outline.start_cap.len();
     let n_end = outline.end_cap.len();
     let n_loop = outline.n_closed();
@@ -277,16 +379,27 @@ mod tests {
 
     #[test]
     fn straight_stroke_is_a_closed_box_like_solid_with_the_expected_counts() {
-        // Counts follow 4N + 2M vertices and 8N - 4 + 4M triangles; volume ≈ area × thickness.
+        // Counts follow 4N + 2M vertices and 8N - 4 + 4M triangles for the N kept centreline
+        // points (all five with a zero tolerance, the two ends by default: the middle ones
+        // change no pixel); volume ≈ area × thickness either way.
         let samples: Vec<Sample> =
             (0..5).map(|i| Sample::new(i as f64 * 2.0, 0.0, i as f64, 1.0)).collect();
+        let every = stroke_mesh(
+            &samples,
+            &Brush::default(),
+            &OutlineOptions::default(),
+            &SolidOptions::default().tolerance(0.0),
+        );
+        assert_eq!(every.stats(), MeshStats { vertices: 4 * 5 + 2 * 8, triangles: 40 - 4 + 32 });
         let mesh = mesh_of(&samples);
-        assert_eq!(mesh.stats(), MeshStats { vertices: 4 * 5 + 2 * 16, triangles: 40 - 4 + 64 });
-        assert_eq!(mesh_defect(&mesh), Ok(()));
-        // Band 8 × 8 plus a disc of radius 4 (as 9-gon halves), 4 thick.
-        let volume = signed_volume(&mesh);
-        let expected = (8.0 * 8.0 + std::f64::consts::PI * 16.0) * 4.0;
-        assert!(volume > 0.0 && (volume - expected).abs() < 0.05 * expected, "{volume}");
+        assert_eq!(mesh.stats(), MeshStats { vertices: 4 * 2 + 2 * 8, triangles: 16 - 4 + 32 });
+        for mesh in [every, mesh] {
+            assert_eq!(mesh_defect(&mesh), Ok(()));
+            // Band 8 × 8 plus a disc of radius 4 (as 10-gon halves), 4 thick.
+            let volume = signed_volume(&mesh);
+            let expected = (8.0 * 8.0 + std::f64::consts::PI * 16.0) * 4.0;
+            assert!(volume > 0.0 && (volume - expected).abs() < 0.05 * expected, "{volume}");
+        }
     }
 
     #[test]

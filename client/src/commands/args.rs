@@ -83,3 +83,25 @@ impl GeneratorArgs {
         }
     }
 }
+
+/// `--glb`: how a command writes its GLB files (`penmesh::GlbEncoding`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum GlbArg {
+    /// Quantised and compressed with EXT_meshopt_compression (three.js: MeshoptDecoder).
+    #[default]
+    Meshopt,
+    /// Quantised with KHR_mesh_quantization only.
+    Quantized,
+    /// Plain floats, for tools that decode neither extension.
+    Plain,
+}
+
+impl From<GlbArg> for penmesh::GlbEncoding {
+    fn from(arg: GlbArg) -> penmesh::GlbEncoding {
+        match arg {
+            GlbArg::Meshopt => penmesh::GlbEncoding::Meshopt,
+            GlbArg::Quantized => penmesh::GlbEncoding::Quantized,
+            GlbArg::Plain => penmesh::GlbEncoding::Plain,
+        }
+    }
+}

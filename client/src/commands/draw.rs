@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use penmesh::{Brush, GeneratorParams};
 use serde::Serialize;
 
-use crate::commands::args::GeneratorArgs;
+use crate::commands::args::{GeneratorArgs, GlbArg};
 use crate::draw_options::DrawOptions;
 use crate::endpoint::Endpoint;
 use crate::input::{AxisRanges, EvdevSource, Pacing, PenSource, ReplaySource};
@@ -39,6 +39,11 @@ pub struct LiveArgs {
     /// Pressure response chi in [0, 1].
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_PRESSURE_RESPONSE)]
     pub pressure_response: f64,
+    /// How each stroke's GLB is written and uploaded: compressed (the default; three.js
+    /// decodes it with its MeshoptDecoder), quantised only, or plain floats for tools that
+    /// decode neither.
+    #[arg(long, value_enum, default_value_t = GlbArg::default())]
+    pub glb: GlbArg,
     /// Print exactly one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -221,6 +226,7 @@ pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOp
         batch_interval: Duration::from_millis(live.batch_ms),
         batch_samples: live.batch_size,
         retry_for: Duration::from_secs(live.retry_for),
+        glb: live.glb.into(),
         ..DrawOptions::new(name)
     })
 }

@@ -4,13 +4,14 @@ use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use clap::Args;
+use clap::{Args, ValueEnum as _};
 use penmesh::{
     Brush, Centreline, CloudOptions, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample,
     SmoothOptions, SolidOptions, StrokeMesh,
 };
 use serde_json::json;
 
+use crate::commands::args::GlbArg;
 use crate::io;
 
 #[derive(Debug, Args)]
@@ -20,9 +21,10 @@ pub struct MeshArgs {
     /// The GLB to write.
     #[arg(long)]
     pub out: PathBuf,
-    /// Quantise positions (16-bit) and normals (8-bit) with KHR_mesh_quantization.
-    #[arg(long)]
-    pub quantize: bool,
+    /// How the GLB stores the meshes: compressed (the default; three.js decodes it with its
+    /// MeshoptDecoder), quantised only, or plain floats for tools that decode neither.
+    #[arg(long, value_enum, default_value_t = GlbArg::default())]
+    pub glb: GlbArg,
     /// Also write the layered point cloud (the paper's Poisson input) as PLY.
     #[arg(long, value_name = "PATH")]
     pub ply: Option<PathBuf>,
@@ -100,7 +102,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         .collect();
     let glb_strokes: Vec<GlbStroke<'_>> =
         meshes.iter().zip(&metas).map(|(mesh, meta)| GlbStroke { mesh, meta }).collect();
-    let glb = penmesh::strokes_glb(&glb_strokes, &GlbOptions::default().quantize(args.quantize));
+    let glb = penmesh::strokes_glb(&glb_strokes, &GlbOptions::default().encoding(args.glb.into()));
     let build_time = started.elapsed();
 
     io::write_file(&args.out, &glb)?;
@@ -153,10 +155,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                     CentrelineKind::Straight => "straight",
                 },
                 "smooth": smooth,
-                "cap_density": outline_options.cap_density,
+                "cap_tolerance": outline_options.cap_tolerance,
                 "miter": outline_options.miter,
                 "thickness": solid_options.thickness,
-                "quantize": args.quantize,
+                "glb": args.glb.to_possible_value().map(|v| v.get_name().to_owned()),
             },
         });
         // Written, not printed: a closed pipe is an error to report, not a panic.
@@ -170,7 +172,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         args.out.display(),
         strokes.len(),
         glb.len(),
-        if args.quantize { " (quantised)" } else { "" },
+        match args.glb {
+            GlbArg::Meshopt => " (quantised, meshopt-compressed)",
+            GlbArg::Quantized => " (quantised)",
+            GlbArg::Plain => "",
+        },
     );
     println!(
         "simplify {:.3} ms, outline + mesh + GLB {:.3} ms",

@@ -17,11 +17,13 @@
 
 mod algos;
 mod data;
+mod glb_sizes;
 mod meshes;
 mod report;
 
 use self::algos::*;
 use self::data::*;
+use self::glb_sizes::*;
 use self::meshes::*;
 use self::report::*;
 
@@ -78,6 +80,19 @@ pub struct EvalArgs {
     /// Write SVG figures (rate-distortion curves, overlays of one signature) into this folder.
     #[arg(long, value_name = "DIR")]
     pub plots: Option<PathBuf>,
+    /// Only measure the pipeline's one-stroke GLB files (ACUTS, the checked smooth centreline,
+    /// the default brush) in each encoding: median, largest, bytes per raw sample.
+    #[arg(long, conflicts_with_all = ["algos", "sweep", "plots", "synth"])]
+    pub glb_sizes: bool,
+    /// With --glb-sizes: scale each stroke (about its first sample) so that the larger side of
+    /// its bounding box is this many px, as a board of strokes of one size would draw them.
+    #[arg(long, value_name = "PX", requires = "glb_sizes")]
+    pub stroke_size: Option<f64>,
+    /// With --glb-sizes: also write every stroke's GLB, in each encoding, into this folder
+    /// (DATA-NNN.ENCODING.glb), for the glTF validator and three.js check
+    /// (client/web/test/glb-check.mjs).
+    #[arg(long, value_name = "DIR", requires = "glb_sizes")]
+    pub glb_out: Option<PathBuf>,
 }
 
 /// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
@@ -156,6 +171,25 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     }
     anyhow::ensure!(!data_sets.is_empty(), "nothing to evaluate: give files, folders or --synth");
     let bound = args.acuts.tolerance + args.acuts.resample;
+    if args.glb_sizes {
+        if let Some(size) = args.stroke_size {
+            anyhow::ensure!(size.is_finite() && size > 0.0, "--stroke-size must be > 0");
+            for data_set in &mut data_sets {
+                scale_strokes_to(data_set, size);
+            }
+        }
+        let rows =
+            glb_size_rows(&data_sets, args.acuts.resample, &params, args.glb_out.as_deref())?;
+        let markdown = glb_size_markdown(&rows);
+        print!("{markdown}");
+        if let Some(path) = &args.markdown {
+            io::write_file(path, &markdown)?;
+        }
+        if let Some(path) = &args.json {
+            io::write_file(path, serde_json::to_string_pretty(&rows)?)?;
+        }
+        return Ok(());
+    }
 
     let work: usize = data_sets
         .iter()
