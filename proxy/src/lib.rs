@@ -15,6 +15,7 @@ mod mesh_build;
 mod metrics;
 mod openapi;
 mod rate;
+mod session_meshes;
 mod startup;
 mod state;
 mod store;
