@@ -17,7 +17,11 @@ const people = new Map(); // participant -> name
 const errors = [];
 const timings = []; // own strokes: ms from pen-up to the mesh on screen
 const penUpAt = new Map(); // own stroke -> performance.now() at pen-up
-const loading = new Set(); // strokes whose mesh is being fetched
+const loading = new Set(); // strokes whose mesh is being fetched on its own
+// Meshes announced (PeerMesh) before the session's mesh bundle came: stroke -> participant.
+// Those the bundle did not hold are fetched on their own then.
+let announced = new Map();
+let fitted = false; // the view is fitted to the drawing once, when the history is in
 
 function fail(message) {
   errors.push(message);
@@ -64,6 +68,8 @@ window.penmesh = {
   get wsBytes() { return conn.wsBytes; },
   get strokes() { return view.strokes; },
   get meshes() { return view.meshCount; },
+  get frames() { return view.frames; },
+  get drawCalls() { return view.renderer.info.render.calls; }, // of the last frame
   people,
   errors,
   timings,
@@ -72,6 +78,7 @@ window.penmesh = {
 function resize() {
   view.frontView();
   ink.resize(innerWidth, innerHeight);
+  ink.setScale(view.pixelsPerUnit());
 }
 addEventListener("resize", resize);
 resize();
@@ -91,13 +98,40 @@ function showPeople() {
   }
 }
 
+function meshShown(id) {
+  showStatus();
+  ink.remove(id);
+}
+
+// Every mesh stored so far in one request (GET /v1/sessions/{id}/meshes), started with the
+// page; the connection's PeerMesh events bring the ones stored later.
+async function loadBundle() {
+  try {
+    const meshes = await api.meshBundle(session);
+    await Promise.all(
+      meshes.map(async (m) => {
+        if (view.addMesh(m.stroke, m.participant, await view.parse(m.glb))) meshShown(m.stroke);
+      }),
+    );
+  } catch (err) {
+    fail(`cannot show the session's meshes: ${err.message}`);
+  }
+  const rest = announced;
+  announced = null;
+  for (const [id, participant] of rest) loadMesh(id, participant);
+}
+
+function meshAnnounced(id, participant) {
+  if (announced) announced.set(id, participant);
+  else loadMesh(id, participant);
+}
+
 async function loadMesh(id, participant) {
   if (view.hasMesh(id) || loading.has(id)) return;
   loading.add(id);
   try {
-    await view.addGlb(id, participant, await api.strokeMesh(id));
-    showStatus();
-    ink.remove(id);
+    const flat = await view.parse(await api.strokeMesh(id));
+    if (view.addMesh(id, participant, flat)) meshShown(id);
   } catch (err) {
     fail(`cannot show the mesh of stroke ${id}: ${err.message}`);
   } finally {
@@ -109,7 +143,7 @@ async function ownStrokeDone(id) {
   view.stroke(id, conn.me);
   try {
     await api.buildMesh(id, conn.participantKey());
-    await loadMesh(id, conn.me);
+    await loadMesh(id, conn.me); // our own: not announced to us
     // On screen: the frame after the mesh joined the scene has been drawn.
     if (penUpAt.has(id)) {
       await view.drawn();
@@ -130,9 +164,14 @@ function onMessage(kind, m) {
       break;
     case "synced":
       $("status").textContent = `${view.strokes.size} strokes`;
+      if (!fitted) {
+        fitted = true;
+        view.fitToDrawing();
+        ink.setScale(view.pixelsPerUnit());
+      }
       break;
     case "retained": // our own stroke
-      view.addRetained(m.stroke, conn.me, m.points);
+      view.addRetained(m.stroke, conn.me, m.first, m.points);
       break;
     case "stroke_done": // our own stroke
       ownStrokeDone(m.stroke);
@@ -149,10 +188,10 @@ function onMessage(kind, m) {
       view.stroke(m.stroke, m.participant);
       break;
     case "peer_retained":
-      view.addRetained(m.stroke, m.participant, m.points);
+      view.addRetained(m.stroke, m.participant, m.first, m.points);
       break;
     case "peer_mesh":
-      loadMesh(m.stroke, m.participant);
+      meshAnnounced(m.stroke, m.participant);
       break;
     case "error":
       fail(`proxy: ${m.code}: ${m.message}`);
@@ -220,4 +259,7 @@ $("download").onclick = async () => {
   }
 };
 
-if (session) conn.connect();
+if (session) {
+  loadBundle();
+  conn.connect();
+}

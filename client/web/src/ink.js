@@ -9,11 +9,18 @@ export class Ink {
     this.paths = new Map(); // stroke -> [[clientX, clientY, pressure]]
     this.colour = "#333";
     this.brush = brush;
+    this.scale = 1; // CSS pixels per unit of the drawing plane in the front view
   }
 
   resize(width, height) {
     this.canvas.width = width * devicePixelRatio;
     this.canvas.height = height * devicePixelRatio;
+    this.redraw();
+  }
+
+  /// The ink is as wide as the mesh will be at this many CSS pixels per unit.
+  setScale(pixelsPerUnit) {
+    this.scale = pixelsPerUnit;
     this.redraw();
   }
 
@@ -45,7 +52,7 @@ export class Ink {
       for (let i = 0; i < path.length; i++) {
         const [x, y, p] = path[i];
         const [px, py] = path[Math.max(0, i - 1)];
-        ctx.lineWidth = Math.max(0.5, 2 * this.brush.size * this.brush.pressure_response * p);
+        ctx.lineWidth = Math.max(0.5, 2 * this.brush.size * this.brush.pressure_response * p * this.scale);
         ctx.beginPath();
         ctx.moveTo(px, py);
         ctx.lineTo(x, y);

@@ -9,6 +9,10 @@
 
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
 const FLUSH_MS = 16;
+// A page that only watches sends a Ping after this long without sending anything (ms): the
+// proxy closes a connection that sends nothing for --idle-timeout-secs (60 s by default), and
+// the page would reconnect and receive the whole history again. The native client's interval.
+const KEEPALIVE_MS = 20000;
 const snap = (value, step) => Math.round(value / step) * step;
 
 export class Connection {
@@ -30,6 +34,10 @@ export class Connection {
     this.wsBytes = 0; // received (docs/performance.md)
     this.retry = 500;
     this.lastFlush = 0;
+    this.lastSent = 0;
+    setInterval(() => {
+      if (performance.now() - this.lastSent >= KEEPALIVE_MS) this.send({ ping: { nonce: 0 } });
+    }, KEEPALIVE_MS / 4);
   }
 
   storageKey() {
@@ -91,7 +99,10 @@ export class Connection {
   }
 
   send(msg) {
-    if (this.ws && this.ws.readyState === WebSocket.OPEN) this.ws.send(JSON.stringify(msg));
+    if (this.ws && this.ws.readyState === WebSocket.OPEN) {
+      this.ws.send(JSON.stringify(msg));
+      this.lastSent = performance.now();
+    }
   }
 
   receive(msg) {
