@@ -35,10 +35,20 @@ void main() {
   #include <colorspace_fragment>
 }`;
 
+/// Whether WebGL is drawn on the CPU (SwiftShader, llvmpipe): there multisampling costs a
+/// frame about 2.3 times as much (docs/performance.md), so the page goes without it.
+function softwareWebGL() {
+  const gl = document.createElement("canvas").getContext("webgl2");
+  const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+  const renderer = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+  if (gl) gl.getExtension("WEBGL_lose_context")?.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(renderer);
+}
+
 export class SceneView {
   constructor(canvas) {
     this.canvas = canvas;
-    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: !softwareWebGL(), preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(window.devicePixelRatio);
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0xf4f3ef);

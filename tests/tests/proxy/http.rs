@@ -206,6 +206,20 @@ async fn a_sessions_meshes_come_in_one_bundle_with_an_etag_and_304() {
         assert_eq!(response.headers()["etag"], etag.as_str());
         assert!(response.bytes().await.unwrap().is_empty());
     }
+    // Gzipped for a client that asks: the same bundle, its own ETag, its own 304.
+    let gzipped =
+        proxy.get(&path, &session).header("accept-encoding", "gzip").send().await.unwrap();
+    assert_eq!(gzipped.headers()["content-encoding"], "gzip");
+    let gzip_etag = gzipped.headers()["etag"].to_str().unwrap().to_string();
+    assert_ne!(gzip_etag, etag);
+    let mut unzipped = Vec::new();
+    let body = gzipped.bytes().await.unwrap();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&body[..]), &mut unzipped)
+        .unwrap();
+    assert_eq!(decode_mesh_bundle(&unzipped).unwrap(), expected);
+    let response = proxy.get(&path, &session).header("accept-encoding", "gzip");
+    let response = response.header("if-none-match", &gzip_etag).send().await.unwrap();
+    assert_eq!(response.status(), 304);
     // A new mesh makes the copy stale: 200 with a new ETag and the mesh in it.
     let (who, _, third) = strokes[2];
     assert_eq!(proxy.put_mesh(who, third, glbs[1].clone()).send().await.unwrap().status(), 200);
