@@ -16,6 +16,7 @@ mod metrics;
 mod openapi;
 mod rate;
 mod send_deadline;
+mod session_meshes;
 mod startup;
 mod state;
 mod store;

@@ -3,7 +3,7 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{http, mesh_build};
+use crate::{http, mesh_build, session_meshes};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
@@ -19,6 +19,7 @@ use crate::{http, mesh_build};
         http::raw,
         http::put_mesh,
         http::get_mesh,
+        session_meshes::session_meshes,
         mesh_build::build_mesh,
         http::healthz,
         http::readyz,

@@ -58,11 +58,16 @@ async fn index() -> Response {
         .into_response()
 }
 
-async fn app_js(headers: HeaderMap) -> Response {
-    let gzip = headers
+/// Whether the request's `Accept-Encoding` names gzip.
+pub(crate) fn accepts_gzip(headers: &HeaderMap) -> bool {
+    headers
         .get(header::ACCEPT_ENCODING)
         .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|e| e.trim().starts_with("gzip")));
+        .is_some_and(|v| v.split(',').any(|e| e.trim().starts_with("gzip")))
+}
+
+async fn app_js(headers: HeaderMap) -> Response {
+    let gzip = accepts_gzip(&headers);
     let mut response = if gzip { APP_JS_GZ.into_response() } else { APP_JS.into_response() };
     let h = response.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static("text/javascript; charset=utf-8"));

@@ -47,6 +47,8 @@ async function main() {
     const page = await context.newPage();
     page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
     page.on("websocket", (ws) => wsUrls.push(ws.url()));
+    page.paths = []; // the HTTP paths it asked for
+    page.on("request", (r) => page.paths.push(new URL(r.url()).pathname));
     await page.goto(pageUrl);
     await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
     return page;
@@ -132,6 +134,8 @@ async function main() {
   // --- 2. a later page sees the history, and a native client drawing live ------------------
   const b = await openPage("B");
   await until("page B to show the history", () => b.evaluate(() => window.penmesh.meshes >= 3));
+  // The history's meshes came in one request, not one per mesh.
+  assert.deepEqual(b.paths.filter((p) => p.includes("/mesh")), [`/v1/sessions/${session}/meshes`], "page B's mesh requests");
   const native = runPenmesh(["draw", "--server", base, "--session", session, "--token", token, "--synth", "leaf", "--realtime", "--name", "native"], children);
   native.catch(() => {}); // awaited below; this only keeps an early failure from going unhandled
   // Live: the native stroke's retained points reach page B before its mesh does.
@@ -144,6 +148,9 @@ async function main() {
   log("page B: history and the native stroke live");
 
   // --- 3. reload in the middle of a stroke --------------------------------------------------
+  // The pen draws on the page in front (a page behind, which has no frame to draw, gets its
+  // input late: about a second per event in headless Chromium).
+  await a.bringToFront();
   const half = await drawStroke(cdpA, { x0: 600, y0: 500, dx: 4, dy: -1, n: 40, lift: false });
   const meA = await a.evaluate(() => window.penmesh.me);
   assert.notEqual(meA, await b.evaluate(() => window.penmesh.me), "two tabs are two participants");
@@ -172,6 +179,26 @@ async function main() {
   assert.equal(last.length, 6, "one stroke more: the pen's, not the palm's");
   assert.deepEqual(last.filter((s) => s.device !== "web:pen" && s.device !== null && !s.device.startsWith("synth")), [], "a touch stroke was stored");
   log("palm rejection: the touch drew nothing");
+
+  // --- 5. the merged view: a stroke drawn on page A joins its person's meshes on page B ----
+  const meshesB = await b.evaluate(() => window.penmesh.meshes);
+  await drawStroke(cdpA, { x0: 400, y0: 250, dx: 3, dy: 3, n: 50 });
+  await b.bringToFront();
+  await until("page B to show page A's new stroke", () => b.evaluate((n) => window.penmesh.meshes > n, meshesB));
+  // Every finished mesh of a person is one draw call: page B's two people (page A and the
+  // native client) are two, however many strokes each drew.
+  const peopleWithMeshes = new Set((await getJson(`/v1/sessions/${session}/strokes`)).strokes.map((s) => s.participant)).size;
+  assert.equal(peopleWithMeshes, 2);
+  await until("page B to draw the merged view", () => b.evaluate(() => [...window.penmesh.strokes.values()].every((s) => s.mesh && !s.line)));
+  await b.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  assert.equal(await b.evaluate(() => window.penmesh.drawCalls), peopleWithMeshes, "draw calls of page B's last frame");
+  await b.screenshot({ path: join(ARTIFACTS, "page-b-merged.png") });
+  // Nothing changes, nothing is rendered.
+  const framesB = await b.evaluate(() => window.penmesh.frames);
+  assert.ok(framesB > 0, "page B rendered");
+  await b.waitForTimeout(1500);
+  assert.equal(await b.evaluate(() => window.penmesh.frames), framesB, "an idle page rendered frames");
+  log("merged view: one draw call per person, no frame while idle");
 
   for (const url of wsUrls) assert.ok(!url.includes(token), `the token is in a WebSocket URL: ${url}`);
   assert.ok(wsUrls.length >= 3);

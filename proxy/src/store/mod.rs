@@ -6,6 +6,7 @@
 //! drawn, in `stroke_log`: every reader of raw samples reads both.
 
 pub(crate) mod log;
+mod meshes;
 mod writer;
 
 use std::collections::{HashMap, HashSet};

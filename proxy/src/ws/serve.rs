@@ -44,7 +44,8 @@ pub async fn serve<Si, St, E>(
     let mut heartbeat = Heartbeat::new(Duration::from_millis(config.heartbeat_ms));
     let opened = Instant::now();
     let mut last_heard = opened;
-    // The last work done (a message carried out that is not a ping): what holds the slot.
+    // The last work done (a message carried out that is not a ping, or a session event passed
+    // on to a watcher): what holds the slot.
     let mut last_work = opened;
     let shutdown = state.shutdown.clone();
     let mut shutting_down = std::pin::pin!(shutdown.cancelled());
@@ -77,7 +78,13 @@ pub async fn serve<Si, St, E>(
                 conn.after_commit(result, after);
             }
             event = super::peers::next_event(&mut conn.events), if can_forward => match event {
-                Ok(event) => conn.on_event(&event).await,
+                // A page that watches a session being drawn in is in use, though it says
+                // nothing: without this its slot would close every idle period and it would
+                // fetch the whole history again.
+                Ok(event) => {
+                    last_work = Instant::now();
+                    conn.on_event(&event).await
+                }
                 Err(lag) => conn.resync(Some(lag)).await,
             },
             // The socket was too slow to take peer events: wake up when it caught up. (These
@@ -121,7 +128,7 @@ pub async fn serve<Si, St, E>(
                     conn.fail(ConnError::fatal(
                         ErrorCode::IdleTimeout,
                         format!(
-                            "no stroke drawn for {} s (pings do not count); reconnect to draw",
+                            "no stroke drawn and nothing drawn in the session for {} s (pings do not count); reconnect to draw",
                             idle.as_secs()
                         ),
                         End::Close(close_code::NORMAL, "idle timeout".into()),

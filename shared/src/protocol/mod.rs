@@ -26,6 +26,7 @@
 
 mod codec;
 mod http;
+mod mesh_bundle;
 
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
@@ -41,6 +42,10 @@ pub use codec::{
     encode_server_json, quantize_sample,
 };
 pub use http::{ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples};
+pub use mesh_bundle::{
+    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MeshBundleError, decode_mesh_bundle,
+    encode_mesh_bundle,
+};
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
 pub type StrokeId = Uuid;

@@ -1,4 +1,6 @@
-use penmesh::protocol::{ServerMessage, decode_server};
+use penmesh::protocol::{
+    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, ServerMessage, decode_mesh_bundle, decode_server,
+};
 use penmesh_e2e::{batch_simplified, draw_stroke, spawn_proxy, stroke_samples};
 use uuid::Uuid;
 
@@ -153,4 +155,90 @@ async fn health_readiness_metrics_and_openapi_answer() {
     ] {
         assert!(metrics.contains(name), "metrics lack {name}");
     }
+}
+
+#[tokio::test]
+async fn a_sessions_meshes_come_in_one_bundle_with_an_etag_and_304() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let path = format!("/v1/sessions/{}/meshes", session.session);
+    // Two people draw: two strokes with a mesh (in the order drawn) and one without.
+    let other = session.stranger();
+    let mut strokes = Vec::new();
+    for who in [&session, &other, &session] {
+        let mut ws = proxy.connect(who).await;
+        let me = ws.hello(vec![]).await.participant;
+        let stroke = Uuid::new_v4();
+        draw_stroke(&mut ws, stroke, &stroke_samples(40), 20).await;
+        strokes.push((who, me, stroke));
+    }
+    let glbs = [penmesh_e2e::minimal_glb(8, 36), penmesh_e2e::minimal_glb(3, 3)];
+    for ((who, _, stroke), glb) in strokes.iter().zip(&glbs) {
+        assert_eq!(proxy.put_mesh(who, *stroke, glb.clone()).send().await.unwrap().status(), 200);
+    }
+    // A mesh of another session is not in this one's bundle.
+    let (elsewhere, stroke_elsewhere, _) = done_stroke(&proxy).await;
+    let response = proxy.put_mesh(&elsewhere, stroke_elsewhere, glbs[0].clone()).send().await;
+    assert_eq!(response.unwrap().status(), 200);
+
+    let response = proxy.get(&path, &session).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], MESH_BUNDLE_CONTENT_TYPE);
+    assert_eq!(response.headers()["cache-control"], "private, no-cache");
+    let etag = response.headers()["etag"].to_str().unwrap().to_string();
+    let bundle = decode_mesh_bundle(&response.bytes().await.unwrap()).unwrap();
+    let expected: Vec<BundledMesh> = strokes[..2]
+        .iter()
+        .zip(&glbs)
+        .map(|((_, me, stroke), glb)| BundledMesh {
+            stroke: *stroke,
+            participant: *me,
+            glb: glb.clone(),
+        })
+        .collect();
+    assert_eq!(bundle, expected);
+
+    // The client's copy is current: 304, no body, the same ETag (also in weak form or a list).
+    for tag in [etag.clone(), format!("W/{etag}"), format!("\"x\", {etag}")] {
+        let response =
+            proxy.get(&path, &session).header("if-none-match", tag).send().await.unwrap();
+        assert_eq!(response.status(), 304);
+        assert_eq!(response.headers()["etag"], etag.as_str());
+        assert!(response.bytes().await.unwrap().is_empty());
+    }
+    // Gzipped for a client that asks: the same bundle, its own ETag, its own 304.
+    let gzipped =
+        proxy.get(&path, &session).header("accept-encoding", "gzip").send().await.unwrap();
+    assert_eq!(gzipped.headers()["content-encoding"], "gzip");
+    let gzip_etag = gzipped.headers()["etag"].to_str().unwrap().to_string();
+    assert_ne!(gzip_etag, etag);
+    let mut unzipped = Vec::new();
+    let body = gzipped.bytes().await.unwrap();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&body[..]), &mut unzipped)
+        .unwrap();
+    assert_eq!(decode_mesh_bundle(&unzipped).unwrap(), expected);
+    let response = proxy.get(&path, &session).header("accept-encoding", "gzip");
+    let response = response.header("if-none-match", &gzip_etag).send().await.unwrap();
+    assert_eq!(response.status(), 304);
+    // A new mesh makes the copy stale: 200 with a new ETag and the mesh in it.
+    let (who, _, third) = strokes[2];
+    assert_eq!(proxy.put_mesh(who, third, glbs[1].clone()).send().await.unwrap().status(), 200);
+    let response = proxy.get(&path, &session).header("if-none-match", &etag).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    assert_ne!(response.headers()["etag"], etag.as_str());
+    let bundle = decode_mesh_bundle(&response.bytes().await.unwrap()).unwrap();
+    assert_eq!(
+        bundle.iter().map(|m| m.stroke).collect::<Vec<_>>(),
+        strokes.iter().map(|s| s.2).collect::<Vec<_>>()
+    );
+
+    // Like every session route: the session's own token only, 401 otherwise.
+    assert_eq!(proxy.http.get(proxy.url(&path)).send().await.unwrap().status(), 401);
+    assert_eq!(proxy.get(&path, &elsewhere).send().await.unwrap().status(), 401);
+    // A session without meshes has an empty bundle.
+    let empty = proxy.create_session().await;
+    let response = proxy.get(&format!("/v1/sessions/{}/meshes", empty.session), &empty);
+    let bundle =
+        decode_mesh_bundle(&response.send().await.unwrap().bytes().await.unwrap()).unwrap();
+    assert_eq!(bundle, vec![]);
 }

@@ -1,0 +1,120 @@
+// One person's finished meshes merged into one geometry, so they cost one draw call however
+// many there are (docs/web.md). A new mesh is appended and only its part is uploaded; the
+// buffers double when full. Each stroke keeps its range, for the GLB export.
+import * as THREE from "three";
+
+const FIRST_VERTICES = 4096;
+
+export class MergedMeshes {
+  constructor(material) {
+    this.material = material;
+    this.vertexCount = 0;
+    this.indexCount = 0;
+    this.positions = new Float32Array(0);
+    this.normals = new Float32Array(0);
+    this.indices = new Uint32Array(0);
+    this.mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
+    // The drawing is one connected board; culling per person would save nothing.
+    this.mesh.frustumCulled = false;
+  }
+
+  /// Appends a mesh given as flat `positions`, `normals` (Float32Array, 3 per vertex) and
+  /// `indices` (into its own vertices); returns its range.
+  add({ positions, normals, indices }) {
+    const nVertices = positions.length / 3;
+    this.reserve(this.vertexCount + nVertices, this.indexCount + indices.length);
+    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: indices.length };
+    this.positions.set(positions, range.firstVertex * 3);
+    this.normals.set(normals, range.firstVertex * 3);
+    for (let i = 0; i < indices.length; i++) this.indices[range.firstIndex + i] = indices[i] + range.firstVertex;
+    this.vertexCount += nVertices;
+    this.indexCount += indices.length;
+    const g = this.mesh.geometry;
+    for (const [attribute, start, count] of [
+      [g.attributes.position, range.firstVertex * 3, nVertices * 3],
+      [g.attributes.normal, range.firstVertex * 3, nVertices * 3],
+      [g.index, range.firstIndex, indices.length],
+    ]) {
+      attribute.addUpdateRange(start, count);
+      attribute.needsUpdate = true;
+    }
+    g.setDrawRange(0, this.indexCount);
+    return range;
+  }
+
+  /// Room for this many vertices and indices: a new geometry with buffers twice as large (the
+  /// GPU's buffers cannot grow), the old one disposed.
+  reserve(nVertices, nIndices) {
+    if (nVertices * 3 <= this.positions.length && nIndices <= this.indices.length) return;
+    const vertices = Math.max(FIRST_VERTICES, nVertices, (this.positions.length / 3) * 2);
+    const indices = Math.max(vertices * 3, nIndices, this.indices.length * 2);
+    const grow = (Type, old, n) => {
+      const a = new Type(n);
+      a.set(old);
+      return a;
+    };
+    this.positions = grow(Float32Array, this.positions, vertices * 3);
+    this.normals = grow(Float32Array, this.normals, vertices * 3);
+    this.indices = grow(Uint32Array, this.indices, indices);
+    const g = new THREE.BufferGeometry();
+    g.setAttribute("position", new THREE.BufferAttribute(this.positions, 3).setUsage(THREE.DynamicDrawUsage));
+    g.setAttribute("normal", new THREE.BufferAttribute(this.normals, 3).setUsage(THREE.DynamicDrawUsage));
+    g.setIndex(new THREE.BufferAttribute(this.indices, 1).setUsage(THREE.DynamicDrawUsage));
+    g.setDrawRange(0, this.indexCount);
+    this.mesh.geometry.dispose();
+    this.mesh.geometry = g;
+  }
+
+  /// One stroke's mesh on its own (for the export): copies of its range.
+  geometryOf({ firstVertex, vertexCount, firstIndex, indexCount }) {
+    const g = new THREE.BufferGeometry();
+    g.setAttribute("position", new THREE.BufferAttribute(this.positions.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
+    g.setAttribute("normal", new THREE.BufferAttribute(this.normals.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
+    g.setIndex(Array.from(this.indices.subarray(firstIndex, firstIndex + indexCount), (i) => i - firstVertex));
+    return g;
+  }
+}
+
+/// The meshes of a loaded glTF scene as one flat mesh in the scene's frame: positions moved by
+/// each node's transform (which also undoes KHR_mesh_quantization's scale), normals turned
+/// with it, every attribute read back as floats.
+export function flatten(gltfScene) {
+  gltfScene.updateMatrixWorld(true);
+  const parts = [];
+  gltfScene.traverse((o) => {
+    if (!o.isMesh) return;
+    let g = o.geometry;
+    if (!g.attributes.normal) {
+      g = g.clone();
+      g.computeVertexNormals();
+    }
+    parts.push({ g, matrix: o.matrixWorld });
+  });
+  let nVertices = 0;
+  let nIndices = 0;
+  for (const { g } of parts) {
+    nVertices += g.attributes.position.count;
+    nIndices += g.index ? g.index.count : g.attributes.position.count;
+  }
+  const positions = new Float32Array(nVertices * 3);
+  const normals = new Float32Array(nVertices * 3);
+  const indices = new Uint32Array(nIndices);
+  const v = new THREE.Vector3();
+  const normalMatrix = new THREE.Matrix3();
+  let vertex = 0;
+  let index = 0;
+  for (const { g, matrix } of parts) {
+    normalMatrix.getNormalMatrix(matrix);
+    const p = g.attributes.position;
+    const n = g.attributes.normal;
+    for (let i = 0; i < p.count; i++) {
+      v.fromBufferAttribute(p, i).applyMatrix4(matrix).toArray(positions, (vertex + i) * 3);
+      v.fromBufferAttribute(n, i).applyMatrix3(normalMatrix).normalize().toArray(normals, (vertex + i) * 3);
+    }
+    if (g.index) for (let i = 0; i < g.index.count; i++) indices[index + i] = g.index.getX(i) + vertex;
+    else for (let i = 0; i < p.count; i++) indices[index + i] = i + vertex;
+    vertex += p.count;
+    index += g.index ? g.index.count : p.count;
+  }
+  return { positions, normals, indices };
+}

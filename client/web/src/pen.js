@@ -1,0 +1,49 @@
+// The pen: Pointer Events on one element in, samples out. A pen, a mouse or a finger draws;
+// while a pen is down, touches are ignored (palm rejection). A 200-240 Hz pen delivers several
+// samples per display frame: every one of them is taken (getCoalescedEvents).
+
+// Mouse and touch report no real pressure: they draw with this one (docs/web.md).
+export const CONSTANT_PRESSURE = 0.5;
+
+const pressureOf = (e) => (e.pointerType === "pen" ? Math.min(1, Math.max(0, e.pressure)) : CONSTANT_PRESSURE);
+
+/// Listens on `element`. `canStart()` says whether a stroke may begin; `down(device, sample)`
+/// begins one (`device` is `web:pen`, `web:mouse` or `web:touch`); `move(samples)` gets the
+/// samples of one pointer event; `up()` ends the stroke. A sample is `{clientX, clientY, t, p}`,
+/// `t` in ms since pen-down.
+export function attachPen(element, { canStart, down, move, up }) {
+  let drawing = null; // {pointerId, t0}
+  let penDown = false; // any pen on the page, for palm rejection
+
+  addEventListener("pointerdown", (e) => {
+    if (e.pointerType === "pen") penDown = true;
+  }, true);
+  addEventListener("pointerup", (e) => {
+    if (e.pointerType === "pen") penDown = false;
+  }, true);
+
+  const sampleOf = (e) => ({ clientX: e.clientX, clientY: e.clientY, t: e.timeStamp - drawing.t0, p: pressureOf(e) });
+
+  element.addEventListener("pointerdown", (e) => {
+    if (drawing || !canStart()) return;
+    if (e.pointerType === "touch" && penDown) return; // palm rejection
+    if (e.pointerType === "mouse" && e.button !== 0) return;
+    element.setPointerCapture(e.pointerId);
+    drawing = { pointerId: e.pointerId, t0: e.timeStamp };
+    down(`web:${e.pointerType}`, sampleOf(e));
+  });
+
+  element.addEventListener("pointermove", (e) => {
+    if (!drawing || e.pointerId !== drawing.pointerId) return;
+    const events = e.getCoalescedEvents ? e.getCoalescedEvents() : [];
+    move((events.length ? events : [e]).map(sampleOf));
+  });
+
+  const lift = (e) => {
+    if (!drawing || e.pointerId !== drawing.pointerId) return;
+    drawing = null;
+    up();
+  };
+  element.addEventListener("pointerup", lift);
+  element.addEventListener("pointercancel", lift);
+}

@@ -1,0 +1,210 @@
+// The session's WebSocket, in the protocol's JSON encoding (docs/protocol.md): connect (the
+// token as a subprotocol, never in the URL), Hello, Points every FLUSH_MS while the pen moves,
+// acks, and the resume of our own stroke in progress after a dropped connection or a reload
+// (every sample of it is kept in sessionStorage as it is drawn). Reconnects with backoff.
+//
+// Every message from the proxy goes to `on(kind, message)` after this module has taken what it
+// needs from it; `retained` only for our own stroke in progress, `stroke_done` also when a
+// resume finds our stroke already done.
+
+// Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
+const FLUSH_MS = 16;
+// A page that only watches sends a Ping after this long without sending anything (ms): the
+// proxy closes a connection that sends nothing for --idle-timeout-secs (60 s by default), and
+// the page would reconnect and receive the whole history again. The native client's interval.
+const KEEPALIVE_MS = 20000;
+const snap = (value, step) => Math.round(value / step) * step;
+
+export class Connection {
+  /// `grid`: the protocol's quantisation steps [position px, time ms, pressure]. Samples are
+  /// snapped to it before they are sent, as the native client does, so what the proxy stores
+  /// (it puts every sample on this grid on arrival) is exactly what was sent.
+  constructor({ session, token, protocol, grid, name, on }) {
+    this.session = session;
+    this.token = token;
+    this.protocol = protocol;
+    this.grid = grid;
+    this.name = name;
+    this.on = on;
+    this.ws = null;
+    this.me = null; // our participant id, from Welcome
+    this.synced = false; // the history has arrived
+    this.pending = null; // our stroke in progress or not yet done: {stroke, brush, device, samples, sent, acked, ended}
+    this.drawing = false; // the pen is down on `pending` in this page
+    this.wsBytes = 0; // received (docs/performance.md)
+    this.retry = 500;
+    this.lastFlush = 0;
+    this.lastSent = 0;
+    setInterval(() => {
+      if (performance.now() - this.lastSent >= KEEPALIVE_MS) this.send({ ping: { nonce: 0 } });
+    }, KEEPALIVE_MS / 4);
+  }
+
+  storageKey() {
+    return `penmesh:${this.session}:pending`;
+  }
+
+  /// This tab's participant key (hello.key, and the x-penmesh-key header of the mesh build):
+  /// 128 random bits, kept in sessionStorage beside the pending stroke, so a reconnect or a
+  /// reload is the same participant and may resume that stroke; another tab is another
+  /// participant.
+  participantKey() {
+    const name = `penmesh:${this.session}:key`;
+    let key = sessionStorage.getItem(name);
+    if (!key) {
+      const bytes = crypto.getRandomValues(new Uint8Array(16));
+      key = Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+      sessionStorage.setItem(name, key);
+    }
+    return key;
+  }
+
+  savePending() {
+    if (this.pending) sessionStorage.setItem(this.storageKey(), JSON.stringify(this.pending));
+    else sessionStorage.removeItem(this.storageKey());
+  }
+
+  connect() {
+    const scheme = location.protocol === "https:" ? "wss" : "ws";
+    // The token travels as a subprotocol: never in the URL, so never in an access log.
+    const ws = new WebSocket(`${scheme}://${location.host}/v1/sessions/${this.session}/ws`, [
+      "penmesh",
+      `penmesh.token.${this.token}`,
+    ]);
+    this.ws = ws;
+    ws.onopen = () => {
+      this.retry = 500;
+      const pending = JSON.parse(sessionStorage.getItem(this.storageKey()) || "null");
+      this.pending = pending;
+      this.send({
+        hello: {
+          protocol: this.protocol,
+          client: "penmesh-web",
+          name: this.name,
+          resume: pending ? [pending.stroke] : [],
+          key: this.participantKey(),
+        },
+      });
+    };
+    ws.onmessage = (e) => {
+      this.wsBytes += e.data.length;
+      this.receive(JSON.parse(e.data));
+    };
+    ws.onclose = (e) => {
+      this.ws = null;
+      this.on("closed", { code: e.code, reason: e.reason });
+      setTimeout(() => this.connect(), this.retry);
+      this.retry = Math.min(this.retry * 2, 10000);
+    };
+  }
+
+  send(msg) {
+    if (this.ws && this.ws.readyState === WebSocket.OPEN) {
+      this.ws.send(JSON.stringify(msg));
+      this.lastSent = performance.now();
+    }
+  }
+
+  receive(msg) {
+    const [kind, m] = Object.entries(msg)[0];
+    switch (kind) {
+      case "welcome":
+        this.me = m.participant;
+        this.on(kind, m);
+        if (this.pending) this.resumeOwn(this.pending, m.resume.find((r) => r.stroke === this.pending.stroke));
+        return;
+      case "synced":
+        this.synced = true;
+        break;
+      case "ack":
+        if (this.pending && this.pending.stroke === m.stroke) this.pending.acked = m.upto_seq;
+        break;
+      case "retained":
+        if (!this.pending || this.pending.stroke !== m.stroke) return;
+        break;
+      case "stroke_done":
+        return this.strokeDone(m.stroke);
+      case "error":
+        if (m.code === "lagged") this.synced = false;
+        break;
+      default:
+        break;
+    }
+    this.on(kind, m);
+  }
+
+  strokeDone(stroke) {
+    if (this.pending && this.pending.stroke === stroke) {
+      this.pending = null;
+      this.savePending();
+    }
+    this.on("stroke_done", { stroke });
+  }
+
+  // After a reconnect (or a reload) the proxy says how far it has our stroke: send the rest
+  // from there, then end it if the pen had lifted (or the page went away: the pen cannot come
+  // back).
+  resumeOwn(p, r) {
+    if (!r || r.status === "unknown") {
+      // Never reached the proxy: begin it again with everything.
+      this.send({ stroke_begin: { stroke: p.stroke, brush: p.brush, device: p.device } });
+      r = { next_seq: 0, status: "open" };
+    }
+    if (r.status === "done") return this.strokeDone(p.stroke);
+    const rest = p.samples.slice(r.next_seq);
+    if (rest.length) this.send({ points: { stroke: p.stroke, seq: r.next_seq, points: rest } });
+    p.sent = p.samples.length;
+    if (!this.drawing) {
+      p.ended = true;
+      this.savePending();
+      this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
+    }
+  }
+
+  /// Whether a new stroke may begin: we are in the session and our last stroke has ended.
+  canBegin() {
+    return Boolean(this.me) && !this.drawing && !(this.pending && !this.pending.ended);
+  }
+
+  /// Begins our stroke; returns its id.
+  begin(brush, device) {
+    const stroke = crypto.randomUUID();
+    this.pending = { stroke, brush, device, samples: [], sent: 0, acked: 0, ended: false };
+    this.drawing = true;
+    this.send({ stroke_begin: { stroke, brush, device } });
+    return stroke;
+  }
+
+  /// One sample of our stroke: `t` in ms since pen-down. Snapped to the grid; time never goes
+  /// backwards (coalesced events can share a timestamp).
+  add(x, y, t, p) {
+    const [position, time, pressure] = this.grid;
+    const samples = this.pending.samples;
+    const prev = samples[samples.length - 1];
+    samples.push([snap(x, position), snap(y, position), Math.max(prev ? prev[2] : 0, snap(t, time)), snap(p, pressure)]);
+  }
+
+  /// Keeps every sample for a reload, and sends the unsent ones when `force` or FLUSH_MS have
+  /// passed since the last send.
+  flush(force) {
+    const p = this.pending;
+    const now = performance.now();
+    if (!p) return;
+    this.savePending(); // every sample survives a reload, sent or not
+    if (!force && now - this.lastFlush < FLUSH_MS) return;
+    this.lastFlush = now;
+    if (p.sent < p.samples.length) {
+      this.send({ points: { stroke: p.stroke, seq: p.sent, points: p.samples.slice(p.sent) } });
+      p.sent = p.samples.length;
+    }
+  }
+
+  /// Pen-up: sends what is left and ends our stroke.
+  end() {
+    const p = this.pending;
+    this.drawing = false;
+    p.ended = true;
+    this.flush(true);
+    this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
+  }
+}

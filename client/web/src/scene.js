@@ -1,0 +1,247 @@
+// The 3D view: the three.js renderer, camera and orbit controls, and the session's strokes in
+// it: a live stroke as a polyline of its retained points, finished ones as meshes merged per
+// person (one draw call each, batch.js), in the person's colour. It renders only when something
+// changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
+// coordinates are screen-like (y down); the scene flips y.
+import * as THREE from "three";
+import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
+import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
+import { MergedMeshes, flatten } from "./batch.js";
+
+/// A participant's colour, the same on every page.
+export function colourOf(participant) {
+  let h = 0;
+  for (const c of participant) h = (h * 31 + c.charCodeAt(0)) >>> 0;
+  return new THREE.Color().setHSL((h % 360) / 360, 0.65, 0.45);
+}
+
+// Cheap to shade: the light is worked out once per vertex (a light over the viewer's shoulder
+// and an ambient part), and a pixel only takes the colour its vertices give it.
+const VERTEX_SHADER = `
+uniform vec3 colour;
+varying vec3 vColour;
+void main() {
+  vec3 n = normalize(normalMatrix * normal);
+  float light = max(dot(n, vec3(0.29, 0.48, 0.83)), 0.0);
+  vColour = colour * (0.55 + 0.6 * light);
+  gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+}`;
+const FRAGMENT_SHADER = `
+varying vec3 vColour;
+void main() {
+  gl_FragColor = vec4(vColour, 1.0);
+  #include <colorspace_fragment>
+}`;
+
+/// Whether WebGL is drawn on the CPU (SwiftShader, llvmpipe): there multisampling costs a
+/// frame about 2.3 times as much (docs/performance.md), so the page goes without it.
+function softwareWebGL() {
+  const gl = document.createElement("canvas").getContext("webgl2");
+  const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+  const renderer = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+  if (gl) gl.getExtension("WEBGL_lose_context")?.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(renderer);
+}
+
+export class SceneView {
+  constructor(canvas) {
+    this.canvas = canvas;
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: !softwareWebGL(), preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(window.devicePixelRatio);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0xf4f3ef);
+    // Stroke coordinates are screen-like (y down): flip y so the drawing is not upside down
+    // (three.js turns the winding of the flipped meshes around for culling).
+    this.world = new THREE.Group();
+    this.world.scale.set(1, -1, 1);
+    this.scene.add(this.world);
+    this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
+    this.controls = new OrbitControls(this.camera, canvas);
+    this.controls.enabled = false;
+    this.controls.addEventListener("change", () => this.requestRender());
+    this.strokes = new Map(); // stroke -> {participant, points: [Vector3], line, mesh: its range in its person's merged meshes}
+    this.meshCount = 0;
+    this.people = new Map(); // participant -> {merged: MergedMeshes, lineMaterial}
+    this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
+    this.front = null; // the front view fitted to the drawing, {x, y, distance}; null: one to one
+    this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
+    this.frameQueued = false;
+    this.loader = new GLTFLoader();
+    // The meshes may be meshopt-compressed (EXT_meshopt_compression); plain ones load as well.
+    this.loader.setMeshoptDecoder(MeshoptDecoder);
+    this.ray = new THREE.Raycaster();
+    this.plane = new THREE.Plane(new THREE.Vector3(0, 0, 1), 0);
+    this.frontView();
+  }
+
+  /// Draws one frame at the next animation frame (several requests, one frame).
+  requestRender() {
+    if (this.frameQueued) return;
+    this.frameQueued = true;
+    requestAnimationFrame(() => {
+      this.frameQueued = false;
+      for (const s of this.changedLines) this.rebuildLine(s);
+      this.changedLines.clear();
+      this.renderer.render(this.scene, this.camera);
+      this.frames += 1;
+    });
+  }
+
+  /// The front view: the camera faces the drawing plane, at the fitted view, or with the
+  /// page's pixels one to one on the z = 0 plane (a stroke drawn at (x, y) CSS pixels lands at
+  /// stroke coordinates (x, y)). Also fits the renderer to the page.
+  frontView() {
+    const w = innerWidth;
+    const h = innerHeight;
+    this.renderer.setSize(w, h, false);
+    this.camera.aspect = w / h;
+    const { x, y, distance } = this.front || { x: w / 2, y: h / 2, distance: this.oneToOne() };
+    this.camera.position.set(x, -y, distance);
+    this.controls.target.set(x, -y, 0);
+    this.camera.updateProjectionMatrix();
+    this.controls.update();
+    this.requestRender();
+  }
+
+  /// The camera's distance at which one unit on the plane is one CSS pixel.
+  oneToOne() {
+    return innerHeight / 2 / Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2));
+  }
+
+  /// CSS pixels per unit of the plane in the front view.
+  pixelsPerUnit() {
+    return this.front ? this.oneToOne() / this.front.distance : 1;
+  }
+
+  /// Fits the front view to what is drawn (the retained points of every stroke, with a
+  /// margin), never closer than one to one; the front view stays where it is when nothing is.
+  fitToDrawing() {
+    const box = new THREE.Box2();
+    for (const s of this.strokes.values()) for (const p of s.points) box.expandByPoint(p);
+    if (box.isEmpty()) return;
+    const size = box.getSize(new THREE.Vector2());
+    const margin = 0.05 * Math.max(size.x, size.y) + 10;
+    const height = Math.max(size.y + 2 * margin, (size.x + 2 * margin) / this.camera.aspect);
+    const distance = height / 2 / Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2));
+    const centre = box.getCenter(new THREE.Vector2());
+    this.front = { x: centre.x, y: centre.y, distance: Math.max(distance, this.oneToOne()) };
+    this.frontView();
+  }
+
+  /// Orbit mode: the controls move the camera. Leaving it faces the drawing plane again (the
+  /// pen draws on the plane as seen from the front).
+  setOrbit(orbit) {
+    this.controls.enabled = orbit;
+    if (!orbit) this.frontView();
+  }
+
+  stroke(id, participant) {
+    let s = this.strokes.get(id);
+    if (!s) {
+      s = { participant, points: [], line: null, mesh: null };
+      this.strokes.set(id, s);
+    }
+    return s;
+  }
+
+  hasMesh(id) {
+    const s = this.strokes.get(id);
+    return Boolean(s && s.mesh);
+  }
+
+  person(participant) {
+    let p = this.people.get(participant);
+    if (!p) {
+      const colour = colourOf(participant);
+      const material = new THREE.ShaderMaterial({
+        uniforms: { colour: { value: colour } },
+        vertexShader: VERTEX_SHADER,
+        fragmentShader: FRAGMENT_SHADER,
+      });
+      p = { merged: new MergedMeshes(material), lineMaterial: new THREE.LineBasicMaterial({ color: colour }) };
+      this.world.add(p.merged.mesh);
+      this.people.set(participant, p);
+    }
+    return p;
+  }
+
+  /// A stroke's retained points from index `first` on (kept for the fit): until its mesh
+  /// comes, its polyline grows at the next frame.
+  addRetained(id, participant, first, points) {
+    const s = this.stroke(id, participant);
+    s.points.length = Math.min(s.points.length, first);
+    for (const [x, y] of points) s.points.push(new THREE.Vector3(x, y, 0));
+    if (s.mesh) return;
+    this.changedLines.add(s);
+    this.requestRender();
+  }
+
+  rebuildLine(s) {
+    this.removeLine(s);
+    if (s.mesh || s.points.length === 0) return;
+    s.line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(s.points), this.person(s.participant).lineMaterial);
+    this.world.add(s.line);
+  }
+
+  removeLine(s) {
+    if (!s.line) return;
+    this.world.remove(s.line);
+    s.line.geometry.dispose();
+    s.line = null;
+  }
+
+  /// Reads a stroke's mesh (a GLB) for `addMesh`.
+  async parse(glb) {
+    return flatten((await this.loader.parseAsync(glb, "")).scene);
+  }
+
+  /// Shows a stroke's mesh (from `parse`) in its person's merged meshes, in place of its
+  /// polyline; false when it already had one.
+  addMesh(id, participant, flat) {
+    const s = this.stroke(id, participant);
+    if (s.mesh) return false;
+    s.mesh = this.person(participant).merged.add(flat);
+    this.removeLine(s);
+    this.meshCount += 1;
+    this.requestRender();
+    return true;
+  }
+
+  /// Where on the drawing plane (stroke coordinates) a point of the page is, whatever the view;
+  /// null when the plane is not under it.
+  toStroke(clientX, clientY) {
+    const r = this.canvas.getBoundingClientRect();
+    const ndc = new THREE.Vector2(((clientX - r.left) / r.width) * 2 - 1, -((clientY - r.top) / r.height) * 2 + 1);
+    this.ray.setFromCamera(ndc, this.camera);
+    const hit = new THREE.Vector3();
+    if (!this.ray.ray.intersectPlane(this.plane, hit)) return null;
+    return [hit.x, -hit.y];
+  }
+
+  /// Resolves once what the scene holds now has been drawn on screen.
+  drawn() {
+    this.requestRender();
+    return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
+  }
+
+  /// Every mesh on screen in one GLB, each stroke a node named by its id.
+  async exportGlb() {
+    const root = new THREE.Group();
+    root.scale.set(1, -1, 1);
+    const materials = new Map();
+    for (const [id, s] of this.strokes) {
+      if (!s.mesh) continue;
+      if (!materials.has(s.participant)) materials.set(s.participant, new THREE.MeshStandardMaterial({ color: colourOf(s.participant) }));
+      const mesh = new THREE.Mesh(this.person(s.participant).merged.geometryOf(s.mesh), materials.get(s.participant));
+      mesh.name = id;
+      root.add(mesh);
+    }
+    try {
+      return await new Promise((ok, err) => new GLTFExporter().parse(root, ok, err, { binary: true }));
+    } finally {
+      root.traverse((o) => o.geometry && o.geometry.dispose());
+    }
+  }
+}

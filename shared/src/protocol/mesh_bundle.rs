@@ -1,0 +1,141 @@
+//! The body of `GET /v1/sessions/{session}/meshes`: every stored mesh of a session in one
+//! response, [`MESH_BUNDLE_CONTENT_TYPE`]. Binary, since a mesh is a binary GLB and base64 in
+//! JSON would add a third to it (`docs/performance.md` measures both):
+//!
+//! ```text
+//! "PMB1"                       4 bytes: magic and layout version
+//! count                        u32, little-endian
+//! count times:
+//!   stroke id                  16 bytes (UUID, RFC 9562 byte order)
+//!   participant id             16 bytes (the stroke's drawer)
+//!   glb length                 u32, little-endian
+//!   glb                        that many bytes
+//! ```
+//!
+//! Nothing follows the last mesh. The page (`client/web/src/api.js`) reads the same layout.
+
+use uuid::Uuid;
+
+use super::{ParticipantId, StrokeId};
+
+/// The media type of a mesh bundle.
+pub const MESH_BUNDLE_CONTENT_TYPE: &str = "application/vnd.penmesh.mesh-bundle";
+/// The first four bytes of a bundle; the digit is the layout's version.
+pub const MESH_BUNDLE_MAGIC: [u8; 4] = *b"PMB1";
+
+/// One mesh of a bundle.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BundledMesh {
+    pub stroke: StrokeId,
+    pub participant: ParticipantId,
+    pub glb: Vec<u8>,
+}
+
+/// Why bytes are not a mesh bundle.
+#[derive(Debug, Clone, thiserror::Error, PartialEq, Eq)]
+pub enum MeshBundleError {
+    #[error("not a mesh bundle: it does not start with \"PMB1\"")]
+    Magic,
+    #[error("the mesh bundle ends inside mesh {index} (or its header), at byte {at}")]
+    Truncated { index: usize, at: usize },
+    #[error("the mesh bundle has {extra} bytes after its {count} meshes")]
+    Trailing { count: usize, extra: usize },
+}
+
+/// The bundle of `meshes`, in their order.
+///
+/// # Panics
+/// When there are more than `u32::MAX` meshes or one is larger than `u32::MAX` bytes (the
+/// proxy's body limit keeps every stored mesh far below).
+pub fn encode_mesh_bundle(meshes: &[BundledMesh]) -> Vec<u8> {
+    let size = 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>();
+    let mut out = Vec::with_capacity(size);
+    out.extend_from_slice(&MESH_BUNDLE_MAGIC);
+    out.extend_from_slice(
+        &u32::try_from(meshes.len()).expect("at most u32::MAX meshes").to_le_bytes(),
+    );
+    for mesh in meshes {
+        out.extend_from_slice(mesh.stroke.as_bytes());
+        out.extend_from_slice(mesh.participant.as_bytes());
+        let len = u32::try_from(mesh.glb.len()).expect("a mesh of at most u32::MAX bytes");
+        out.extend_from_slice(&len.to_le_bytes());
+        out.extend_from_slice(&mesh.glb);
+    }
+    out
+}
+
+/// The meshes of a bundle.
+pub fn decode_mesh_bundle(bytes: &[u8]) -> Result<Vec<BundledMesh>, MeshBundleError> {
+    if bytes.get(..4) != Some(&MESH_BUNDLE_MAGIC[..]) {
+        return Err(MeshBundleError::Magic);
+    }
+    let mut at = 4;
+    let count =
+        read_u32(bytes, &mut at).ok_or(MeshBundleError::Truncated { index: 0, at })? as usize;
+    let mut meshes = Vec::with_capacity(count.min(bytes.len() / 36));
+    for index in 0..count {
+        let truncated = MeshBundleError::Truncated { index, at };
+        let stroke = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let participant = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let len = read_u32(bytes, &mut at).ok_or(truncated.clone())? as usize;
+        let glb = bytes.get(at..at.saturating_add(len)).ok_or(truncated)?.to_vec();
+        at += len;
+        meshes.push(BundledMesh { stroke, participant, glb });
+    }
+    if at != bytes.len() {
+        return Err(MeshBundleError::Trailing { count, extra: bytes.len() - at });
+    }
+    Ok(meshes)
+}
+
+fn read_u32(bytes: &[u8], at: &mut usize) -> Option<u32> {
+    let word = bytes.get(*at..*at + 4)?;
+    *at += 4;
+    Some(u32::from_le_bytes(word.try_into().ok()?))
+}
+
+fn read_uuid(bytes: &[u8], at: &mut usize) -> Option<Uuid> {
+    let id = Uuid::from_slice(bytes.get(*at..*at + 16)?).ok()?;
+    *at += 16;
+    Some(id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mesh(n: u8, len: usize) -> BundledMesh {
+        BundledMesh {
+            stroke: Uuid::from_bytes([n; 16]),
+            participant: Uuid::from_bytes([n + 100; 16]),
+            glb: (0..len).map(|i| i as u8 ^ n).collect(),
+        }
+    }
+
+    #[test]
+    fn a_bundle_reads_back_as_written() {
+        for meshes in [vec![], vec![mesh(1, 0)], vec![mesh(1, 7), mesh(2, 300), mesh(3, 1)]] {
+            let bytes = encode_mesh_bundle(&meshes);
+            assert_eq!(bytes.len(), 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>());
+            assert_eq!(decode_mesh_bundle(&bytes), Ok(meshes));
+        }
+    }
+
+    #[test]
+    fn bad_bundles_are_refused_with_where() {
+        let bytes = encode_mesh_bundle(&[mesh(1, 10), mesh(2, 10)]);
+        assert_eq!(decode_mesh_bundle(b"PMB2\0\0\0\0"), Err(MeshBundleError::Magic));
+        assert_eq!(decode_mesh_bundle(&bytes[..3]), Err(MeshBundleError::Magic));
+        // Cut inside the second mesh's GLB: the error names it and where its header began.
+        assert_eq!(
+            decode_mesh_bundle(&bytes[..bytes.len() - 1]),
+            Err(MeshBundleError::Truncated { index: 1, at: 8 + 46 })
+        );
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(
+            decode_mesh_bundle(&longer),
+            Err(MeshBundleError::Trailing { count: 2, extra: 1 })
+        );
+    }
+}
