@@ -398,6 +398,13 @@ impl Live {
                 // history): nothing of ours to resume, and reconnecting would only repeat it.
                 tracing::warn!(message = %err.message, "the proxy cannot read a peer's stroke");
             }
+            // This client reads nothing of the peers' events, so falling behind them costs it
+            // nothing: the proxy resyncs the connection itself, and its own answers are never
+            // dropped. Reconnecting would fetch the whole history again and, with many people
+            // drawing fast, fall behind again (ten fast replays at once never got back in).
+            ServerMessage::Error(err) if err.code == ErrorCode::Lagged => {
+                tracing::debug!(message = %err.message, "behind the session's events");
+            }
             ServerMessage::Error(err) => return Err(self.on_error(err)),
             ServerMessage::Welcome(_) => {
                 return Err(ErrorAction::Fail(anyhow::anyhow!("the proxy sent a second welcome")));
@@ -418,7 +425,6 @@ impl Live {
             | ErrorCode::StrokeConflict
             | ErrorCode::UnknownStroke
             | ErrorCode::SeqGap
-            | ErrorCode::Lagged
             | ErrorCode::TooManyOpenStrokes => {
                 tracing::info!(code = err.code.as_str(), message = %err.message, "the proxy asks to resume");
                 ErrorAction::Reconnect

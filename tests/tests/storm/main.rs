@@ -114,3 +114,37 @@ async fn thirty_native_clients_joining_at_once_store_every_stroke_with_its_mesh(
     let errors = internal_errors(&proxy.metrics().await) - errors_before;
     assert_eq!(errors, 0.0, "the proxy answered {errors} requests with a 5xx");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn native_clients_behind_the_sessions_events_go_on_drawing() {
+    // Arrange: a proxy that keeps very little of the session's events for each connection,
+    // so that every client drawing at full speed falls behind the others' events.
+    let proxy = penmesh_e2e::spawn_proxy_with(|c| {
+        c.outgoing_queue = 4;
+        c.outgoing_queue_bytes = 2048;
+    })
+    .await;
+    let session = proxy.create_session().await;
+    let endpoint = Endpoint::new(&proxy.address, session.session, session.token.clone()).unwrap();
+    let strokes = real_strokes();
+
+    // Act: six people draw twenty real strokes each at once, as fast as the proxy takes them.
+    let mut clients = tokio::task::JoinSet::new();
+    for i in 0..6 {
+        let mine: Vec<_> = (0..20).map(|j| strokes[(i * 20 + j) % strokes.len()].clone()).collect();
+        let endpoint = endpoint.clone();
+        clients.spawn(async move { (i, draw(&endpoint, format!("fast {i}"), mine).await) });
+    }
+
+    // Assert: nobody gives up, every stroke is stored with its mesh.
+    while let Some(joined) = clients.join_next().await {
+        let (i, drawn) = joined.expect("a client task panicked");
+        let drawn = drawn.unwrap_or_else(|e| panic!("client {i} gave up: {e:#}"));
+        assert_eq!(drawn.len(), 20, "client {i}");
+    }
+    let listed =
+        proxy.get_json(&format!("/v1/sessions/{}/strokes", session.session), &session).await;
+    let listed = listed["strokes"].as_array().expect("a list of strokes");
+    assert_eq!(listed.len(), 6 * 20);
+    assert!(listed.iter().all(|s| s["status"] == "done" && s["has_mesh"] == true));
+}
