@@ -295,8 +295,9 @@ async fn a_burst_of_answers_larger_than_the_outgoing_queue_does_not_cut_off_a_re
     ws.wait_ack(stroke, samples.len() as u64).await;
     ws.end(stroke, samples.len() as u64).await;
     ws.recv_until(|m| matches!(m, ServerMessage::StrokeDone(_))).await;
+    // (The connection was not dropped as a slow reader: it got its StrokeDone. The metric of
+    // slow-reader disconnects is process-wide, shared with the other tests running at once.)
     assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
-    assert!(!proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
 }
 
 /// Fields bigger than the settings allow: each refused with a code and a message that names
@@ -672,8 +673,9 @@ async fn answers_larger_than_the_outgoing_bytes_all_reach_a_reader() {
         }
     }
     assert_eq!(penmesh_e2e::assemble_retained(&retained), samples);
+    // (The connection was not dropped as a slow reader: it got its StrokeDone. The metric of
+    // slow-reader disconnects is process-wide, shared with the other tests running at once.)
     assert_eq!(proxy.raw_samples(&session, stroke).await, samples);
-    assert!(!proxy.metrics().await.contains("penmesh_ws_slow_reader_disconnects_total"));
 }
 
 /// Slowloris: a connection that does not finish its request head within the header timeout
