@@ -31,30 +31,29 @@
 //! straight to the local [`Fanout`] after `COMMIT`, before the next transaction begins.
 
 mod faults;
+mod known;
 mod ops;
 mod plan;
 mod queue;
 mod sql;
+mod transaction;
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use penmesh::Sample;
-use sqlx::{AnyConnection, Connection};
+use sqlx::AnyConnection;
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
 pub use faults::{CommitFaults, Fault};
+use known::Known;
 pub use ops::{WriteError, WriteOp};
-use plan::{Known, Planned, load_stroke, no_stroke, recover};
 use queue::WriteRequest;
 pub use queue::{Committed, Writer};
-use sql::{apply, finish, insert_chunks, put_mesh};
 
-use super::log::{self, MOVE_AFTER};
-use super::{Backend, Store, notify, now_ms};
+use super::{Backend, Store};
 use crate::fanout::{Fanout, SessionEvent};
 
 /// The thread that owns the write connection.
@@ -369,293 +368,6 @@ impl WriterLoop {
             self.conn = None;
         }
         result
-    }
-
-    async fn try_commit(
-        &mut self,
-        requests: &[&WriteRequest],
-        move_all: bool,
-    ) -> anyhow::Result<Vec<Option<WriteError>>> {
-        self.idle_moved = false;
-        let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
-        let backend = self.store.backend();
-        let conn = match &mut self.conn {
-            Some(conn) => conn,
-            None => {
-                let conn = self.store.open_write_connection().await?;
-                tracing::warn!("the write connection is open again");
-                self.conn.insert(conn)
-            }
-        };
-        let mut tx = conn.begin_with(self.begin).await?;
-        if self.recover {
-            // Valid whether or not this transaction commits: it is what is committed now.
-            self.strokes = recover(&mut tx, self.writer_id).await?;
-            self.recover = false;
-        }
-        let now = now_ms();
-        // Strokes read from the database in this transaction, the ends as it leaves them, and
-        // the strokes it closes (moved out of the log and forgotten once it commits).
-        let mut loaded: HashMap<Uuid, Known> = HashMap::new();
-        let mut ends: HashMap<Uuid, u64> = HashMap::new();
-        let mut closed: Vec<Uuid> = Vec::new();
-        let mut planned: Vec<Planned> = Vec::new();
-        let mut refused = Vec::with_capacity(requests.len());
-        // One request's plan, kept apart until it is known not to be refused (reused: a group
-        // commit plans hundreds of requests).
-        let mut req_ends: HashMap<Uuid, u64> = HashMap::new();
-        let mut req_planned = Vec::new();
-        // Strokes this transaction creates (the requests planned so far, and the one being
-        // planned): they have no row yet, and exist once it commits.
-        let mut creates: HashSet<Uuid> = HashSet::new();
-        let mut req_creates: HashSet<Uuid> = HashSet::new();
-        for req in requests {
-            // A request is written whole or refused whole.
-            req_ends.clear();
-            req_planned.clear();
-            req_creates.clear();
-            let mut refusal = None;
-            for op in &req.ops {
-                if let WriteOp::PutMesh { stroke, session, mesh, quota } = op {
-                    if let Err(why) = put_mesh(&mut tx, *stroke, *session, mesh, *quota).await? {
-                        refusal = Some(why);
-                        break;
-                    }
-                    continue;
-                }
-                let WriteOp::Append { stroke, seq, samples } = op else {
-                    match op {
-                        WriteOp::BeginStroke { stroke, .. } => {
-                            req_creates.insert(*stroke);
-                        }
-                        // A stroke exists before anything of it is stored.
-                        WriteOp::Finish { stroke, .. }
-                            if !self.strokes.contains_key(stroke)
-                                && !loaded.contains_key(stroke)
-                                && !creates.contains(stroke)
-                                && !req_creates.contains(stroke) =>
-                        {
-                            match load_stroke(&mut tx, *stroke, self.writer_id).await? {
-                                Some(known) => {
-                                    loaded.insert(*stroke, known);
-                                }
-                                None => {
-                                    refusal = Some(no_stroke(*stroke));
-                                    break;
-                                }
-                            }
-                        }
-                        _ => {}
-                    }
-                    closed.extend(closes(op));
-                    req_planned.push(Planned::Other(op));
-                    continue;
-                };
-                if closed.contains(stroke) {
-                    refusal = Some(WriteError::Refused(format!(
-                        "samples of stroke {stroke} after its end in the same request"
-                    )));
-                    break;
-                }
-                let known = req_ends
-                    .get(stroke)
-                    .or_else(|| ends.get(stroke))
-                    .copied()
-                    .or_else(|| self.strokes.get(stroke).map(Known::end))
-                    .or_else(|| loaded.get(stroke).map(Known::end));
-                let end = match known {
-                    Some(end) => end,
-                    None => match load_stroke(&mut tx, *stroke, self.writer_id).await? {
-                        Some(known) => {
-                            let end = known.end();
-                            loaded.insert(*stroke, known);
-                            end
-                        }
-                        None if creates.contains(stroke) || req_creates.contains(stroke) => {
-                            loaded.insert(*stroke, Known::default());
-                            0
-                        }
-                        // Its begin failed (or never came): nothing of it is stored or acked.
-                        None => {
-                            refusal = Some(no_stroke(*stroke));
-                            break;
-                        }
-                    },
-                };
-                let upto = seq + samples.len() as u64;
-                if *seq > end {
-                    refusal = Some(WriteError::Refused(format!(
-                        "samples {seq}..{upto} of stroke {stroke} would leave a hole: only \
-                         {end} are stored"
-                    )));
-                    break;
-                }
-                if upto > end {
-                    let samples = &samples[(end - seq) as usize..];
-                    req_planned.push(Planned::Append { stroke: *stroke, seq: end, samples });
-                }
-                req_ends.insert(*stroke, end.max(upto));
-            }
-            if refusal.is_none() {
-                planned.append(&mut req_planned);
-                ends.extend(req_ends.drain());
-                creates.extend(req_creates.drain());
-            }
-            refused.push(refusal);
-        }
-        // This transaction's appends, by stroke, for the moves.
-        let mut appended: HashMap<Uuid, Vec<Sample>> = HashMap::new();
-        let mut record: Vec<(Uuid, u64, &[Sample])> = Vec::new();
-        for op in &planned {
-            if let Planned::Append { stroke, seq, samples } = op {
-                appended.entry(*stroke).or_default().extend_from_slice(samples);
-                record.push((*stroke, *seq, samples));
-            }
-        }
-        // The other ops in order; `Finish` and `SetStatus` move their stroke out of the log.
-        let mut moved: Vec<Uuid> = Vec::new();
-        // Strokes this transaction creates: nothing of them is stored before it.
-        let mut begun: Vec<Uuid> = Vec::new();
-        let mut moves: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
-        for op in &planned {
-            let Planned::Other(op) = op else { continue };
-            match op {
-                WriteOp::Finish { stroke, kept } => {
-                    // Known, or created by this transaction (checked when planned).
-                    let base = match self.strokes.get(stroke).or_else(|| loaded.get(stroke)) {
-                        Some(known) => known.clone(),
-                        None => {
-                            load_stroke(&mut tx, *stroke, self.writer_id).await?.unwrap_or_default()
-                        }
-                    };
-                    let tail = appended.get(stroke).map(Vec::as_slice).unwrap_or_default();
-                    finish(&mut tx, backend, *stroke, &base, tail, kept, now).await?;
-                }
-                WriteOp::SetStatus { stroke, .. } => {
-                    if let Some(known) = self.strokes.get(stroke).or_else(|| loaded.get(stroke)) {
-                        let mut samples = known.pending.clone();
-                        samples.extend(appended.get(stroke).into_iter().flatten());
-                        if !samples.is_empty() {
-                            moves.push((*stroke, known.chunk_end, samples));
-                        }
-                    }
-                    apply(&mut tx, op, now).await?;
-                }
-                WriteOp::BeginStroke { stroke, .. } => {
-                    if apply(&mut tx, op, now).await? {
-                        begun.push(*stroke);
-                    }
-                }
-                _ => {
-                    apply(&mut tx, op, now).await?;
-                }
-            }
-        }
-        // Strokes that sat in the log long enough move too (all of them when stopping).
-        let check_idle = move_all || self.idle_checked.elapsed() >= IDLE_CHECK;
-        if check_idle {
-            let due = |k: &Known| move_all || k.since.is_some_and(|t| t.elapsed() >= MOVE_AFTER);
-            for (stroke, known) in self.strokes.iter().chain(&loaded) {
-                if closed.contains(stroke) || !due(known) {
-                    continue;
-                }
-                let mut samples = known.pending.clone();
-                samples.extend(appended.get(stroke).into_iter().flatten());
-                moved.push(*stroke);
-                moves.push((*stroke, known.chunk_end, samples));
-            }
-            self.idle_moved = !moved.is_empty();
-        }
-        let rows: Vec<(Uuid, u64, &[Sample])> =
-            moves.iter().map(|(s, seq, samples)| (*s, *seq, samples.as_slice())).collect();
-        insert_chunks(&mut tx, backend, &rows).await?;
-        // The appends: one record.
-        let record_id = if record.is_empty() {
-            None
-        } else {
-            let id: i64 = sqlx::query_scalar(
-                "INSERT INTO stroke_log (writer, data) VALUES ($1, $2) RETURNING id",
-            )
-            .bind(self.writer_id)
-            .bind(log::encode_record(&record))
-            .fetch_one(&mut *tx)
-            .await?;
-            Some(id)
-        };
-        // The records still needed start at the oldest one holding a sample not moved.
-        let still_in_log = |stroke: &Uuid| !closed.contains(stroke) && !moved.contains(stroke);
-        let oldest_needed = self
-            .strokes
-            .iter()
-            .chain(&loaded)
-            .filter(|(stroke, _)| still_in_log(stroke))
-            .filter_map(|(_, known)| known.first_record)
-            .chain(record_id.filter(|_| appended.keys().any(still_in_log)))
-            .min();
-        let low = oldest_needed.unwrap_or(record_id.unwrap_or(self.last_record) + 1);
-        let trim = low - self.trimmed_below >= TRIM_RECORDS || move_all;
-        if trim {
-            sqlx::query("DELETE FROM stroke_log WHERE writer = $1 AND id < $2")
-                .bind(self.writer_id)
-                .bind(low)
-                .execute(&mut *tx)
-                .await?;
-        }
-        if backend == Backend::Postgres {
-            let events: Vec<SessionEvent> = requests
-                .iter()
-                .zip(&refused)
-                .filter(|(_, r)| r.is_none())
-                .flat_map(|(req, _)| req.events.iter().cloned())
-                .collect();
-            if !events.is_empty() {
-                notify(&mut tx, &events).await?;
-            }
-        }
-        if fault == Some(Fault::Fail) {
-            anyhow::bail!("injected failure before COMMIT");
-        }
-        tx.commit().await?;
-        if fault == Some(Fault::FailAfterCommit) {
-            anyhow::bail!("injected failure after COMMIT");
-        }
-        // What is committed now.
-        if check_idle {
-            self.idle_checked = Instant::now();
-        }
-        for (stroke, known) in loaded {
-            self.strokes.entry(stroke).or_insert(known);
-        }
-        for stroke in begun {
-            self.strokes.entry(stroke).or_default();
-        }
-        let at = Instant::now();
-        for (stroke, samples) in appended {
-            let known = self.strokes.entry(stroke).or_default();
-            if known.pending.is_empty() {
-                known.first_record = record_id;
-                known.since = Some(at);
-            }
-            known.pending.extend(samples);
-        }
-        for stroke in moved {
-            if let Some(known) = self.strokes.get_mut(&stroke) {
-                known.chunk_end = known.end();
-                known.pending = Vec::new();
-                known.first_record = None;
-                known.since = None;
-            }
-        }
-        for stroke in closed {
-            self.strokes.remove(&stroke);
-        }
-        if let Some(id) = record_id {
-            self.last_record = id;
-        }
-        if trim {
-            self.trimmed_below = low;
-        }
-        Ok(refused)
     }
 }
 

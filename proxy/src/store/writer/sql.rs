@@ -7,7 +7,7 @@ use penmesh::{Kept, Sample};
 use sqlx::AnyConnection;
 use uuid::Uuid;
 
-use super::plan::Known;
+use super::known::Known;
 use super::{WriteError, WriteOp};
 use crate::store::{Backend, MeshRow, encode_indices, encode_samples};
 
