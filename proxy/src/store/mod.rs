@@ -34,12 +34,16 @@ pub use checkpoint::start_checkpointer;
 pub use connect::{Backend, Store};
 pub use notify::EVENTS_CHANNEL;
 pub(crate) use notify::notify;
+#[cfg(feature = "fault-injection")]
+pub use raw::stored_pieces;
 pub(crate) use raw::{CHUNKS_SELECT, pieces_from_chunks};
-pub use raw::{RawPiece, RawSamples, stored_pieces};
+pub use raw::{RawPiece, RawSamples};
 use reads::end_with_log;
 pub(crate) use recover::move_log_tail;
 pub use replay::LONG_STROKE_SAMPLES;
 pub use rows::{MeshRow, Simplified, StrokeRow, now_ms};
 use rows::{STROKE_SELECT, parse_uuid, stroke_from_row};
 pub use sessions::hash_token;
-pub use writer::{CommitFaults, Committed, Fault, WriteError, WriteOp, Writer, WriterTask};
+#[cfg(feature = "fault-injection")]
+pub use writer::{CommitFaults, Fault};
+pub use writer::{Committed, InjectedFaults, WriteError, WriteOp, Writer, WriterTask};

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use penmesh::Sample;
 use penmesh::protocol::StrokeStatus;
-use sqlx::{AnyConnection, AnyPool, Row};
+use sqlx::{AnyConnection, Row};
 use uuid::Uuid;
 
 use super::{Store, decode_samples, log};
@@ -218,9 +218,10 @@ pub(crate) fn pieces_from_chunks(
 
 /// Where a stroke's samples are stored, each piece as `(seq, n)` in `seq` order: its
 /// `stroke_chunks` rows, and its entries in the append log. For tests that look at a database
-/// directly.
+/// directly (`fault-injection` builds only).
+#[cfg(feature = "fault-injection")]
 pub async fn stored_pieces(
-    pool: &AnyPool,
+    pool: &sqlx::AnyPool,
     stroke: Uuid,
 ) -> anyhow::Result<(Vec<(u64, u64)>, Vec<(u64, u64)>)> {
     let mut conn = pool.acquire().await?;

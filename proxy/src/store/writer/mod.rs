@@ -30,6 +30,7 @@
 //! the same transaction (so every replica's listener gets them, or none does), with SQLite
 //! straight to the local [`Fanout`] after `COMMIT`, before the next transaction begins.
 
+#[cfg(feature = "fault-injection")]
 mod faults;
 mod known;
 mod ops;
@@ -39,6 +40,7 @@ mod sql;
 mod transaction;
 
 use std::collections::HashMap;
+#[cfg(feature = "fault-injection")]
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -47,7 +49,16 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
+#[cfg(feature = "fault-injection")]
 pub use faults::{CommitFaults, Fault};
+/// Failures to inject into the writer's transactions: only in builds with the
+/// `fault-injection` feature (the tests'), none in any other.
+#[cfg(feature = "fault-injection")]
+pub type InjectedFaults = Option<Arc<CommitFaults>>;
+/// Failures to inject into the writer's transactions: none without the `fault-injection`
+/// feature (`None` is the only value).
+#[cfg(not(feature = "fault-injection"))]
+pub type InjectedFaults = Option<std::convert::Infallible>;
 use known::Known;
 pub use ops::{WriteError, WriteOp};
 use queue::WriteRequest;
@@ -79,10 +90,12 @@ impl WriterTask {
         max_requests: usize,
         queue: usize,
         fanout: Fanout,
-        faults: Option<Arc<CommitFaults>>,
+        faults: InjectedFaults,
         writer_id: Option<i64>,
     ) -> anyhow::Result<(Writer, WriterTask)> {
         let (tx, rx) = mpsc::channel(queue.max(1));
+        #[cfg(not(feature = "fault-injection"))]
+        let None = faults;
         let deadline = store.deadline();
         let stop = CancellationToken::new();
         let (store, loop_stop) = (store.clone(), stop.clone());
@@ -119,6 +132,7 @@ impl WriterTask {
                         recover: false,
                         idle_checked: Instant::now(),
                         idle_moved: false,
+                        #[cfg(feature = "fault-injection")]
                         faults,
                     };
                     state.run().await
@@ -174,6 +188,7 @@ struct WriterLoop {
     /// The last transaction moved strokes because they sat in the log long enough: a failure
     /// may be theirs, not its requests'.
     idle_moved: bool,
+    #[cfg(feature = "fault-injection")]
     faults: Option<Arc<CommitFaults>>,
 }
 

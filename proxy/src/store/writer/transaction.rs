@@ -9,10 +9,12 @@ use penmesh::Sample;
 use sqlx::{AnyConnection, Connection};
 use uuid::Uuid;
 
+#[cfg(feature = "fault-injection")]
+use super::Fault;
 use super::known::{Known, load_stroke, recover};
 use super::plan::{Plan, Planned};
 use super::sql::{apply, finish, insert_chunks};
-use super::{Fault, IDLE_CHECK, TRIM_RECORDS, WriteError, WriteOp, WriteRequest, WriterLoop};
+use super::{IDLE_CHECK, TRIM_RECORDS, WriteError, WriteOp, WriteRequest, WriterLoop};
 use crate::fanout::SessionEvent;
 use crate::store::log::{self, MOVE_AFTER};
 use crate::store::{Backend, notify, now_ms};
@@ -46,6 +48,7 @@ impl WriterLoop {
         move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         self.idle_moved = false;
+        #[cfg(feature = "fault-injection")]
         let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
         // Taken for the transaction, given back once it commits: one that failed is dropped.
         let mut conn = match self.conn.take() {
@@ -91,10 +94,12 @@ impl WriterLoop {
         if self.store.backend() == Backend::Postgres {
             notify_committed(&mut tx, requests, &refused).await?;
         }
+        #[cfg(feature = "fault-injection")]
         if fault == Some(Fault::Fail) {
             anyhow::bail!("injected failure before COMMIT");
         }
         tx.commit().await?;
+        #[cfg(feature = "fault-injection")]
         if fault == Some(Fault::FailAfterCommit) {
             anyhow::bail!("injected failure after COMMIT");
         }
