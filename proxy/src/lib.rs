@@ -32,9 +32,10 @@ pub use crate::identity::participant_id;
 pub use crate::mesh_build::PROXY_UPLOADER;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
-pub use crate::store::{
-    CommitFaults, Fault, decode_samples as decode_stored_samples, hash_token, stored_pieces,
-};
+pub use crate::store::{decode_samples as decode_stored_samples, hash_token};
+// Test-only: failures injected into the writer, and where a stroke's samples are stored.
+#[cfg(feature = "fault-injection")]
+pub use crate::store::{CommitFaults, Fault, stored_pieces};
 pub use crate::ws::{Frame, ReadError, forward as forward_frames, serve, split as split_socket};
 
 /// Runs the proxy with `config` until it is stopped (SIGTERM, Ctrl-C), on a runtime of its own

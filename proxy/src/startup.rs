@@ -29,7 +29,7 @@ use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
-use crate::store::{Backend, Store, WriterTask, start_checkpointer};
+use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
 use crate::{http, mesh_build, metrics, send_deadline, session_meshes, web, ws};
 
 /// A bound, ready-to-run proxy.
@@ -47,14 +47,22 @@ pub struct Application {
 impl Application {
     /// Connects to the database (migrating it), starts the writer and binds the listener.
     pub async fn build(config: Config) -> anyhow::Result<Application> {
-        Application::build_with_faults(config, None).await
+        Application::build_injecting(config, None).await
     }
 
     /// [`Application::build`] with failures injected into the writer's transactions: for the
-    /// tests of the write path's failure handling only.
+    /// tests of the write path's failure handling only (the `fault-injection` feature).
+    #[cfg(feature = "fault-injection")]
     pub async fn build_with_faults(
         config: Config,
         faults: Option<std::sync::Arc<crate::store::CommitFaults>>,
+    ) -> anyhow::Result<Application> {
+        Application::build_injecting(config, faults).await
+    }
+
+    async fn build_injecting(
+        config: Config,
+        faults: InjectedFaults,
     ) -> anyhow::Result<Application> {
         config.check()?;
         let metrics = metrics::install();

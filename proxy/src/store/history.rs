@@ -1,0 +1,240 @@
+//! A session's history, what a newcomer is owed: who is present, then every stroke as events,
+//! an unfinished one with what ACUTS retains of it (kept by an earlier history, or replayed).
+
+use std::collections::{HashMap, HashSet};
+
+use anyhow::Context;
+use penmesh::Sample;
+use penmesh::protocol::StrokeStatus;
+use sqlx::{AnyConnection, Row};
+use uuid::Uuid;
+
+use super::{
+    LONG_STROKE_SAMPLES, STROKE_SELECT, Store, StrokeRow, WriteOp, decode_samples, end_with_log,
+    log, parse_uuid, stroke_from_row,
+};
+use crate::fanout::{EventKind, SessionEvent};
+
+/// What a newcomer to a session is owed ([`Store::session_history`]).
+#[derive(Debug, Clone, Default)]
+pub struct SessionHistory {
+    /// The session's events, in order, without the unreadable strokes.
+    pub events: Vec<SessionEvent>,
+    /// The strokes that could not be read (`None`: not even its id), and why.
+    pub unreadable: Vec<(Option<Uuid>, String)>,
+    /// What the long unfinished strokes it replayed retain, for the caller to keep
+    /// ([`WriteOp::KeepRetained`]), so that the next history reads it instead.
+    pub keep: Vec<WriteOp>,
+}
+
+impl Store {
+    /// What a newcomer to `session` is owed: the participants present, then every stroke
+    /// (finished ones with their simplified samples and mesh, open ones with the samples
+    /// retained from what is committed so far), as events in order.
+    /// A stroke that cannot be read is left out and named in `unreadable`; it does not hide
+    /// the others.
+    ///
+    /// What an unfinished stroke retains is read where a history before kept it for as many
+    /// samples as are stored (an interrupted stroke, or one not drawn since), else rebuilt by
+    /// replaying its samples: a short stroke on the spot, a long one ([`LONG_STROKE_SAMPLES`])
+    /// through [`Store::replay`] after the connection is given back, and what it retains goes
+    /// into `keep`.
+    ///
+    /// It reads through one pooled connection, taken once and given back before a long
+    /// replay: a reader that holds a connection while it waits for a second one deadlocks the
+    /// pool when as many newcomers arrive at once as the pool has connections (issue 25's join
+    /// storm). Its queries are a fixed few, whatever the number of strokes.
+    pub async fn session_history(&self, session: Uuid) -> anyhow::Result<SessionHistory> {
+        let mut conn = self.pool.acquire().await?;
+        let mut history = SessionHistory::default();
+        let present = sqlx::query(
+            "SELECT connection, participant, name FROM participants \
+             WHERE session_id = $1 AND left_at IS NULL ORDER BY joined_at, connection",
+        )
+        .bind(session.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+        for row in present {
+            history.events.push(SessionEvent::new(
+                session,
+                EventKind::Joined {
+                    participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
+                    connection: parse_uuid(&row.try_get::<String, _>("connection")?)?,
+                    name: row.try_get("name")?,
+                },
+            ));
+        }
+        let strokes = sqlx::query(&format!(
+            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+        ))
+        .bind(session.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+        let meshes = sqlx::query(
+            "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
+             WHERE s.session_id = $1",
+        )
+        .bind(session.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+        let mut mesh_at = HashMap::new();
+        for row in meshes {
+            let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+            mesh_at.insert(stroke, row.try_get::<i64, _>("created_at")?);
+        }
+        // The log, once, for the strokes in progress (a stroke whose row cannot be read is
+        // reported below).
+        let open: HashSet<Uuid> = strokes
+            .iter()
+            .filter_map(|r| stroke_from_row(r).ok())
+            .filter(|r| r.status != StrokeStatus::Done)
+            .map(|r| r.id)
+            .collect();
+        let log = if open.is_empty() {
+            log::StrokeEntries::new()
+        } else {
+            log::read_log(&mut conn, Some(&open), None).await?
+        };
+        let simplified = simplified_rows(&mut conn, session).await?;
+        let unreadable = |row: &sqlx::any::AnyRow, err: anyhow::Error| {
+            let id = row.try_get::<String, _>("id").ok().and_then(|id| id.parse().ok());
+            tracing::error!(error = %err, stroke = ?id, "a stroke of a session's history is unreadable");
+            (id, format!("{err:#}"))
+        };
+        // Each readable stroke and what it retains (`None`: a long replay, below).
+        let mut parts: Vec<(StrokeRow, Option<Vec<Sample>>)> = Vec::with_capacity(strokes.len());
+        for row in &strokes {
+            match self.stroke_points(&mut conn, row, &log, &simplified).await {
+                Ok(part) => parts.push(part),
+                Err(err) => history.unreadable.push(unreadable(row, err)),
+            }
+        }
+        drop(conn);
+        for (row, points) in parts {
+            let points = match points {
+                Some(points) => points,
+                None => match self.replay(row.id, row.params, row.n_points).await {
+                    Ok(state) => {
+                        let kept = state.kept().to_vec();
+                        let points = kept.iter().map(|k| k.sample).collect();
+                        let upto = state.next_seq();
+                        history.keep.push(WriteOp::KeepRetained { stroke: row.id, upto, kept });
+                        points
+                    }
+                    Err(err) => {
+                        tracing::error!(error = %err, stroke = %row.id, "a stroke of a session's history is unreadable");
+                        history.unreadable.push((Some(row.id), format!("{err:#}")));
+                        continue;
+                    }
+                },
+            };
+            history.events.extend(stroke_events(session, &row, points, &mesh_at));
+        }
+        Ok(history)
+    }
+
+    /// What one stroke of [`Store::session_history`] retains: its simplified samples when it is
+    /// done; else what a history kept for as many samples as are stored, or a replay of a short
+    /// stroke; `None` for a long one to replay.
+    async fn stroke_points(
+        &self,
+        conn: &mut AnyConnection,
+        row: &sqlx::any::AnyRow,
+        log: &log::StrokeEntries,
+        simplified: &HashMap<Uuid, SimplifiedRow>,
+    ) -> anyhow::Result<(StrokeRow, Option<Vec<Sample>>)> {
+        let mut row = stroke_from_row(row)?;
+        let stroke = row.id;
+        if row.status == StrokeStatus::Done {
+            let points = match simplified.get(&stroke) {
+                Some(found) => decode_samples(found.layout, &found.data)
+                    .with_context(|| format!("stroke {stroke}: simplified samples"))?,
+                None => Vec::new(),
+            };
+            return Ok((row, Some(points)));
+        }
+        row.n_points = end_with_log(row.n_points, stroke, log);
+        let kept =
+            simplified.get(&stroke).filter(|k| k.upto.is_some_and(|upto| upto >= row.n_points));
+        if let Some(SimplifiedRow { layout, data, .. }) = kept {
+            let points = decode_samples(*layout, data)
+                .with_context(|| format!("stroke {stroke}: the samples it retained"))?;
+            return Ok((row, Some(points)));
+        }
+        if row.n_points >= LONG_STROKE_SAMPLES {
+            return Ok((row, None));
+        }
+        let raw = self.raw_samples_with(conn, stroke, log).await?;
+        let kept = crate::ingest::StrokeState::replay(row.params, &raw);
+        let points = kept.kept().iter().map(|k| k.sample).collect();
+        Ok((row, Some(points)))
+    }
+}
+
+/// The events of one stroke of a session's history, `points` being what it retains.
+fn stroke_events(
+    session: Uuid,
+    row: &StrokeRow,
+    points: Vec<Sample>,
+    mesh_at: &HashMap<Uuid, i64>,
+) -> Vec<SessionEvent> {
+    let (participant, stroke) = (row.participant, row.id);
+    let mut events = vec![SessionEvent::new(
+        session,
+        EventKind::StrokeBegin { participant, stroke, brush: row.brush },
+    )];
+    let done = row.status == StrokeStatus::Done;
+    let n_retained = points.len() as u64;
+    if !points.is_empty() {
+        events.push(SessionEvent::new(
+            session,
+            EventKind::Retained { participant, stroke, first: 0, points },
+        ));
+    }
+    if done {
+        events.push(SessionEvent::new(
+            session,
+            EventKind::StrokeDone { participant, stroke, n_retained },
+        ));
+        if let Some(&created_at) = mesh_at.get(&stroke) {
+            events.push(SessionEvent::new(
+                session,
+                EventKind::Mesh { participant, stroke, created_at },
+            ));
+        }
+    }
+    events
+}
+
+/// A `simplified` row of a session's history ([`simplified_rows`]): a finished stroke's
+/// simplified samples, or what a history kept of an unfinished one ([`WriteOp::KeepRetained`]).
+struct SimplifiedRow {
+    /// For a kept row, how many stored samples it covers.
+    upto: Option<u64>,
+    layout: i64,
+    data: Vec<u8>,
+}
+
+/// Every `simplified` row of the session's strokes, in one query.
+async fn simplified_rows(
+    conn: &mut AnyConnection,
+    session: Uuid,
+) -> anyhow::Result<HashMap<Uuid, SimplifiedRow>> {
+    let rows = sqlx::query(
+        "SELECT f.stroke_id, f.upto, f.layout, f.data FROM simplified f \
+         JOIN strokes s ON s.id = f.stroke_id WHERE s.session_id = $1",
+    )
+    .bind(session.to_string())
+    .fetch_all(&mut *conn)
+    .await?;
+    let mut found = HashMap::with_capacity(rows.len());
+    for row in rows {
+        let stroke = parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+        let upto = row.try_get::<Option<i64>, _>("upto")?.map(|n| n as u64);
+        found.insert(
+            stroke,
+            SimplifiedRow { upto, layout: row.try_get("layout")?, data: row.try_get("data")? },
+        );
+    }
+    Ok(found)
+}

@@ -1,0 +1,91 @@
+//! What a connection asks the writer to do ([`WriteOp`]) and how a request can fail
+//! ([`WriteError`]).
+
+use penmesh::protocol::StrokeStatus;
+use penmesh::{AcutsParams, Brush, Kept, Sample};
+use uuid::Uuid;
+
+use crate::store::MeshRow;
+
+/// One change to the database.
+#[derive(Debug, Clone)]
+pub enum WriteOp {
+    /// Creates a stroke (nothing if it exists already).
+    BeginStroke {
+        stroke: Uuid,
+        session: Uuid,
+        participant: Uuid,
+        brush: Brush,
+        params: AcutsParams,
+        device: Option<String>,
+    },
+    /// Appends the samples `seq..seq + samples.len()` of a stroke.
+    Append { stroke: Uuid, seq: u64, samples: Vec<Sample> },
+    /// Stores the simplified stroke and marks it `done`.
+    Finish { stroke: Uuid, kept: Vec<Kept> },
+    /// Sets a stroke's status (`open` when resumed, `interrupted` when its connection ends).
+    SetStatus { stroke: Uuid, status: StrokeStatus },
+    /// A participant said hello in a session on `connection` (its presence row).
+    /// `replica` is the key of the lock the replica holds while it lives (PostgreSQL).
+    Join { connection: Uuid, participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
+    /// A participant's connection ended.
+    Leave { connection: Uuid },
+    /// Stores (or replaces) a done stroke's mesh, unless the meshes of `session` would then
+    /// hold more than `quota` bytes (refused: [`WriteError::Quota`]). A request of its own: it
+    /// is written where it is planned, as only the write tells whether it fits.
+    PutMesh { stroke: Uuid, session: Uuid, mesh: MeshRow, quota: u64 },
+    /// Keeps what ACUTS retains of a stroke's first `upto` samples before its end (`kept`), so
+    /// that the next history of its session need not replay them (`Store::session_history`).
+    /// Never replaces the simplified stroke of a stroke that is done.
+    KeepRetained { stroke: Uuid, upto: u64, kept: Vec<Kept> },
+}
+
+impl WriteOp {
+    /// Bytes of samples the op holds while it waits for the writer.
+    pub(super) fn sample_bytes(&self) -> usize {
+        match self {
+            WriteOp::Append { samples, .. } => std::mem::size_of_val(samples.as_slice()),
+            WriteOp::Finish { kept, .. } | WriteOp::KeepRetained { kept, .. } => {
+                std::mem::size_of_val(kept.as_slice())
+            }
+            _ => 0,
+        }
+    }
+
+    /// Bytes of mesh the op writes.
+    pub(super) fn mesh_bytes(&self) -> usize {
+        match self {
+            WriteOp::PutMesh { mesh, .. } => mesh.glb.len(),
+            _ => 0,
+        }
+    }
+
+    pub(super) fn n_samples(&self) -> usize {
+        match self {
+            WriteOp::Append { samples, .. } => samples.len(),
+            _ => 0,
+        }
+    }
+}
+
+/// The writer failed to commit a request.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum WriteError {
+    #[error("the writer has stopped")]
+    Closed,
+    /// The database failed; its own words, for the log.
+    #[error("database write failed: {0}")]
+    Database(String),
+    /// The database could not write for want of space or a failing disk (its own words, for
+    /// the log): the one database failure a client is told the cause of.
+    #[error("the database cannot write to its disk: {0}")]
+    Storage(String),
+    /// The writer refused the request: storing it would break a stroke's stored samples (a
+    /// hole, samples after its end, a stroke that does not exist). The message is the
+    /// writer's own, fit for the client.
+    #[error("{0}")]
+    Refused(String),
+    /// The write would pass a storage quota (the message names it); nothing was written.
+    #[error("{0}")]
+    Quota(String),
+}
