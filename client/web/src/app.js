@@ -8,6 +8,8 @@ import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 
 // Mouse and touch report no real pressure: they draw with this one (docs/web.md).
 const CONSTANT_PRESSURE = 0.5;
+// Stage 1's repeat rule, as the native client's (penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE).
+const REPEAT_PRESSURE = 0.2;
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
 const FLUSH_MS = 16;
 const PROTOCOL = Number(document.querySelector('meta[name="penmesh-protocol"]').content);
@@ -389,6 +391,8 @@ function addSample(e) {
   const prev = p.samples[p.samples.length - 1];
   // Coalesced events can share a timestamp; time must never go backwards.
   const t = Math.max(prev ? prev[2] : 0, snap(e.timeStamp - drawing.t0, TIME_STEP));
+  // Stage 1 (docs/web.md): drop a repeat of the last kept position whose pressure is within REPEAT_PRESSURE of it.
+  if (prev && snap(at[0], POSITION_STEP) === prev[0] && snap(at[1], POSITION_STEP) === prev[1] && Math.abs(snap(pressureOf(e), PRESSURE_STEP) - prev[3]) <= REPEAT_PRESSURE) return;
   p.samples.push([
     snap(at[0], POSITION_STEP),
     snap(at[1], POSITION_STEP),
