@@ -497,7 +497,7 @@ fn dense_loop(points: &[DVec2], normals: &[DVec2], max_gap: f64) -> (Vec<DVec2>,
     let edge = |i: usize| (points[i], points[(i + 1) % n]);
     let length: f64 = (0..n).map(|i| edge(i).0.distance(edge(i).1)).sum();
     let max_gap = max_gap.max(length / MAX_DENSE_LAYER_POINTS as f64);
-    if n < 2 || !(max_gap > 0.0) {
+    if n < 2 || max_gap.is_nan() || max_gap <= 0.0 {
         return (points.to_vec(), normals.to_vec());
     }
     let (mut dense_points, mut dense_normals) = (Vec::new(), Vec::new());

@@ -96,6 +96,10 @@ pub struct EvalArgs {
     /// Poisson takes seconds a stroke.
     #[arg(long, conflicts_with_all = ["sweep", "plots", "synth"])]
     pub meshes: bool,
+    /// With --meshes: the generated curves (figure8, semicircles, chromosome, leaf, scribble;
+    /// default the paper's four); `--curves ''` for none.
+    #[arg(long, value_delimiter = ',')]
+    pub curves: Option<Vec<String>>,
     /// With --meshes: the width of the Poisson reconstruction's finest cell, px.
     #[arg(long, default_value_t = crate::poisson::DEFAULT_CELL)]
     pub poisson_cell: f64,
@@ -235,7 +239,15 @@ fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
     poisson.validate()?;
     let names = args.algos.clone().unwrap_or_else(|| split_names(MESH_ALGOS));
     let algos = algos(&names, (args.acuts.resample, params))?;
-    let curves = curves(load_data_sets(&args.inputs, args.px_per_unit)?)?;
+    let shapes = match &args.curves {
+        None => CURVES.to_vec(),
+        Some(names) => names
+            .iter()
+            .filter(|name| !name.trim().is_empty())
+            .map(|name| name.trim().parse::<penmesh::Shape>())
+            .collect::<Result<_, _>>()?,
+    };
+    let curves = curves(&shapes, load_data_sets(&args.inputs, args.px_per_unit)?)?;
     let bound = args.acuts.tolerance + args.acuts.resample;
     let work: usize = curves.iter().map(|c| c.n_strokes() * (algos.len() + 1) * 2).sum();
     let progress = ProgressBar::new(work as u64).with_style(

@@ -5,11 +5,11 @@
 //! unsimplified stroke ("original"), and each mesher (the paper's screened Poisson of the layered
 //! point cloud, and the direct solid): the vertices N', the triangles F, the GLB bytes S (one
 //! GLB per stroke), the time T (outline, mesh and GLB), and the reductions against the BQS
-//! Poisson mesh of the same curve, as the paper's table 7 defines them: `eta = (1 - x / x_BQS)
-//! * 100 %`. Each mesh is measured against the mesh of the unsimplified stroke by the same mesher
-//! (the paper's reference mesh): the Hausdorff distance both ways, the largest over the curve's
-//! strokes. Both meshers build on the same outline (the default smooth centreline, checked against
-//! the raw samples), so the meshers are the only difference between a curve's two halves.
+//! Poisson mesh of the same curve as the paper's table 7 defines them, `(1 - x / x_BQS) × 100 %`.
+//! Each mesh is measured against the mesh of the unsimplified stroke by the same mesher (the
+//! paper's reference mesh): the Hausdorff distance both ways, the largest over the curve's
+//! strokes. Both meshers build on the same outline (the default smooth centreline, checked
+//! against the raw samples), so the meshers are the only difference between a curve's halves.
 
 use super::*;
 use crate::commands::mesh::{Mesher, build_mesh};
@@ -21,7 +21,7 @@ use crate::poisson::PoissonOptions;
 /// in the paper's setting and in the default one, and the optimum.
 pub(super) const MESH_ALGOS: &str = "bqs,dp,window,squish-e,dpts,acuts-paper,acuts,optimal";
 /// The paper's four classic contours (table 8), generated at its typical speed.
-const CURVES: [penmesh::Shape; 4] = [
+pub(super) const CURVES: [penmesh::Shape; 4] = [
     penmesh::Shape::Figure8,
     penmesh::Shape::Semicircles,
     penmesh::Shape::Chromosome,
@@ -55,9 +55,12 @@ pub struct MeshEvalRow {
 }
 
 /// The curves of table 8: the generated contours, then the data sets given.
-pub(super) fn curves(mut data_sets: Vec<DataSet>) -> anyhow::Result<Vec<DataSet>> {
-    let mut curves = Vec::with_capacity(CURVES.len() + data_sets.len());
-    for shape in CURVES {
+pub(super) fn curves(
+    shapes: &[penmesh::Shape],
+    mut data_sets: Vec<DataSet>,
+) -> anyhow::Result<Vec<DataSet>> {
+    let mut curves = Vec::with_capacity(shapes.len() + data_sets.len());
+    for &shape in shapes {
         let params = penmesh::GeneratorParams {
             shape,
             speed: CURVE_SPEED_PX_PER_S,
@@ -258,7 +261,7 @@ mod tests {
         // Poisson mesh, the reference of every eta.
         let params = penmesh::GeneratorParams {
             shape: penmesh::Shape::Leaf,
-            size: 40.0,
+            size: 30.0,
             ..penmesh::GeneratorParams::default()
         };
         let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
@@ -267,7 +270,7 @@ mod tests {
             files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
         };
         let algos = algos(&["bqs".into(), "acuts".into()], (0.0, AcutsParams::default())).unwrap();
-        let poisson = PoissonOptions { cell: 2.0, ..PoissonOptions::default() };
+        let poisson = PoissonOptions { cell: 3.0, ..PoissonOptions::default() };
         let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, &ProgressBar::hidden()).unwrap();
         let json = serde_json::to_value(&rows).unwrap();
         let rows = json.as_array().unwrap();
