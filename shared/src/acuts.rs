@@ -12,8 +12,9 @@
 //! it, is dropped (a pen at rest reports its position again and again). It costs no position
 //! error: the dropped sample lies where a sample stage 2 bounds lies, so it is as near to every
 //! segment as that one. It bounds pressure only against the kept sample at the same position;
-//! against the pressure interpolated in time along its segment (`P_max`) it can add up to its
-//! tolerance, where the pressure ramps while the pen rests (`docs/results.md`).
+//! against the pressure interpolated in time along its segment (`P_max`) it bounds nothing:
+//! where the pressure ramps while the pen rests, a dropped repeat can be further than `delta_p`
+//! from it (0.253 on the Dutch signatures, `docs/results.md`).
 //!
 //! # Stage 2: windowed simplification ([`Simplifier`], [`simplify`])
 //!
@@ -353,7 +354,8 @@ impl Resampler {
     }
 }
 
-/// Stage 1 over a whole stroke: the input indices kept, in order.
+/// Stage 1 over a whole stroke, as [`Resampler::new`] runs it (the repeat rule included): the
+/// input indices kept, in order.
 pub fn resample(samples: &[Sample], min_distance: f64) -> Vec<usize> {
     let mut resampler = Resampler::new(min_distance);
     let mut kept = Vec::with_capacity(samples.len());
