@@ -5,7 +5,10 @@
 // Usage (from the repository root, after `cargo build --release -p penmesh-client` and
 // `npm ci --prefix bench`):
 //   node bench/render-strokes.mjs IN.{txt,hwr,csv,json} OUT.png [--px-per-unit K] [--zoom F]
+//        [--meshers [--poisson-cell PX]]
 // --zoom F renders the middle 1/F of the picture, F times larger, to show corners close up.
+// --meshers shows the direct solid and the paper's screened Poisson mesh of the same strokes
+// (both on the default smooth outline) in the two 3D panels instead of the two outlines.
 // Needs Debian's Chromium (/usr/bin/chromium, or CHROMIUM=path); three.js is served from
 // bench/node_modules, nothing is fetched.
 
@@ -29,6 +32,9 @@ const option = (name, fallback) => {
 };
 const pxPerUnit = option('--px-per-unit', null);
 const zoom = Number(option('--zoom', '1'));
+const poissonCell = option('--poisson-cell', null);
+const meshers = args.includes('--meshers');
+if (meshers) args.splice(args.indexOf('--meshers'), 1);
 const [input, output] = args;
 if (!input || !output || !(zoom >= 1)) {
   console.error('usage: node bench/render-strokes.mjs IN OUT.png [--px-per-unit K] [--zoom F >= 1]');
@@ -38,14 +44,17 @@ const penmesh = process.env.PENMESH ?? join(root, 'target/release/penmesh');
 const work = mkdtempSync(join(tmpdir(), 'penmesh-render-'));
 
 // Both meshes come from `penmesh mesh --json`, which also returns the raw samples it read.
-function mesh(centreline) {
-  const glb = join(work, `${centreline}.glb`);
-  const cmd = ['mesh', input, '--out', glb, '--json', '--centreline', centreline];
+function mesh(centreline, mesher = 'direct') {
+  const glb = join(work, `${centreline}-${mesher}.glb`);
+  const cmd = ['mesh', input, '--out', glb, '--json', '--centreline', centreline, '--mesher', mesher];
   if (pxPerUnit) cmd.push('--px-per-unit', pxPerUnit);
-  const report = JSON.parse(execFileSync(penmesh, cmd, { encoding: 'utf8' }));
+  if (poissonCell) cmd.push('--poisson-cell', poissonCell);
+  const report = JSON.parse(execFileSync(penmesh, cmd, { encoding: 'utf8', maxBuffer: 1 << 28 }));
   return { report, glb: readFileSync(glb).toString('base64') };
 }
-const straight = mesh('straight');
+// The two 3D panels: the straight and smooth outlines' solids, or (--meshers) the direct solid
+// and the Poisson mesh of the smooth outline.
+const straight = meshers ? mesh('smooth', 'poisson') : mesh('straight');
 const smooth = mesh('smooth');
 const raw = smooth.report.raw;
 const brush = smooth.report.parameters.brush;
@@ -57,8 +66,12 @@ const freehand = raw.map((stroke) =>
 const panels = [
   { title: `as drawn: raw polyline (${smooth.report.samples} samples)` },
   { title: 'perfect-freehand outline' },
-  { title: `straight LRPDP (paper): ${straight.report.vertices} vertices, ${straight.report.bytes} B` },
-  { title: `smooth LRPDP (default): ${smooth.report.vertices} vertices, ${smooth.report.bytes} B` },
+  { title: meshers
+    ? `screened Poisson (paper): ${straight.report.vertices} vertices, ${straight.report.bytes} B`
+    : `straight LRPDP (paper): ${straight.report.vertices} vertices, ${straight.report.bytes} B` },
+  { title: meshers
+    ? `direct solid (default): ${smooth.report.vertices} vertices, ${smooth.report.bytes} B`
+    : `smooth LRPDP (default): ${smooth.report.vertices} vertices, ${smooth.report.bytes} B` },
 ];
 
 const page = `<!doctype html><html><head><meta charset="utf-8"><style>

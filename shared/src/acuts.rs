@@ -7,6 +7,15 @@
 //! at least `l_eps` from the last kept sample (compared as squared distances, no square root);
 //! the last sample (pen-up) is always kept, so the stroke ends where the pen lifted.
 //!
+//! The repeat rule (on by default, whatever `l_eps`): a sample whose `x` and `y` equal those of
+//! the last kept sample, and whose pressure is within [`DEFAULT_REPEAT_PRESSURE_TOLERANCE`] of
+//! it, is dropped (a pen at rest reports its position again and again). It costs no position
+//! error: the dropped sample lies where a sample stage 2 bounds lies, so it is as near to every
+//! segment as that one. It bounds pressure only against the kept sample at the same position;
+//! against the pressure interpolated in time along its segment (`P_max`) it bounds nothing:
+//! where the pressure ramps while the pen rests, a dropped repeat can be further than `delta_p`
+//! from it (0.253 on the Dutch signatures, `docs/results.md`).
+//!
 //! # Stage 2: windowed simplification ([`Simplifier`], [`simplify`])
 //!
 //! Runs on the proxy over the resampled stream. The state is the anchor `a` (the last retained
@@ -140,6 +149,11 @@ use crate::model::Sample;
 /// within a fraction of a pixel), so the pressure bound of stage 2 would not hold end to end.
 /// With 0 the whole budget goes to stage 2 and both bounds hold end to end.
 pub const DEFAULT_RESAMPLE_DISTANCE: f64 = 0.0;
+/// Default pressure tolerance of stage 1's repeat rule ([`Resampler::repeat_pressure`]): a
+/// sample at the position of the last kept one is dropped when its pressure is within this of
+/// that sample's. The stage-2 pressure tolerance, so that a dropped repeat is never further in
+/// pressure from the sample kept in its place than stage 2 lets a removed sample be.
+pub const DEFAULT_REPEAT_PRESSURE_TOLERANCE: f64 = DEFAULT_PRESSURE_TOLERANCE;
 /// Default chord-height tolerance `d_d` (same unit as x, y; table 3: 0.74): the paper's
 /// guaranteed bound of 1.74 px, all of it for stage 2 (see [`DEFAULT_RESAMPLE_DISTANCE`]).
 pub const DEFAULT_TOLERANCE: f64 = 1.74;
@@ -271,11 +285,13 @@ pub struct Kept {
     pub sample: Sample,
 }
 
-/// Stage 1: streaming chord-length resampler.
+/// Stage 1: streaming chord-length resampler, with the repeat rule (see the module docs).
 #[derive(Debug, Clone)]
 pub struct Resampler {
     /// `l_eps²`: 0 when `l_eps <= 0` (every sample is kept), NaN when `l_eps` is NaN.
     min_distance_sq: f64,
+    /// The repeat rule's pressure tolerance; `None` keeps repeats (then only `l_eps` drops).
+    repeat_pressure: Option<f64>,
     last_kept: Option<Sample>,
     /// The newest sample if it was not kept, with its input index: kept at [`Resampler::finish`].
     pending_tail: Option<(usize, Sample)>,
@@ -283,10 +299,26 @@ pub struct Resampler {
 }
 
 impl Resampler {
+    /// Chord length `l_eps` (`<= 0`: none), and the repeat rule at
+    /// [`DEFAULT_REPEAT_PRESSURE_TOLERANCE`].
     pub fn new(min_distance: f64) -> Resampler {
         let min_distance_sq =
             if min_distance.is_nan() { f64::NAN } else { min_distance.max(0.0).powi(2) };
-        Resampler { min_distance_sq, last_kept: None, pending_tail: None, n_seen: 0 }
+        Resampler {
+            min_distance_sq,
+            repeat_pressure: Some(DEFAULT_REPEAT_PRESSURE_TOLERANCE),
+            last_kept: None,
+            pending_tail: None,
+            n_seen: 0,
+        }
+    }
+
+    /// The repeat rule: drop a sample whose `x` and `y` equal the last kept sample's and whose
+    /// pressure is within `tolerance` of its pressure; `None` keeps every repeat (so with
+    /// `l_eps <= 0` every sample is kept). A negative or NaN tolerance drops nothing either.
+    pub fn repeat_pressure(mut self, tolerance: Option<f64>) -> Resampler {
+        self.repeat_pressure = tolerance;
+        self
     }
 
     /// Pushes the next sample; returns whether it is kept.
@@ -297,7 +329,10 @@ impl Resampler {
             None => true,
             Some(last) => {
                 let (dx, dy) = (s.x - last.x, s.y - last.y);
-                dx * dx + dy * dy >= self.min_distance_sq
+                let repeat = dx == 0.0
+                    && dy == 0.0
+                    && self.repeat_pressure.is_some_and(|tol| (s.p - last.p).abs() <= tol);
+                !repeat && dx * dx + dy * dy >= self.min_distance_sq
             }
         };
         if keep {
@@ -319,7 +354,8 @@ impl Resampler {
     }
 }
 
-/// Stage 1 over a whole stroke: the input indices kept, in order.
+/// Stage 1 over a whole stroke, as [`Resampler::new`] runs it (the repeat rule included): the
+/// input indices kept, in order.
 pub fn resample(samples: &[Sample], min_distance: f64) -> Vec<usize> {
     let mut resampler = Resampler::new(min_distance);
     let mut kept = Vec::with_capacity(samples.len());
@@ -771,11 +807,36 @@ mod tests {
         assert_eq!(resample(&points(&[(0.0, 0.0), (0.0, 0.999), (0.0, 1.5)]), 1.0), [0, 2]);
     }
 
-    // Stage 1 with `l_eps <= 0` keeps every sample, repeated ones too.
+    // Stage 1 with `l_eps <= 0` keeps every sample but repeats of the last kept position.
     #[test]
-    fn resample_zero_distance_keeps_all() {
-        assert_eq!(resample(&points(&[(0.0, 0.0), (0.0, 0.0), (1.0, 1.0)]), 0.0), [0, 1, 2]);
+    fn resample_zero_distance_keeps_all_but_repeats() {
+        let xys = [(0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (1.0, 1.0), (0.0, 0.0)];
+        assert_eq!(resample(&points(&xys), 0.0), [0, 3, 4]);
+        // The pen-up sample is kept even when it repeats.
         assert_eq!(resample(&points(&[(0.0, 0.0), (0.0, 0.0)]), -1.0), [0, 1]);
+    }
+
+    // The repeat rule looks at pressure: a repeat whose pressure moved past the tolerance is
+    // kept, and without the rule every repeat is kept.
+    #[test]
+    fn repeat_rule_keeps_pressure_changes_and_can_be_off() {
+        let stroke = [
+            Sample::new(0.0, 0.0, 0.0, 0.5),
+            Sample::new(0.0, 0.0, 1.0, 0.6),
+            Sample::new(0.0, 0.0, 2.0, 0.71),
+            Sample::new(0.0, 0.0, 3.0, 0.9),
+            Sample::new(0.5, 0.0, 4.0, 0.9),
+        ];
+        let kept = |resampler: Resampler| {
+            let mut resampler = resampler;
+            let mut kept: Vec<usize> =
+                (0..stroke.len()).filter(|&i| resampler.push(stroke[i])).collect();
+            kept.extend(resampler.finish().map(|(i, _)| i));
+            kept
+        };
+        assert_eq!(kept(Resampler::new(0.0)), [0, 2, 4]);
+        assert_eq!(kept(Resampler::new(0.0).repeat_pressure(Some(0.0))), [0, 1, 2, 3, 4]);
+        assert_eq!(kept(Resampler::new(0.0).repeat_pressure(None)), [0, 1, 2, 3, 4]);
     }
 
     // Stage 1 streaming reports each decision and the tail index at finish.

@@ -45,6 +45,9 @@ const MAX_CAP_POINTS: usize = 4096;
 pub const DEFAULT_CLOUD_DEPTH_FACTOR: f64 = 2.0;
 /// Default number of layer spacings in the depth (`d_s = D / 4`).
 pub const DEFAULT_CLOUD_DIVISIONS: u32 = 4;
+/// Most points one layer of a dense cloud ([`CloudOptions::dense`]) gets; past it the points
+/// are spread further apart than `d_s`, so a stroke with far-apart samples cannot exhaust memory.
+pub const MAX_DENSE_LAYER_POINTS: usize = 1 << 20;
 
 /// Below this turn of the tangent sum (`|t_in + t_out|`), a sample is treated as a cusp.
 const CUSP_EPSILON: f64 = 1e-9;
@@ -415,6 +418,11 @@ pub struct CloudOptions {
     pub depth_factor: f64,
     /// `D / d_s`: layers sit at `z = ±xi * d_s` for `xi = 0..=divisions`.
     pub divisions: u32,
+    /// Dense along the stroke: each layer is `T_c` with points added along every edge longer
+    /// than `d_s`, so neighbouring points are at most `d_s` apart along the stroke as they are
+    /// across the layers (what surface reconstruction needs: the outline's own points can be
+    /// tens of px apart on a straight stretch). Off: the points of `T_c` only, as printed.
+    pub dense: bool,
 }
 
 impl CloudOptions {
@@ -427,6 +435,11 @@ impl CloudOptions {
         self.divisions = divisions;
         self
     }
+
+    pub fn dense(mut self, dense: bool) -> CloudOptions {
+        self.dense = dense;
+        self
+    }
 }
 
 impl Default for CloudOptions {
@@ -434,6 +447,7 @@ impl Default for CloudOptions {
         CloudOptions {
             depth_factor: DEFAULT_CLOUD_DEPTH_FACTOR,
             divisions: DEFAULT_CLOUD_DIVISIONS,
+            dense: false,
         }
     }
 }
@@ -461,12 +475,16 @@ impl PointCloud {
 ///
 /// The range of `xi` is read as inclusive, so the cloud spans `[-D, D]` and has
 /// `2 * divisions + 1` layers (9 by default). With `divisions = 0` there is one layer.
+/// With [`CloudOptions::dense`], each layer has points at most `d_s` apart along `T_c`.
 pub fn point_cloud(outline: &Outline, options: &CloudOptions) -> PointCloud {
-    let loop_points = outline.closed();
-    let loop_normals = outline.closed_normals();
     let depth = options.depth_factor * outline.max_radius();
     let divisions = options.divisions;
     let spacing = if divisions == 0 { 0.0 } else { depth / f64::from(divisions) };
+    let (loop_points, loop_normals) = if options.dense {
+        dense_loop(&outline.closed(), &outline.closed_normals(), spacing)
+    } else {
+        (outline.closed(), outline.closed_normals())
+    };
     let mut layers_z = vec![0.0];
     for xi in 1..=divisions {
         let z = f64::from(xi) * spacing;
@@ -483,6 +501,32 @@ pub fn point_cloud(outline: &Outline, options: &CloudOptions) -> PointCloud {
         }
     }
     cloud
+}
+
+/// The closed loop `points` with points added evenly along each edge (the last one back to the
+/// first included) so that none is longer than `max_gap` (or than the loop's length over
+/// [`MAX_DENSE_LAYER_POINTS`]); the added points' normals are the normalised interpolation of
+/// the edge ends' (the start's where that vanishes).
+fn dense_loop(points: &[DVec2], normals: &[DVec2], max_gap: f64) -> (Vec<DVec2>, Vec<DVec2>) {
+    let n = points.len();
+    let edge = |i: usize| (points[i], points[(i + 1) % n]);
+    let length: f64 = (0..n).map(|i| edge(i).0.distance(edge(i).1)).sum();
+    let max_gap = max_gap.max(length / MAX_DENSE_LAYER_POINTS as f64);
+    if n < 2 || max_gap.is_nan() || max_gap <= 0.0 {
+        return (points.to_vec(), normals.to_vec());
+    }
+    let (mut dense_points, mut dense_normals) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        let (from, to) = edge(i);
+        let (n_from, n_to) = (normals[i], normals[(i + 1) % n]);
+        let pieces = (from.distance(to) / max_gap).ceil().max(1.0) as usize;
+        for k in 0..pieces {
+            let f = k as f64 / pieces as f64;
+            dense_points.push(from.lerp(to, f));
+            dense_normals.push(n_from.lerp(n_to, f).try_normalize().unwrap_or(n_from));
+        }
+    }
+    (dense_points, dense_normals)
 }
 
 /// The point cloud as binary little-endian PLY: an ASCII header declaring
@@ -617,6 +661,27 @@ mod tests {
         let out = outline(&[], &Brush::default(), &OutlineOptions::default());
         assert!(out.is_empty() && out.closed().is_empty());
         assert!(point_cloud(&out, &CloudOptions::default()).is_empty());
+    }
+
+    #[test]
+    fn dense_cloud_has_no_gap_over_the_layer_spacing() {
+        // A long straight stroke: T_c has two far-apart points per side; the dense cloud fills
+        // them in at most d_s apart, on the outline, with unit normals.
+        let samples = [Sample::new(0.0, 0.0, 0.0, 1.0), Sample::new(100.0, 0.0, 1.0, 1.0)];
+        let out = outline(&samples, &Brush::default(), &OutlineOptions::default());
+        let sparse = point_cloud(&out, &CloudOptions::default());
+        let dense = point_cloud(&out, &CloudOptions::default().dense(true));
+        let layer = dense.len() / 9;
+        let spacing = 2.0 * 4.0 / 4.0;
+        assert!(dense.len() > 9 * 2 * (100 / 2) && 4 * sparse.len() < dense.len());
+        for k in 0..layer {
+            let (a, b) = (dense.points[k], dense.points[(k + 1) % layer]);
+            assert!(a.distance(b) <= spacing + 1e-9, "{a} to {b}");
+            // On the capsule of radius 4 round the stroke (a cap's chords sag by under 0.1).
+            let to_stroke = a.truncate().distance(DVec2::new(a.x.clamp(0.0, 100.0), 0.0));
+            assert!((3.9..=4.0 + 1e-9).contains(&to_stroke), "{a} is off the outline");
+            assert!((dense.normals[k].length() - 1.0).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -359,6 +359,44 @@ proptest! {
         prop_assert_eq!(kept, out.kept);
     }
 
+    // Stage 1's repeat rule (l_eps 0): a sample is dropped iff its x and y equal the last kept
+    // sample's and its pressure is within the tolerance (the pen-up sample is always kept);
+    // and stage 2 behind it keeps its position bound over every drawn sample, the dropped
+    // repeats included.
+    #[test]
+    fn repeat_rule_drops_exact_repeats_only(
+        samples in stroke(),
+        tolerance in prop_oneof![Just(0.0), Just(0.2), 0.0..1.0],
+        params in params(),
+    ) {
+        let mut resampler = Resampler::new(0.0).repeat_pressure(Some(tolerance));
+        let mut sent: Vec<usize> = (0..samples.len()).filter(|&i| resampler.push(samples[i])).collect();
+        sent.extend(resampler.finish().map(|(index, _)| index));
+        check_structure(samples.len(), &sent);
+        let mut last_kept: Option<&Sample> = None;
+        for (index, s) in samples.iter().enumerate() {
+            let repeat = last_kept.is_some_and(|k| {
+                k.x == s.x && k.y == s.y && (s.p - k.p).abs() <= tolerance
+            });
+            let is_sent = sent.binary_search(&index).is_ok();
+            prop_assert_eq!(is_sent, !repeat || index + 1 == samples.len(), "sample {}", index);
+            if is_sent {
+                last_kept = Some(s);
+            }
+        }
+        let input: Vec<Sample> = sent.iter().map(|&i| samples[i]).collect();
+        let kept: Vec<usize> = simplify(&input, &params).into_iter().map(|k| sent[k]).collect();
+        for w in kept.windows(2) {
+            let (a, e) = (&samples[w[0]], &samples[w[1]]);
+            for q in &samples[w[0] + 1..w[1]] {
+                prop_assert!(
+                    segment_distance(q, a, e) <= params.tolerance + slack(a, q, e),
+                    "{:?} is {} from {:?}-{:?}", q, segment_distance(q, a, e), a, e
+                );
+            }
+        }
+    }
+
     // No stroke of finite values panics, whatever their magnitude, and the output keeps its
     // structure (first and last kept, strictly increasing, stage 2 within stage 1).
     #[test]

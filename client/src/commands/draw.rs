@@ -30,9 +30,14 @@ pub struct LiveArgs {
     /// store each stroke's mesh this many seconds without progress.
     #[arg(long, default_value_t = crate::draw_options::DEFAULT_RETRY_SECS)]
     pub retry_for: u64,
-    /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample.
+    /// Stage-1 chord-length resampling distance l_eps (px); 0 streams every sample but the
+    /// repeats (see --keep-repeats).
     #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
     pub resample: f64,
+    /// Stream samples that repeat the last sent position too. By default stage 1 drops a
+    /// sample at the position of the last one it kept when its pressure is within 0.2 of it.
+    #[arg(long)]
+    pub keep_repeats: bool,
     /// Brush size E (px): the radius at full pressure with a pressure response of 1.
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
     pub brush_size: f64,
@@ -223,6 +228,11 @@ pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOp
     Ok(DrawOptions {
         brush,
         resample: live.resample,
+        repeat_pressure: if live.keep_repeats {
+            None
+        } else {
+            Some(penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE)
+        },
         batch_interval: Duration::from_millis(live.batch_ms),
         batch_samples: live.batch_size,
         retry_for: Duration::from_secs(live.retry_for),

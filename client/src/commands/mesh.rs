@@ -1,4 +1,5 @@
-//! `penmesh mesh`: simplify with ACUTS, build the LRPDP solid, write binary glTF.
+//! `penmesh mesh`: simplify with ACUTS, build the LRPDP solid (or, with `--mesher poisson`, the
+//! paper's screened Poisson mesh of the layered point cloud), write binary glTF.
 
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -13,6 +14,7 @@ use serde_json::json;
 
 use crate::commands::args::GlbArg;
 use crate::io;
+use crate::poisson::{self, PoissonOptions};
 
 #[derive(Debug, Args)]
 pub struct MeshArgs {
@@ -28,6 +30,13 @@ pub struct MeshArgs {
     /// Also write the layered point cloud (the paper's Poisson input) as PLY.
     #[arg(long, value_name = "PATH")]
     pub ply: Option<PathBuf>,
+    /// How the mesh is built from the outline: the direct closed solid, or the paper's screened
+    /// Poisson reconstruction of the dense layered point cloud (seconds, not milliseconds).
+    #[arg(long, value_enum, default_value_t = Mesher::Direct)]
+    pub mesher: Mesher,
+    /// With --mesher poisson: the width of the reconstruction's finest cell, px.
+    #[arg(long, default_value_t = poisson::DEFAULT_CELL)]
+    pub poisson_cell: f64,
     /// Brush size E (px): the radius at full pressure with a pressure response of 1.
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
     pub brush_size: f64,
@@ -57,8 +66,41 @@ pub enum CentrelineKind {
     Straight,
 }
 
+/// `penmesh mesh --mesher` and the meshers `penmesh eval --meshes` compares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mesher {
+    /// The LRPDP solid, built directly from the outline (`penmesh::solid_mesh`).
+    Direct,
+    /// The paper's path: screened Poisson of the layered point cloud (`crate::poisson`).
+    Poisson,
+}
+
+impl Mesher {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mesher::Direct => "direct",
+            Mesher::Poisson => "poisson",
+        }
+    }
+}
+
+/// The mesh of one outline by `mesher` (the direct solid with its default thickness).
+pub fn build_mesh(
+    mesher: Mesher,
+    outline: &penmesh::Outline,
+    poisson: &PoissonOptions,
+) -> StrokeMesh {
+    match mesher {
+        Mesher::Direct => penmesh::solid_mesh(outline, &SolidOptions::default()),
+        Mesher::Poisson => poisson::poisson_mesh(outline, poisson),
+    }
+}
+
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let params = args.acuts.params()?;
+    let poisson_options = PoissonOptions { cell: args.poisson_cell, ..PoissonOptions::default() };
+    poisson_options.validate()?;
     let brush = Brush {
         size: args.brush_size,
         pressure_response: args.pressure_response,
@@ -96,7 +138,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         .map(|(stroke, kept)| penmesh::fitted_outline(stroke, kept, &brush, &outline_options))
         .collect::<Result<Vec<_>, _>>()?;
     let meshes: Vec<StrokeMesh> =
-        outlines.iter().map(|o| penmesh::solid_mesh(o, &solid_options)).collect();
+        outlines.iter().map(|o| build_mesh(args.mesher, o, &poisson_options)).collect();
     let metas: Vec<GlbMeta> = (0..meshes.len())
         .map(|_| GlbMeta { stroke: uuid::Uuid::new_v4(), author: "penmesh mesh".into(), brush })
         .collect();
@@ -159,6 +201,8 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 "miter": outline_options.miter,
                 "thickness": solid_options.thickness,
                 "glb": args.glb.to_possible_value().map(|v| v.get_name().to_owned()),
+                "mesher": args.mesher,
+                "poisson_cell": args.poisson_cell,
             },
         });
         // Written, not printed: a closed pipe is an error to report, not a panic.
@@ -168,9 +212,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "{}: {} strokes, {n_input} samples -> {n_kept} kept; {vertices} vertices, {triangles} triangles, {} bytes{}",
+        "{}: {} strokes, {n_input} samples -> {n_kept} kept; {} mesh: {vertices} vertices, {triangles} triangles, {} bytes{}",
         args.out.display(),
         strokes.len(),
+        args.mesher.name(),
         glb.len(),
         match args.glb {
             GlbArg::Meshopt => " (quantised, meshopt-compressed)",

@@ -283,7 +283,7 @@ impl Live {
                     Pen::Up | Pen::Down => {
                         let index = self.strokes.len();
                         let device = self.stroke_devices.get(index).unwrap_or(&self.device).clone();
-                        self.strokes.push(StrokeLog::new(index, device, self.options.resample));
+                        self.strokes.push(StrokeLog::new(index, device, self.options.resampler()));
                         self.pen = Pen::Drawing(index);
                         index
                     }

@@ -36,13 +36,13 @@ pub(super) struct StrokeLog {
 
 impl StrokeLog {
     /// A stroke that has just started: nothing kept, nothing sent.
-    pub(super) fn new(index: usize, device: String, resample: f64) -> StrokeLog {
+    pub(super) fn new(index: usize, device: String, resampler: Resampler) -> StrokeLog {
         StrokeLog {
             // Time-ordered (UUIDv7): the database's indexes of stroke ids grow at their end.
             id: Uuid::now_v7(),
             index,
             device,
-            resampler: Resampler::new(resample),
+            resampler,
             drawn: Vec::new(),
             resampled_from: Vec::new(),
             unacked: VecDeque::new(),
@@ -134,7 +134,7 @@ mod tests {
     use super::*;
 
     fn stroke_with(kept: usize, sent: u64) -> StrokeLog {
-        let mut s = StrokeLog::new(0, String::new(), 0.0);
+        let mut s = StrokeLog::new(0, String::new(), Resampler::new(0.0));
         for i in 0..kept {
             s.keep(i, Sample::new(i as f64, 0.0, i as f64, 0.5));
         }

@@ -8,6 +8,8 @@
 // resume finds our stroke already done.
 
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
+// Stage 1's repeat rule, as the native client's (penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE).
+const REPEAT_PRESSURE = 0.2;
 const FLUSH_MS = 16;
 // A page that only watches sends a Ping after this long without sending anything (ms): the
 // proxy closes a connection that sends nothing for --idle-timeout-secs (60 s by default), and
@@ -181,7 +183,11 @@ export class Connection {
     const [position, time, pressure] = this.grid;
     const samples = this.pending.samples;
     const prev = samples[samples.length - 1];
-    samples.push([snap(x, position), snap(y, position), Math.max(prev ? prev[2] : 0, snap(t, time)), snap(p, pressure)]);
+    const sample = [snap(x, position), snap(y, position), Math.max(prev ? prev[2] : 0, snap(t, time)), snap(p, pressure)];
+    // Stage 1 (docs/web.md), as the native client: a repeat of the last kept position whose
+    // pressure is within REPEAT_PRESSURE of it is dropped.
+    const repeat = prev && sample[0] === prev[0] && sample[1] === prev[1] && Math.abs(sample[3] - prev[3]) <= REPEAT_PRESSURE;
+    if (!repeat) samples.push(sample);
   }
 
   /// Keeps every sample for a reload, and sends the unsent ones when `force` or FLUSH_MS have

@@ -14,18 +14,29 @@
 //! drops samples within `l_eps` of a sample that stage 2 then bounds by `d_d`), the others their
 //! tolerance. So the baselines and optimal min-# run at `B = d_d + l_eps`. In a sweep, ACUTS
 //! keeps the ratio of `d_d` to `l_eps` and scales both to each bound.
+//!
+//! **Stage 1's repeat rule** (the clients' default, `penmesh::Resampler`) is not part of the
+//! `acuts` rows, which run stage 2 over every sample as `penmesh::acuts` does; each data set's
+//! stage-1 table shows what it changes.
+//!
+//! **`--meshes`** runs the paper's table 8 instead (`table8.rs`): both meshers, the paper's
+//! four curves and the data sets given.
 
 mod algos;
 mod data;
 mod glb_sizes;
 mod meshes;
 mod report;
+mod stage1;
+mod table8;
 
 use self::algos::*;
 use self::data::*;
 use self::glb_sizes::*;
 use self::meshes::*;
 use self::report::*;
+use self::stage1::*;
+use self::table8::*;
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -37,8 +48,8 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use penmesh::baselines::{BASELINE_NAMES, Simplify, baseline, min_points};
 use penmesh::{
-    AcutsParams, Brush, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Sample, SolidOptions,
-    SvgStroke,
+    AcutsParams, Brush, GlbMeta, GlbOptions, GlbStroke, OutlineOptions, Resampler, Sample,
+    SolidOptions, StrokeMesh, SvgStroke,
 };
 use serde::Serialize;
 
@@ -56,9 +67,10 @@ pub struct EvalArgs {
     pub inputs: Vec<PathBuf>,
     /// Algorithms, comma separated: acuts, acuts-paper, dp, vw, window, window-d, window-p,
     /// squish-e, bqs, fbqs, dpts, optimal, optimal-p (window-p and optimal-p also bound the
-    /// pressure error by ACUTS's pressure tolerance).
-    #[arg(long, value_delimiter = ',', default_value = DEFAULT_ALGOS)]
-    pub algos: Vec<String>,
+    /// pressure error by ACUTS's pressure tolerance). Default: all but window-d; with --meshes,
+    /// the paper's five (bqs, dp, window, squish-e, dpts), acuts-paper, acuts and optimal.
+    #[arg(long, value_delimiter = ',')]
+    pub algos: Option<Vec<String>>,
     /// ACUTS's setting; the bound of every method is d_d + l_eps.
     #[command(flatten)]
     pub acuts: AcutsArgs,
@@ -93,6 +105,19 @@ pub struct EvalArgs {
     /// (client/web/test/glb-check.mjs).
     #[arg(long, value_name = "DIR", requires = "glb_sizes")]
     pub glb_out: Option<PathBuf>,
+    /// The paper's table 8 instead of the simplification tables: the meshes of the paper's four
+    /// curves (generated at 300 px/s) and of the data sets given, by the paper's screened
+    /// Poisson and by the direct solid; --json then writes one row per curve, method and mesher.
+    /// Poisson takes seconds a stroke.
+    #[arg(long, conflicts_with_all = ["sweep", "plots", "synth"])]
+    pub meshes: bool,
+    /// With --meshes: the generated curves (figure8, semicircles, chromosome, leaf, scribble;
+    /// default the paper's four); `--curves ''` for none.
+    #[arg(long, value_delimiter = ',')]
+    pub curves: Option<Vec<String>>,
+    /// With --meshes: the width of the Poisson reconstruction's finest cell, px.
+    #[arg(long, default_value_t = crate::poisson::DEFAULT_CELL)]
+    pub poisson_cell: f64,
 }
 
 /// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
@@ -142,6 +167,8 @@ pub struct DataSetReport {
     /// The file the overlay figures show.
     pub overlay_file: Option<String>,
     pub rows: Vec<Row>,
+    /// ACUTS with stage 1's repeat rule off and on.
+    pub stage1: Vec<Stage1Row>,
     pub mesh: Vec<MeshRow>,
     /// The straight and the smooth centreline of ACUTS's simplification, against the raw path.
     pub centreline: Vec<CentrelineRow>,
@@ -164,7 +191,11 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     if let Some(scale) = args.px_per_unit {
         anyhow::ensure!(scale.is_finite() && scale > 0.0, "--px-per-unit must be > 0");
     }
-    let algos = algos(&args.algos, (args.acuts.resample, params))?;
+    if args.meshes {
+        return run_meshes(args, params);
+    }
+    let names = args.algos.clone().unwrap_or_else(|| split_names(DEFAULT_ALGOS));
+    let algos = algos(&names, (args.acuts.resample, params))?;
     let mut data_sets = load_data_sets(&args.inputs, args.px_per_unit)?;
     if args.synth {
         data_sets.push(synthetic_data_set()?);
@@ -228,6 +259,45 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.json {
         io::write_file(path, serde_json::to_string_pretty(&report)?)?;
+    }
+    Ok(())
+}
+
+fn split_names(names: &str) -> Vec<String> {
+    names.split(',').map(str::to_owned).collect()
+}
+
+/// `--meshes`: table 8, printed as Markdown; `--markdown` and `--json` write it.
+fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
+    let poisson = crate::poisson::PoissonOptions { cell: args.poisson_cell, ..Default::default() };
+    poisson.validate()?;
+    let names = args.algos.clone().unwrap_or_else(|| split_names(MESH_ALGOS));
+    let algos = algos(&names, (args.acuts.resample, params))?;
+    let shapes = match &args.curves {
+        None => CURVES.to_vec(),
+        Some(names) => names
+            .iter()
+            .filter(|name| !name.trim().is_empty())
+            .map(|name| name.trim().parse::<penmesh::Shape>())
+            .collect::<Result<_, _>>()?,
+    };
+    let curves = curves(&shapes, load_data_sets(&args.inputs, args.px_per_unit)?)?;
+    let bound = args.acuts.tolerance + args.acuts.resample;
+    let work: usize = curves.iter().map(|c| c.n_strokes() * (algos.len() + 1) * 2).sum();
+    let progress = ProgressBar::new(work as u64).with_style(
+        ProgressStyle::with_template("{msg:>18} [{bar:40}] {pos}/{len} meshes ({eta})")
+            .context("progress bar style")?
+            .progress_chars("=> "),
+    );
+    let rows = mesh_rows(&curves, &algos, bound, &poisson, &progress)?;
+    progress.finish_and_clear();
+    let markdown = mesh_markdown(&rows, &poisson);
+    print!("{markdown}");
+    if let Some(path) = &args.markdown {
+        io::write_file(path, &markdown)?;
+    }
+    if let Some(path) = &args.json {
+        io::write_file(path, serde_json::to_string_pretty(&rows)?)?;
     }
     Ok(())
 }
@@ -333,6 +403,12 @@ fn evaluate(
         });
         kept_by_algo.push(kept);
     }
+    let stage1 = match algos.iter().find(|a| a.name == "acuts").map(|a| &a.method) {
+        Some(Method::Acuts { resample, params }) => {
+            stage1_table(data_set, *resample, params, &optimal)
+        }
+        _ => Vec::new(),
+    };
     let mesh = mesh_table(data_set, algos, &kept_by_algo, progress);
     let centreline = match algos.iter().position(|a| a.name == "acuts") {
         Some(i) => centreline_table(data_set, &kept_by_algo[i], bound),
@@ -363,6 +439,7 @@ fn evaluate(
         bound,
         overlay_file: data_set.files.first().map(|f| f.name.clone()),
         rows,
+        stage1,
         mesh,
         centreline,
         sweep: points,

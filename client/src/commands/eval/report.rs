@@ -75,6 +75,32 @@ pub fn markdown(report: &EvalReport) -> String {
                 r.ratio_at_reached
             );
         }
+        if !d.stage1.is_empty() {
+            let _ = writeln!(
+                md,
+                "\nStage 1 of the clients (ACUTS's setting; stage 2 over what stage 1 sent; \
+                 errors over every drawn sample):\n"
+            );
+            table_head(
+                &mut md,
+                &["stage 1", "N", "sent", "sent %", "C", "C / opt at B", "E_max px", "P_max"],
+                1,
+            );
+            for r in &d.stage1 {
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {:.1} | {} | {:.3} | {:.3} | {:.3} |",
+                    r.stage1,
+                    r.n,
+                    r.sent,
+                    ratio(r.sent, r.n) * 100.0,
+                    r.c,
+                    r.ratio_at_bound,
+                    r.e_max,
+                    r.p_max
+                );
+            }
+        }
         let _ = writeln!(md, "\nMeshes (LRPDP solid, default brush, one GLB per file):\n");
         table_head(
             &mut md,

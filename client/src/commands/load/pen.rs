@@ -94,7 +94,8 @@ pub(super) fn histogram() -> Histogram<u64> {
 }
 
 /// The strokes the pens draw: every shape at the run's rate and speed, several seeds, with
-/// samples snapped to the codec's grid (what the proxy stores is then what was sent).
+/// samples snapped to the codec's grid (what the proxy stores is then what was sent), and what
+/// the native client's default stage 1 keeps of them (`penmesh::resample`: repeats dropped).
 pub(super) fn stroke_pool(plan: &Plan) -> anyhow::Result<Vec<Arc<Vec<Sample>>>> {
     (0..STROKE_POOL)
         .map(|k| {
@@ -107,7 +108,9 @@ pub(super) fn stroke_pool(plan: &Plan) -> anyhow::Result<Vec<Arc<Vec<Sample>>>> 
             };
             let stroke = penmesh::generate_stroke(&params)
                 .map_err(|e| anyhow::anyhow!("cannot generate the strokes: {e}"))?;
-            Ok(Arc::new(stroke.samples().iter().map(quantize_sample).collect()))
+            let drawn: Vec<Sample> = stroke.samples().iter().map(quantize_sample).collect();
+            let kept = penmesh::resample(&drawn, penmesh::DEFAULT_RESAMPLE_DISTANCE);
+            Ok(Arc::new(kept.into_iter().map(|i| drawn[i]).collect()))
         })
         .collect()
 }

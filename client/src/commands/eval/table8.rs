@@ -1,0 +1,306 @@
+//! `penmesh eval --meshes`: the paper's table 8 in one run, with both meshers.
+//!
+//! For each curve (the paper's four classic contours from the generator at 300 px/s, one stroke
+//! each, and each data set of real recordings, summed over its strokes), each simplifier and the
+//! unsimplified stroke ("original"), and each mesher (the paper's screened Poisson of the layered
+//! point cloud, and the direct solid): the vertices N', the triangles F, the GLB bytes S (one
+//! GLB per stroke), the time T (outline, mesh and GLB), and the reductions against the BQS
+//! Poisson mesh of the same curve as the paper's table 7 defines them, `(1 - x / x_BQS) × 100 %`.
+//! Each mesh is measured against the mesh of the unsimplified stroke by the same mesher (the
+//! paper's reference mesh): the Hausdorff distance both ways, the largest over the curve's
+//! strokes. Both meshers build on the same outline (the default smooth centreline, checked
+//! against the raw samples), so the meshers are the only difference between a curve's halves.
+
+use super::*;
+use crate::commands::mesh::{Mesher, build_mesh};
+use crate::mesh_distance::{Hausdorff, hausdorff};
+use crate::poisson::PoissonOptions;
+
+/// The simplifiers of `--meshes` unless `--algos` says otherwise: the paper's five (BQS, IDP as
+/// Douglas–Peucker, ISWTC as the opening window, PSQUISH-E as SQUISH-E, ODPTS as DPTS), ACUTS
+/// in the paper's setting and in the default one, and the optimum.
+pub(super) const MESH_ALGOS: &str = "bqs,dp,window,squish-e,dpts,acuts-paper,acuts,optimal";
+/// The paper's four classic contours (table 8), generated at its typical speed.
+pub(super) const CURVES: [penmesh::Shape; 4] = [
+    penmesh::Shape::Figure8,
+    penmesh::Shape::Semicircles,
+    penmesh::Shape::Chromosome,
+    penmesh::Shape::Leaf,
+];
+const CURVE_SPEED_PX_PER_S: f64 = 300.0;
+/// The row every `eta` is measured against.
+const ETA_ALGO: &str = "bqs";
+const ETA_MESHER: Mesher = Mesher::Poisson;
+
+/// One row of table 8: a curve, a simplifier (or "original") and a mesher.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshEvalRow {
+    pub curve: String,
+    pub algo: String,
+    pub mesher: Mesher,
+    /// Samples the meshes are built from (C; N for "original").
+    pub samples: usize,
+    pub vertices: usize,
+    pub faces: usize,
+    pub bytes: usize,
+    pub seconds: f64,
+    /// Reductions against the BQS Poisson mesh of the same curve, % (`None` without `bqs`).
+    pub eta_vertices: Option<f64>,
+    pub eta_faces: Option<f64>,
+    pub eta_bytes: Option<f64>,
+    pub eta_seconds: Option<f64>,
+    /// Against the same mesher's mesh of the unsimplified strokes, px, the largest over the
+    /// curve's strokes (`None` when a mesh is empty).
+    pub hausdorff: Option<Hausdorff>,
+}
+
+/// The curves of table 8: the generated contours, then the data sets given.
+pub(super) fn curves(
+    shapes: &[penmesh::Shape],
+    mut data_sets: Vec<DataSet>,
+) -> anyhow::Result<Vec<DataSet>> {
+    let mut curves = Vec::with_capacity(shapes.len() + data_sets.len());
+    for &shape in shapes {
+        let params = penmesh::GeneratorParams {
+            shape,
+            speed: CURVE_SPEED_PX_PER_S,
+            ..penmesh::GeneratorParams::default()
+        };
+        let stroke =
+            penmesh::generate_stroke(&params).map_err(|e| anyhow::anyhow!("generator: {e}"))?;
+        let file = DataFile { name: shape.name().into(), strokes: vec![stroke.into_samples()] };
+        curves.push(DataSet { name: shape.name().into(), files: vec![file] });
+    }
+    curves.append(&mut data_sets);
+    Ok(curves)
+}
+
+/// Every row of table 8 for `curves`.
+pub(super) fn mesh_rows(
+    curves: &[DataSet],
+    algos: &[Algo],
+    bound: f64,
+    poisson: &PoissonOptions,
+    progress: &ProgressBar,
+) -> anyhow::Result<Vec<MeshEvalRow>> {
+    let mut rows = Vec::new();
+    for curve in curves {
+        progress.set_message(curve.name.clone());
+        let strokes: Vec<&[Sample]> = curve.strokes().collect();
+        let mut kept_by_algo: Vec<(String, Vec<Vec<usize>>)> =
+            vec![("original".into(), strokes.iter().map(|s| (0..s.len()).collect()).collect())];
+        for algo in algos {
+            kept_by_algo
+                .push((algo.name.clone(), strokes.iter().map(|s| algo.run(s, bound)).collect()));
+        }
+        let first_row = rows.len();
+        for mesher in [Mesher::Poisson, Mesher::Direct] {
+            let mut references: Vec<StrokeMesh> = Vec::new();
+            for (algo, kept) in &kept_by_algo {
+                let mut row = MeshEvalRow {
+                    curve: curve.name.clone(),
+                    algo: algo.clone(),
+                    mesher,
+                    samples: kept.iter().map(Vec::len).sum(),
+                    vertices: 0,
+                    faces: 0,
+                    bytes: 0,
+                    seconds: 0.0,
+                    eta_vertices: None,
+                    eta_faces: None,
+                    eta_bytes: None,
+                    eta_seconds: None,
+                    hausdorff: Some(Hausdorff { to_reference: 0.0, from_reference: 0.0 }),
+                };
+                for (stroke_idx, (samples, kept)) in strokes.iter().zip(kept).enumerate() {
+                    let (mesh, bytes, seconds) =
+                        stroke_mesh(samples, kept, bound, mesher, poisson)?;
+                    row.vertices += mesh.stats().vertices;
+                    row.faces += mesh.stats().triangles;
+                    row.bytes += bytes;
+                    row.seconds += seconds;
+                    if references.len() < strokes.len() {
+                        references.push(mesh);
+                    } else {
+                        let h = hausdorff(&mesh, &references[stroke_idx]);
+                        row.hausdorff = row.hausdorff.zip(h).map(|(a, b)| Hausdorff {
+                            to_reference: a.to_reference.max(b.to_reference),
+                            from_reference: a.from_reference.max(b.from_reference),
+                        });
+                    }
+                    progress.inc(1);
+                }
+                rows.push(row);
+            }
+        }
+        let curve_rows = &mut rows[first_row..];
+        let reference = curve_rows
+            .iter()
+            .find(|r| r.algo == ETA_ALGO && r.mesher == ETA_MESHER)
+            .map(|r| (r.vertices as f64, r.faces as f64, r.bytes as f64, r.seconds));
+        if let Some((vertices, faces, bytes, seconds)) = reference {
+            let eta = |x: f64, of: f64| (of > 0.0).then(|| (1.0 - x / of) * 100.0);
+            for r in curve_rows {
+                r.eta_vertices = eta(r.vertices as f64, vertices);
+                r.eta_faces = eta(r.faces as f64, faces);
+                r.eta_bytes = eta(r.bytes as f64, bytes);
+                r.eta_seconds = eta(r.seconds, seconds);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// One stroke's mesh from its retained samples by `mesher`: the mesh, its GLB's bytes and the
+/// seconds from the outline to the GLB.
+fn stroke_mesh(
+    samples: &[Sample],
+    kept: &[usize],
+    bound: f64,
+    mesher: Mesher,
+    poisson: &PoissonOptions,
+) -> anyhow::Result<(StrokeMesh, usize, f64)> {
+    let brush = Brush::default();
+    let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
+    let options = OutlineOptions::default().centreline(smooth);
+    let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
+    let started = Instant::now();
+    let outline = penmesh::fitted_outline(samples, kept, &brush, &options)?;
+    let mesh = build_mesh(mesher, &outline, poisson);
+    let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
+    Ok((mesh, glb.len(), started.elapsed().as_secs_f64()))
+}
+
+/// Table 8 as Markdown: one table per curve, as the paper's, both meshers; then how much larger
+/// and slower the Poisson mesh is than the direct solid of the same samples.
+pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "Meshes (table 8): Poisson = screened Poisson of the dense layered point cloud (finest \
+         cell {} px), direct = the LRPDP solid; same outline for both; eta against the BQS \
+         Poisson mesh of the curve; Hausdorff against the same mesher's mesh of the \
+         unsimplified strokes (sampled every {} px).\n",
+        poisson.cell,
+        crate::mesh_distance::SAMPLE_STEP
+    );
+    let percent = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.1}"));
+    let mut curves: Vec<&str> = Vec::new();
+    for r in rows {
+        if !curves.contains(&r.curve.as_str()) {
+            curves.push(&r.curve);
+        }
+    }
+    for curve in &curves {
+        let _ = writeln!(md, "#### {curve}\n");
+        let _ = writeln!(
+            md,
+            "| method | mesher | C | N' | eta N' % | F | eta F % | S MB | eta S % | T s | eta T % | H mesh→ref px | H ref→mesh px |"
+        );
+        let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+        for r in rows.iter().filter(|r| r.curve == *curve) {
+            let (to, from) = r.hausdorff.map_or(("-".into(), "-".into()), |h| {
+                (format!("{:.3}", h.to_reference), format!("{:.3}", h.from_reference))
+            });
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} | {:.3} | {} | {:.4} | {} | {to} | {from} |",
+                r.algo,
+                r.mesher.name(),
+                r.samples,
+                r.vertices,
+                percent(r.eta_vertices),
+                r.faces,
+                percent(r.eta_faces),
+                r.bytes as f64 / 1e6,
+                percent(r.eta_bytes),
+                r.seconds,
+                percent(r.eta_seconds),
+            );
+        }
+        md.push('\n');
+    }
+    let _ = writeln!(
+        md,
+        "Poisson against the direct solid of the same samples (smallest ratio over the methods of \
+         each curve, the unsimplified strokes included):\n"
+    );
+    let _ = writeln!(md, "| curve | vertices × | bytes × | time × |");
+    let _ = writeln!(md, "|---|---:|---:|---:|");
+    for curve in &curves {
+        let mut ratios = [f64::INFINITY; 3];
+        for direct in rows.iter().filter(|r| r.curve == *curve && r.mesher == Mesher::Direct) {
+            let Some(poisson) = rows.iter().find(|r| {
+                r.curve == *curve && r.algo == direct.algo && r.mesher == Mesher::Poisson
+            }) else {
+                continue;
+            };
+            let pairs = [
+                (poisson.vertices as f64, direct.vertices as f64),
+                (poisson.bytes as f64, direct.bytes as f64),
+                (poisson.seconds, direct.seconds),
+            ];
+            for (ratio, (p, d)) in ratios.iter_mut().zip(pairs) {
+                *ratio = ratio.min(p / d);
+            }
+        }
+        let _ =
+            writeln!(md, "| {curve} | {:.0} | {:.0} | {:.0} |", ratios[0], ratios[1], ratios[2]);
+    }
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_have_the_fields_and_bqs_poisson_is_the_eta_reference() {
+        // One small generated stroke (a coarse cell keeps Poisson quick): one row per method
+        // (and "original") and mesher, with every field of the JSON, and eta 0 for BQS's
+        // Poisson mesh, the reference of every eta.
+        let params = penmesh::GeneratorParams {
+            shape: penmesh::Shape::Leaf,
+            size: 30.0,
+            ..penmesh::GeneratorParams::default()
+        };
+        let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
+        let curve = DataSet {
+            name: "leaf".into(),
+            files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
+        };
+        let algos = algos(&["bqs".into(), "acuts".into()], (0.0, AcutsParams::default())).unwrap();
+        let poisson = PoissonOptions { cell: 3.0, ..PoissonOptions::default() };
+        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, &ProgressBar::hidden()).unwrap();
+        let json = serde_json::to_value(&rows).unwrap();
+        let rows = json.as_array().unwrap();
+        assert_eq!(rows.len(), 3 * 2);
+        let fields = [
+            "curve",
+            "algo",
+            "mesher",
+            "vertices",
+            "faces",
+            "bytes",
+            "seconds",
+            "eta_vertices",
+            "eta_faces",
+            "eta_bytes",
+            "eta_seconds",
+            "hausdorff",
+        ];
+        for row in rows {
+            for field in fields {
+                assert!(row.get(field).is_some(), "{field} missing from {row}");
+            }
+            assert!(row["vertices"].as_u64().unwrap() > 0 && row["bytes"].as_u64().unwrap() > 0);
+            assert!(row["hausdorff"]["to_reference"].as_f64().unwrap() >= 0.0, "{row}");
+        }
+        let bqs = rows.iter().find(|r| r["algo"] == "bqs" && r["mesher"] == "poisson").unwrap();
+        for eta in ["eta_vertices", "eta_faces", "eta_bytes", "eta_seconds"] {
+            assert_eq!(bqs[eta].as_f64(), Some(0.0), "{bqs}");
+        }
+        let direct = rows.iter().find(|r| r["algo"] == "bqs" && r["mesher"] == "direct").unwrap();
+        assert!(direct["eta_bytes"].as_f64().unwrap() > 0.0, "{direct}");
+    }
+}

@@ -1,0 +1,140 @@
+//! How far apart two meshes are: the Hausdorff distance in both directions, the largest
+//! distance from a point of one surface to the other surface.
+//!
+//! Sampled, as Metro and MeshLab do: every triangle of the measured mesh is cut into a grid of
+//! points at most [`SAMPLE_STEP`] apart (its vertices, edges and inside), and each point's
+//! distance to the other mesh's triangles is exact (parry's bounding-volume tree). Every point of
+//! a triangle lies within `SAMPLE_STEP` of a sample, so the true distance is at most the sampled
+//! one plus `SAMPLE_STEP`, and at least the sampled one.
+
+use glam::DVec3;
+use nalgebra::Point3;
+use parry3d_f64::query::PointQuery as _;
+use parry3d_f64::shape::TriMesh;
+use penmesh::StrokeMesh;
+use serde::Serialize;
+
+/// Largest distance between neighbouring samples on a triangle, in the meshes' unit (px).
+pub const SAMPLE_STEP: f64 = 0.25;
+
+/// The Hausdorff distance of a mesh to a reference, both directions, in the meshes' unit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Hausdorff {
+    /// Largest distance from a point of the mesh to the reference.
+    pub to_reference: f64,
+    /// Largest distance from a point of the reference to the mesh.
+    pub from_reference: f64,
+}
+
+impl Hausdorff {
+    /// The symmetric Hausdorff distance, the larger of the two.
+    pub fn max(&self) -> f64 {
+        self.to_reference.max(self.from_reference)
+    }
+}
+
+/// Both directed distances between `mesh` and `reference`; `None` when either has no triangle.
+pub fn hausdorff(mesh: &StrokeMesh, reference: &StrokeMesh) -> Option<Hausdorff> {
+    let (mesh_tree, reference_tree) = (tree(mesh)?, tree(reference)?);
+    Some(Hausdorff {
+        to_reference: largest(&surface_samples(mesh), &reference_tree),
+        from_reference: largest(&surface_samples(reference), &mesh_tree),
+    })
+}
+
+/// The largest distance from one of `points` to the surface of `mesh` (infinite for a mesh
+/// without triangles, 0 for no points).
+pub fn largest_distance(points: &[DVec3], mesh: &StrokeMesh) -> f64 {
+    let Some(tree) = tree(mesh) else { return f64::INFINITY };
+    let points: Vec<Point3<f64>> = points.iter().map(|p| Point3::new(p.x, p.y, p.z)).collect();
+    largest(&points, &tree)
+}
+
+fn tree(mesh: &StrokeMesh) -> Option<TriMesh> {
+    let vertices = mesh.positions.iter().map(|p| point(*p)).collect();
+    TriMesh::new(vertices, mesh.triangles().collect()).ok()
+}
+
+fn point(p: [f32; 3]) -> Point3<f64> {
+    Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
+}
+
+fn largest(points: &[Point3<f64>], surface: &TriMesh) -> f64 {
+    points.iter().map(|p| surface.distance_to_local_point(p, false)).fold(0.0, f64::max)
+}
+
+/// Points on every triangle of `mesh`, a barycentric grid at most [`SAMPLE_STEP`] apart.
+fn surface_samples(mesh: &StrokeMesh) -> Vec<Point3<f64>> {
+    let mut samples = Vec::new();
+    for [a, b, c] in mesh.triangles() {
+        let (a, b, c) = (
+            point(mesh.positions[a as usize]),
+            point(mesh.positions[b as usize]),
+            point(mesh.positions[c as usize]),
+        );
+        let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
+        // A cut of `n` pieces along every edge puts each point within longest / n of a sample.
+        let n = (longest / SAMPLE_STEP).ceil().clamp(1.0, 1e4) as usize;
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                samples.push(a + (b - a) * u + (c - a) * v);
+            }
+        }
+    }
+    samples
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A square of side `side` at height `z`, two triangles.
+    fn square(side: f32, z: f32) -> StrokeMesh {
+        StrokeMesh {
+            positions: vec![[0.0, 0.0, z], [side, 0.0, z], [side, side, z], [0.0, side, z]],
+            normals: vec![[0.0, 0.0, 1.0]; 4],
+            indices: vec![0, 1, 2, 0, 2, 3],
+        }
+    }
+
+    #[test]
+    fn hausdorff_measures_each_direction() {
+        // A unit square 2 above a 3-wide one: from the small one every point is 2 above the
+        // large one; from the large one the far corner is sqrt(2² + 2² + 2²) from the small one.
+        let h = hausdorff(&square(1.0, 2.0), &square(3.0, 0.0)).unwrap();
+        assert!((h.to_reference - 2.0).abs() < 1e-9, "{h:?}");
+        assert!((h.from_reference - 12.0_f64.sqrt()).abs() < 1e-9, "{h:?}");
+        assert!(hausdorff(&square(3.0, 0.0), &square(3.0, 0.0)).unwrap().max() < 1e-9);
+        assert!(hausdorff(&StrokeMesh::default(), &square(1.0, 0.0)).is_none());
+    }
+
+    #[test]
+    fn inside_of_a_triangle_is_sampled() {
+        // The reference is a tiny triangle at each corner of a large one: the large one's
+        // vertices all lie on the reference, its middle (round (20, 20)) is some 27 px away.
+        let large = StrokeMesh {
+            positions: vec![[0.0, 0.0, 0.0], [40.0, 0.0, 0.0], [0.0, 40.0, 0.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            indices: vec![0, 1, 2],
+        };
+        let reference = StrokeMesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [0.5, 0.0, 0.0],
+                [0.0, 0.5, 0.0],
+                [40.0, 0.0, 0.0],
+                [39.5, 0.0, 0.0],
+                [39.5, 0.5, 0.0],
+                [0.0, 40.0, 0.0],
+                [0.0, 39.5, 0.0],
+                [0.5, 39.5, 0.0],
+            ],
+            normals: vec![[0.0, 0.0, 1.0]; 9],
+            indices: (0..9).collect(),
+        };
+        let h = hausdorff(&large, &reference).unwrap();
+        assert!((25.0..29.0).contains(&h.to_reference), "{h:?}");
+        assert!(h.from_reference < 1e-9, "{h:?}");
+    }
+}
