@@ -40,6 +40,8 @@ use crate::input::{PenEvent, PenSource};
 use crate::reconstruct::{self, FinishedStroke, StrokeReport};
 use crate::wire::{self, OpenError, Socket};
 
+/// Strokes begun and not yet done at once: the proxy's default `--max-open-strokes`.
+const MAX_OPEN_STROKES: usize = 16;
 /// Longest wait for a handshake or a `Welcome`.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
 /// A ping on a quiet connection (a pen at rest) shows a live peer to the proxy's heartbeat and
@@ -326,8 +328,18 @@ impl Live {
     /// Sends what waits: begins, batches, ends.
     async fn flush(&mut self, link: &mut Link) -> anyhow::Result<()> {
         let batch = self.options.batch_samples.max(1);
+        let mut open = self.strokes.iter().filter(|s| s.begun && !s.done).count();
         for s in self.strokes.iter_mut().filter(|s| !s.done) {
+            // A stroke not begun yet waits while the proxy holds the most open strokes it
+            // allows a connection (a fast replay runs ahead of the commits): past it a begin
+            // is refused, and so is a `Hello` that resumes more.
+            if !s.begun && open >= MAX_OPEN_STROKES {
+                break;
+            }
             if !s.on_link {
+                if !s.begun {
+                    open += 1;
+                }
                 let begin = StrokeBegin {
                     stroke: s.id,
                     brush: self.options.brush,
@@ -522,9 +534,10 @@ impl Live {
         let welcome = match answer {
             Ok(Ok(welcome)) => welcome,
             Ok(Err(refusal)) => {
+                let said = format!("{}: {}", refusal.code.as_str(), refusal.message);
                 return Err(match self.on_error(refusal) {
                     ErrorAction::Reconnect => {
-                        ConnectError::Transient(anyhow::anyhow!("the proxy is not ready"))
+                        ConnectError::Transient(anyhow::anyhow!("the proxy is not ready ({said})"))
                     }
                     ErrorAction::Fail(err) => ConnectError::Fatal(err),
                 });
