@@ -330,6 +330,18 @@ pub(crate) fn assemble_from(
     Ok(samples)
 }
 
+/// Where `stroke`'s entries in `log` lie, each as `(seq, n)`, in `seq` order.
+pub(crate) fn pieces_of(log: &StrokeEntries, stroke: Uuid) -> Vec<(u64, u64)> {
+    let mut pieces: Vec<(u64, u64)> = log
+        .get(&stroke)
+        .into_iter()
+        .flatten()
+        .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
+        .collect();
+    pieces.sort_unstable();
+    pieces
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

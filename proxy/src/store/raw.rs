@@ -234,13 +234,7 @@ pub async fn stored_pieces(
         chunks.push((row.try_get::<i64, _>("seq")? as u64, row.try_get::<i64, _>("n")? as u64));
     }
     let log = log::read_log(&mut conn, Some(&HashSet::from([stroke])), None).await?;
-    let mut entries: Vec<(u64, u64)> = log
-        .get(&stroke)
-        .into_iter()
-        .flatten()
-        .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
-        .collect();
-    entries.sort_unstable();
+    let entries = log::pieces_of(&log, stroke);
     Ok((chunks, entries))
 }
 

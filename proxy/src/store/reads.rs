@@ -101,13 +101,7 @@ impl Store {
 /// Where the stored samples of `stroke` end: `n_points` from its chunks, extended by its
 /// entries in `log`.
 pub(super) fn end_with_log(n_points: u64, stroke: Uuid, log: &log::StrokeEntries) -> u64 {
-    let mut entries: Vec<(u64, u64)> = log
-        .get(&stroke)
-        .into_iter()
-        .flatten()
-        .map(|(_, _, e)| (e.seq, e.samples.len() as u64))
-        .collect();
-    entries.sort_unstable();
+    let entries = log::pieces_of(log, stroke);
     let mut end = n_points;
     for (seq, n) in entries {
         if seq <= end {
