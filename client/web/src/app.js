@@ -47,8 +47,11 @@ if (!session) {
 }
 
 const api = new Api(token);
-const view = new SceneView($("gl"));
-const ink = new Ink($("ink"), BRUSH);
+// The session's meshes and its history are asked for before the 3D view is set up: creating a
+// WebGL context is slow in software WebGL (about 0.4 s here), and the proxy builds both
+// meanwhile (docs/performance.md, "A busy board").
+const bundleRequest = session ? api.meshBundle(session) : null;
+bundleRequest?.catch(() => {}); // its failure is reported where it is awaited (loadBundle)
 // The proxy refuses a name over 200 characters or with a NUL byte (hello.name).
 const myName = (localStorage.getItem("penmesh:name") || "browser").replace(/\0/g, "").slice(0, 200);
 const conn = new Connection({
@@ -60,6 +63,9 @@ const conn = new Connection({
   name: myName,
   on: onMessage,
 });
+if (session) conn.connect(); // its messages are handled once this module has run
+const view = new SceneView($("gl"));
+const ink = new Ink($("ink"), BRUSH);
 
 // For the browser tests and the curious.
 window.penmesh = {
@@ -108,7 +114,7 @@ function meshShown(id) {
 // page; the connection's PeerMesh events bring the ones stored later.
 async function loadBundle() {
   try {
-    const meshes = await api.meshBundle(session);
+    const meshes = await bundleRequest;
     await Promise.all(
       meshes.map(async (m) => {
         if (view.addMesh(m.stroke, m.participant, await view.parse(m.glb))) meshShown(m.stroke);
@@ -260,7 +266,4 @@ $("download").onclick = async () => {
   }
 };
 
-if (session) {
-  loadBundle();
-  conn.connect();
-}
+if (session) loadBundle();

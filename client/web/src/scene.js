@@ -35,20 +35,32 @@ void main() {
   #include <colorspace_fragment>
 }`;
 
-/// Whether WebGL is drawn on the CPU (SwiftShader, llvmpipe): there multisampling costs a
-/// frame about 2.3 times as much (docs/performance.md), so the page goes without it.
-function softwareWebGL() {
-  const gl = document.createElement("canvas").getContext("webgl2");
-  const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+/// Whether a WebGL context is drawn on the CPU (SwiftShader, llvmpipe).
+function softwareWebGL(gl) {
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
   const renderer = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
-  if (gl) gl.getExtension("WEBGL_lose_context")?.loseContext();
   return /swiftshader|llvmpipe|software/i.test(renderer);
+}
+
+/// The renderer: multisampled on a GPU, not in software WebGL, where multisampling costs a
+/// frame about 2.3 times as much (docs/performance.md). The first context, without
+/// multisampling, tells which: a software one is kept (another context would cost about 0.4 s
+/// there, before anything is shown); on a GPU the canvas is swapped for a fresh one with a
+/// multisampled context (a context's attributes are fixed when it is made), cheap there.
+function createRenderer(canvas) {
+  const plain = new THREE.WebGLRenderer({ canvas, antialias: false, preserveDrawingBuffer: true });
+  if (softwareWebGL(plain.getContext())) return plain;
+  plain.forceContextLoss();
+  plain.dispose();
+  const fresh = canvas.cloneNode(false);
+  canvas.replaceWith(fresh);
+  return new THREE.WebGLRenderer({ canvas: fresh, antialias: true, preserveDrawingBuffer: true });
 }
 
 export class SceneView {
   constructor(canvas) {
-    this.canvas = canvas;
-    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: !softwareWebGL(), preserveDrawingBuffer: true });
+    this.renderer = createRenderer(canvas);
+    this.canvas = this.renderer.domElement;
     this.renderer.setPixelRatio(window.devicePixelRatio);
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0xf4f3ef);
@@ -58,7 +70,7 @@ export class SceneView {
     this.world.scale.set(1, -1, 1);
     this.scene.add(this.world);
     this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
-    this.controls = new OrbitControls(this.camera, canvas);
+    this.controls = new OrbitControls(this.camera, this.canvas);
     this.controls.enabled = false;
     this.controls.addEventListener("change", () => this.requestRender());
     this.strokes = new Map(); // stroke -> {participant, points: [Vector3], line, mesh: its range in its person's merged meshes}
