@@ -1,0 +1,173 @@
+//! Frames: the version byte and bincode of a message, or its JSON text.
+
+use super::*;
+
+fn config() -> impl bincode::config::Config {
+    bincode::config::standard().with_limit::<BINCODE_LIMIT>()
+}
+
+fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
+    let body = bincode::serde::encode_to_vec(msg, config()).expect("messages always encode");
+    let mut out = Vec::with_capacity(body.len() + 1);
+    out.push(PROTOCOL_VERSION as u8); // lossless: asserted where the constant is declared
+    out.extend_from_slice(&body);
+    out
+}
+
+/// The variant names and count of a message enum, so decoding can tell an unknown message from
+/// a malformed one without reading error texts.
+trait MessageKind {
+    const NAMES: &'static [&'static str];
+}
+
+impl MessageKind for ClientMessage {
+    const NAMES: &'static [&'static str] =
+        &["hello", "stroke_begin", "points", "stroke_end", "ping"];
+}
+
+impl MessageKind for ServerMessage {
+    const NAMES: &'static [&'static str] = &[
+        "welcome",
+        "ack",
+        "retained",
+        "stroke_done",
+        "pong",
+        "error",
+        "peer_joined",
+        "peer_left",
+        "peer_stroke_begin",
+        "peer_retained",
+        "peer_stroke_done",
+        "peer_mesh",
+        "synced",
+    ];
+}
+
+fn decode<T: DeserializeOwned + MessageKind>(
+    bytes: &[u8],
+    limit: usize,
+    max_batch: usize,
+) -> Result<T, CodecError> {
+    let limit = limit.min(BINCODE_LIMIT);
+    if bytes.len() > limit {
+        return Err(CodecError::TooLarge { size: bytes.len(), limit });
+    }
+    let (&version, body) = bytes.split_first().ok_or(CodecError::Empty)?;
+    if u16::from(version) != PROTOCOL_VERSION {
+        return Err(CodecError::Version(version));
+    }
+    // The enum's variant index is bincode's first varint; one byte below 251.
+    if let Some(&index) = body.first()
+        && usize::from(index) >= T::NAMES.len()
+    {
+        return Err(CodecError::UnknownMessage(format!(
+            "variant index {index}; this version has {} messages",
+            T::NAMES.len()
+        )));
+    }
+    let batch_limit = BatchLimit::set(max_batch);
+    let (msg, used) = bincode::serde::decode_from_slice(body, config()).map_err(|e| {
+        batch_limit.refused().unwrap_or_else(|| CodecError::Malformed(e.to_string()))
+    })?;
+    if used != body.len() {
+        return Err(CodecError::Malformed(format!("{} trailing bytes", body.len() - used)));
+    }
+    Ok(msg)
+}
+
+fn decode_json<T: DeserializeOwned + MessageKind>(
+    text: &str,
+    limit: usize,
+    max_batch: usize,
+) -> Result<T, CodecError> {
+    if text.len() > limit {
+        return Err(CodecError::TooLarge { size: text.len(), limit });
+    }
+    let batch_limit = BatchLimit::set(max_batch);
+    serde_json::from_str(text).map_err(|e| {
+        if let Some(refused) = batch_limit.refused() {
+            return refused;
+        }
+        // Only on the error path: look again to tell an unknown message from bad JSON.
+        match serde_json::from_str::<serde_json::Value>(text) {
+            Ok(serde_json::Value::Object(map)) if map.len() == 1 => {
+                let name = map.keys().next().map(String::as_str).unwrap_or_default();
+                if T::NAMES.contains(&name) {
+                    CodecError::BadJson(e.to_string())
+                } else {
+                    CodecError::UnknownMessage(format!("{name:?}"))
+                }
+            }
+            Ok(serde_json::Value::String(name)) if !T::NAMES.contains(&name.as_str()) => {
+                CodecError::UnknownMessage(format!("{name:?}"))
+            }
+            Ok(other) if !other.is_object() => CodecError::UnknownMessage(format!(
+                "expected an object with one message, got {}",
+                json_kind(&other)
+            )),
+            _ => CodecError::BadJson(e.to_string()),
+        }
+    })
+}
+
+fn json_kind(value: &serde_json::Value) -> &'static str {
+    match value {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
+}
+
+/// A binary frame of a client message.
+pub fn encode_client(msg: &ClientMessage) -> Vec<u8> {
+    encode(msg)
+}
+/// A binary frame of a server message.
+pub fn encode_server(msg: &ServerMessage) -> Vec<u8> {
+    encode(msg)
+}
+/// Decodes a binary frame of at most `limit` bytes.
+pub fn decode_client(bytes: &[u8], limit: usize) -> Result<ClientMessage, CodecError> {
+    decode(bytes, limit, MAX_BATCH_SAMPLES)
+}
+/// Decodes a binary frame of at most `limit` bytes whose point batch (if any) holds at most
+/// `max_batch` samples: a larger count is refused with [`CodecError::BatchTooLarge`] before
+/// the samples are read.
+pub fn decode_client_limited(
+    bytes: &[u8],
+    limit: usize,
+    max_batch: usize,
+) -> Result<ClientMessage, CodecError> {
+    decode(bytes, limit, max_batch)
+}
+/// Decodes a binary frame of at most `limit` bytes.
+pub fn decode_server(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
+    decode(bytes, limit, MAX_BATCH_SAMPLES)
+}
+/// A JSON text frame of a client message.
+pub fn encode_client_json(msg: &ClientMessage) -> String {
+    serde_json::to_string(msg).expect("messages always serialise to JSON")
+}
+/// A JSON text frame of a server message.
+pub fn encode_server_json(msg: &ServerMessage) -> String {
+    serde_json::to_string(msg).expect("messages always serialise to JSON")
+}
+/// Decodes a JSON text frame of at most `limit` bytes.
+pub fn decode_client_json(text: &str, limit: usize) -> Result<ClientMessage, CodecError> {
+    decode_json(text, limit, MAX_BATCH_SAMPLES)
+}
+/// [`decode_client_limited`] for a JSON text frame.
+pub fn decode_client_json_limited(
+    text: &str,
+    limit: usize,
+    max_batch: usize,
+) -> Result<ClientMessage, CodecError> {
+    decode_json(text, limit, max_batch)
+}
+/// Decodes a JSON text frame of at most `limit` bytes.
+pub fn decode_server_json(text: &str, limit: usize) -> Result<ServerMessage, CodecError> {
+    decode_json(text, limit, MAX_BATCH_SAMPLES)
+}
