@@ -40,7 +40,7 @@ fn acuts_quality_gate() {
     let gate_path = repo_root().join("docs/quality_gate.json");
     let gate: Gate = serde_json::from_str(&std::fs::read_to_string(&gate_path).unwrap())
         .unwrap_or_else(|e| panic!("{}: {e}", gate_path.display()));
-    let data = repo_root().join("../shared/data");
+    let data = penmesh::data_sets::data_root();
     let params = AcutsParams::default();
     let resample = DEFAULT_RESAMPLE_DISTANCE;
     let bound = params.tolerance + resample;
@@ -52,8 +52,9 @@ fn acuts_quality_gate() {
     let (mut n_acuts, mut n_optimal) = (0, 0);
     for file in &gate.files {
         let path = data.join(file);
-        let text = std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("{}: {e} (the gate needs ../shared/data)", path.display()));
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+            panic!("{}: {e} (the gate needs the data sets: penmesh::data_sets)", path.display())
+        });
         let folder = file.split('/').next().unwrap();
         let scale = gate.px_per_unit[folder];
         for stroke in penmesh::read_strokes(file, &text).unwrap() {

@@ -42,19 +42,14 @@ fn smooth_stroke(n: usize) -> Vec<Sample> {
 
 /// The longest stroke of the real recording, in px, if the file is there.
 fn real_stroke() -> Option<(String, Vec<Sample>)> {
-    let path = std::env::var_os("PENMESH_BENCH_STROKE").map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../shared/data/sigcomp2011_dutch/002_177_02.hwr")
-    });
+    let path = std::env::var_os("PENMESH_BENCH_STROKE")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| penmesh::data_sets::SIGCOMP2011_DUTCH.dir().join("002_177_02.hwr"));
     let text = std::fs::read_to_string(&path).ok()?;
     let name = path.file_name()?.to_str()?.to_owned();
     let strokes = penmesh::read_strokes(&name, &text).ok()?;
     // Px per tablet unit: SigComp2011 at 5080 lines per inch, SVC2004 at 2540 (see eval).
-    let scale = match name.rsplit('.').next() {
-        Some("hwr") => 96.0 / 5080.0,
-        Some("txt" | "TXT") => 96.0 / 2540.0,
-        _ => 1.0,
-    };
+    let scale = penmesh::data_sets::px_per_unit(&path);
     let longest = strokes.iter().max_by_key(|s| s.len())?;
     let samples =
         longest.samples().iter().map(|s| Sample { x: s.x * scale, y: s.y * scale, ..*s }).collect();

@@ -3,8 +3,7 @@
 //!
 //! `cargo test -p penmesh --test codec -- --nocapture` prints the bytes-per-sample table.
 
-use std::path::{Path, PathBuf};
-
+use penmesh::data_sets::{DataSet, SIGCOMP2011_DUTCH, SVC2004};
 use penmesh::protocol::*;
 use penmesh::{AcutsParams, Brush, Sample, resample};
 use proptest::prelude::*;
@@ -522,76 +521,11 @@ proptest! {
 // ---------------------------------------------------------------------------------------------
 // Real pen data: bytes per sample.
 
-fn data_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
-}
-
-fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == ext))
-        .collect();
-    files.sort();
-    files
-}
-
-fn numbers(line: &str) -> Vec<f64> {
-    line.split_whitespace().map(|w| w.parse().unwrap()).collect()
-}
-
-/// SVC2004: a count line, then `x y t button az alt p`; a stroke starts at `button = 0` or
-/// after a time gap of more than 20 ms. t is made relative to the stroke's first sample.
-fn svc2004_strokes() -> Vec<Vec<Sample>> {
-    let mut strokes = Vec::new();
-    for path in files(&data_dir().join("svc2004"), "TXT") {
-        let text = std::fs::read_to_string(&path).unwrap();
-        let mut lines = text.lines();
-        let count: usize = lines.next().unwrap().trim().parse().unwrap();
-        let mut stroke: Vec<Sample> = Vec::new();
-        let (mut t0, mut last_t) = (0.0, f64::NEG_INFINITY);
-        for line in lines.take(count) {
-            let v = numbers(line);
-            let (t, button) = (v[2], v[3]);
-            if !stroke.is_empty() && (button == 0.0 || t - last_t > 20.0) {
-                strokes.push(std::mem::take(&mut stroke));
-            }
-            if stroke.is_empty() {
-                t0 = t;
-            }
-            stroke.push(Sample::new(v[0], v[1], t - t0, v[6] / 1023.0));
-            last_t = t;
-        }
-        strokes.push(stroke);
-    }
-    strokes
-}
-
-/// SigComp2011 Dutch: `x y p` at 200 Hz; pressure 0 is the pen in the air.
-fn dutch_strokes() -> Vec<Vec<Sample>> {
-    let mut strokes = Vec::new();
-    for path in files(&data_dir().join("sigcomp2011_dutch"), "hwr") {
-        let text = std::fs::read_to_string(&path).unwrap();
-        let mut stroke: Vec<Sample> = Vec::new();
-        let mut first = 0;
-        for (i, line) in text.lines().filter(|l| !l.trim().is_empty()).enumerate() {
-            let v = numbers(line);
-            if v[2] == 0.0 {
-                if !stroke.is_empty() {
-                    strokes.push(std::mem::take(&mut stroke));
-                }
-                continue;
-            }
-            if stroke.is_empty() {
-                first = i;
-            }
-            stroke.push(Sample::new(v[0], v[1], 5.0 * (i - first) as f64, v[2] / 1023.0));
-        }
-        if !stroke.is_empty() {
-            strokes.push(stroke);
-        }
-    }
-    strokes
+/// Every stroke of a recorded data set, read in place by the crate's own readers
+/// (`penmesh::data_sets`), in tablet units.
+fn strokes_of(set: DataSet) -> Vec<Vec<Sample>> {
+    let recordings = set.read().unwrap_or_else(|err| panic!("{err}"));
+    recordings.iter().flat_map(|r| &r.strokes).map(|stroke| stroke.samples().to_vec()).collect()
 }
 
 /// Bytes the batch adds to a Points frame (the frame minus its header).
@@ -626,8 +560,8 @@ fn real_pen_data_costs_at_most_6_bytes_per_sample_at_live_batch_sizes() {
     let resampled = |strokes: &[Vec<Sample>]| -> Vec<Vec<Sample>> {
         strokes.iter().map(|s| resample(s, 1.0).into_iter().map(|i| s[i]).collect()).collect()
     };
-    let svc = svc2004_strokes();
-    let dutch = dutch_strokes();
+    let svc = strokes_of(SVC2004);
+    let dutch = strokes_of(SIGCOMP2011_DUTCH);
     assert_eq!(svc.iter().map(Vec::len).sum::<usize>(), 7117);
     assert_eq!(dutch.iter().map(Vec::len).sum::<usize>(), 18843 - 6077);
     let sets = [

@@ -1,35 +1,19 @@
 //! Stroke file readers and writers: the recorded data sets of `shared/data`, and each parser's
 //! error cases.
 
-use std::path::PathBuf;
-
+use penmesh::data_sets::{DataSet, SIGCOMP2011_DUTCH, SVC2004};
 use penmesh::{
     FormatError, Sample, Stroke, StrokeFormat, read_csv, read_hwr, read_json, read_strokes,
     read_svc2004, write_csv, write_json,
 };
 
-/// The shared data folder, beside the checkout (`../shared/data`).
-fn data_dir(set: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(set)
-}
-
-/// Reads every file of a data set with [`read_strokes`]: (file name, raw text, strokes), sorted.
-fn read_set(set: &str, extension: &str) -> Vec<(String, String, Vec<Stroke>)> {
-    let dir = data_dir(set);
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|err| panic!("{}: {err}", dir.display()))
-        .map(|entry| entry.unwrap().path())
-        .filter(|path| path.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension)))
-        .collect();
-    files.sort();
-    files
+/// Every recording of a data set, read in place (`penmesh::data_sets`): (file name, raw text,
+/// strokes), sorted.
+fn read_set(set: DataSet) -> Vec<(String, String, Vec<Stroke>)> {
+    set.read()
+        .unwrap_or_else(|err| panic!("{err}"))
         .into_iter()
-        .map(|path| {
-            let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            let text = std::fs::read_to_string(&path).unwrap();
-            let strokes = read_strokes(&name, &text).unwrap_or_else(|err| panic!("{name}: {err}"));
-            (name, text, strokes)
-        })
+        .map(|recording| (recording.name(), recording.text, recording.strokes))
         .collect()
 }
 
@@ -75,7 +59,7 @@ fn check_bad_sample(
 #[test]
 // The 40 SVC2004 files hold 7,117 points in all, split into a plausible number of strokes.
 fn svc2004_files_read_with_all_their_points() {
-    let files = read_set("svc2004", "txt");
+    let files = read_set(SVC2004);
     assert_eq!(files.len(), 40);
     let mut n_strokes = 0;
     for (name, text, strokes) in &files {
@@ -100,7 +84,7 @@ fn svc2004_files_read_with_all_their_points() {
 #[test]
 // The 15 Dutch files hold 18,843 samples, 6,077 of them hover samples that are dropped.
 fn dutch_files_read_without_their_hover_samples() {
-    let files = read_set("sigcomp2011_dutch", "hwr");
+    let files = read_set(SIGCOMP2011_DUTCH);
     assert_eq!(files.len(), 15);
     let lines: usize = files.iter().map(|(_, text, _)| text.lines().count()).sum();
     assert_eq!(lines, 18_843);

@@ -6,8 +6,6 @@
 //! A test binary of its own: the proxy's metrics are one process-wide recorder, so the count of
 //! internal errors read here is this test's alone.
 
-use std::path::PathBuf;
-
 use penmesh_client::draw_options::DrawOptions;
 use penmesh_client::endpoint::Endpoint;
 use penmesh_client::input::{Pacing, ReplaySource};
@@ -22,24 +20,11 @@ const N_EARLY: usize = 5;
 /// Every real stroke of the recordings beside the checkout (`../shared/data`: SigComp2011,
 /// then SVC2004).
 fn real_strokes() -> Vec<penmesh::Stroke> {
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    let mut strokes = Vec::new();
-    for set in ["sigcomp2011_dutch", "svc2004"] {
-        let dir = data.join(set);
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .unwrap_or_else(|e| panic!("reading {}: {e}", dir.display()))
-            .map(|entry| entry.unwrap().path())
-            .filter(|p| p.extension().is_some_and(|e| e == "hwr" || e == "TXT"))
-            .collect();
-        files.sort();
-        for file in files {
-            let text = std::fs::read_to_string(&file).unwrap();
-            let name = file.file_name().unwrap().to_string_lossy().to_lowercase();
-            strokes.extend(penmesh::read_strokes(&name, &text).unwrap());
-        }
-    }
-    assert!(strokes.len() > N_EARLY, "no real strokes in {}", data.display());
-    strokes
+    penmesh::data_sets::DATA_SETS
+        .iter()
+        .flat_map(|set| set.read().unwrap_or_else(|err| panic!("{err}")))
+        .flat_map(|recording| recording.strokes)
+        .collect()
 }
 
 /// Draws `strokes` as one person through the native client's live path.

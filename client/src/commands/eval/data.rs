@@ -2,11 +2,6 @@
 
 use super::*;
 
-/// Px per SVC2004 tablet unit (2540 lines per inch).
-pub const SVC2004_PX_PER_UNIT: f64 = 96.0 / 2540.0;
-/// Px per SigComp2011 tablet unit (5080 lines per inch).
-pub const HWR_PX_PER_UNIT: f64 = 96.0 / 5080.0;
-
 /// One file's strokes, in px.
 #[derive(Debug)]
 pub struct DataFile {
@@ -50,11 +45,9 @@ pub fn load_data_sets(
             .and_then(|n| n.to_str())
             .unwrap_or("data")
             .to_string();
-        let scale = match extension(&path).as_str() {
-            "txt" => px_per_unit.unwrap_or(SVC2004_PX_PER_UNIT),
-            "hwr" => px_per_unit.unwrap_or(HWR_PX_PER_UNIT),
-            _ => 1.0,
-        };
+        // A tablet file is scaled to px (by --px-per-unit, else by its data set); others are px.
+        let scale = penmesh::data_sets::data_set_of(&path)
+            .map_or(1.0, |set| px_per_unit.unwrap_or(set.px_per_unit));
         let strokes = io::read_strokes(&path)?
             .into_iter()
             .map(|stroke| {
