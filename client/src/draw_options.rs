@@ -24,9 +24,9 @@ pub struct DrawOptions {
     pub brush: Brush,
     /// Stage-1 resampling distance `l_eps`.
     pub resample: f64,
-    /// Stage 1's repeat rule: a sample at the last kept position is dropped when its pressure
-    /// is within this of that sample's; `None` streams repeats too.
-    pub repeat_pressure: Option<f64>,
+    /// Stage 1's repeat rule (`penmesh::Resampler::drop_repeats`): exact repeats of the last
+    /// sample sent are not sent; `false` streams them too.
+    pub drop_repeats: bool,
     /// Send what was kept at least this often.
     pub batch_interval: Duration,
     /// Send as soon as this many kept samples wait.
@@ -47,7 +47,7 @@ pub struct DrawOptions {
 impl DrawOptions {
     /// A stroke's stage 1, as these options set it.
     pub fn resampler(&self) -> penmesh::Resampler {
-        penmesh::Resampler::new(self.resample).repeat_pressure(self.repeat_pressure)
+        penmesh::Resampler::new(self.resample).drop_repeats(self.drop_repeats)
     }
 
     pub fn new(name: impl Into<String>) -> DrawOptions {
@@ -56,7 +56,7 @@ impl DrawOptions {
             key: crate::wire::new_participant_key(),
             brush: Brush::default(),
             resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
-            repeat_pressure: Some(penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE),
+            drop_repeats: true,
             batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),
             batch_samples: DEFAULT_BATCH_SAMPLES,
             retry_for: Duration::from_secs(DEFAULT_RETRY_SECS),

@@ -22,9 +22,9 @@ mod svg;
 
 pub use crate::acuts::{
     AcutsOutput, AcutsParams, DEFAULT_ANGLE_DEG, DEFAULT_PRESSURE_TOLERANCE,
-    DEFAULT_REPEAT_PRESSURE_TOLERANCE, DEFAULT_RESAMPLE_DISTANCE, DEFAULT_TOLERANCE, Kept,
-    PAPER_PRESSURE_VARIANCE, PAPER_RESAMPLE_DISTANCE, ParamError, PressureGate, Resampler,
-    Simplifier, acuts, pressure_variance, resample, segment_distance, simplify,
+    DEFAULT_RESAMPLE_DISTANCE, DEFAULT_TOLERANCE, Kept, PAPER_PRESSURE_VARIANCE,
+    PAPER_RESAMPLE_DISTANCE, ParamError, PressureGate, Released, Resampler, Simplifier, acuts,
+    pressure_variance, resample, segment_distance, simplify,
 };
 pub use crate::model::{
     Brush, BrushError, MAX_COORDINATE, Sample, SampleError, Stroke, polyline_length,

@@ -293,8 +293,13 @@ fn streamed(
     for &chunk in chunks.iter().chain([&usize::MAX]) {
         let end = start.saturating_add(chunk).min(samples.len());
         for (index, s) in samples.iter().enumerate().take(end).skip(start) {
-            if resampler.as_mut().is_none_or(|r| r.push(*s)) {
-                to_stage2(index, *s, &mut resampled, &mut kept);
+            match resampler.as_mut() {
+                Some(r) => {
+                    for (index, s) in r.push(*s) {
+                        to_stage2(index, s, &mut resampled, &mut kept);
+                    }
+                }
+                None => to_stage2(index, *s, &mut resampled, &mut kept),
             }
         }
         start = end;
@@ -359,42 +364,29 @@ proptest! {
         prop_assert_eq!(kept, out.kept);
     }
 
-    // Stage 1's repeat rule (l_eps 0): a sample is dropped iff its x and y equal the last kept
-    // sample's and its pressure is within the tolerance (the pen-up sample is always kept);
-    // and stage 2 behind it keeps its position bound over every drawn sample, the dropped
-    // repeats included.
+    // Stage 1's repeat rule (l_eps 0): a sample is dropped only when it repeats the last sample
+    // let through exactly (x, y and p); the first and the pen-up sample are always sent; and
+    // stage 2 behind it keeps every bound (distance, angle, pressure) over every drawn sample,
+    // the dropped repeats included.
     #[test]
-    fn repeat_rule_drops_exact_repeats_only(
-        samples in stroke(),
-        tolerance in prop_oneof![Just(0.0), Just(0.2), 0.0..1.0],
-        params in params(),
-    ) {
-        let mut resampler = Resampler::new(0.0).repeat_pressure(Some(tolerance));
-        let mut sent: Vec<usize> = (0..samples.len()).filter(|&i| resampler.push(samples[i])).collect();
+    fn repeat_rule_never_takes_from_the_bounds(samples in stroke(), params in params()) {
+        let mut resampler = Resampler::new(0.0);
+        let mut sent: Vec<usize> =
+            samples.iter().flat_map(|s| resampler.push(*s)).map(|(index, _)| index).collect();
         sent.extend(resampler.finish().map(|(index, _)| index));
         check_structure(samples.len(), &sent);
-        let mut last_kept: Option<&Sample> = None;
         for (index, s) in samples.iter().enumerate() {
-            let repeat = last_kept.is_some_and(|k| {
-                k.x == s.x && k.y == s.y && (s.p - k.p).abs() <= tolerance
-            });
-            let is_sent = sent.binary_search(&index).is_ok();
-            prop_assert_eq!(is_sent, !repeat || index + 1 == samples.len(), "sample {}", index);
-            if is_sent {
-                last_kept = Some(s);
+            if sent.binary_search(&index).is_err() {
+                let last = &samples[sent[sent.partition_point(|&k| k < index) - 1]];
+                prop_assert!(
+                    last.x == s.x && last.y == s.y && last.p == s.p,
+                    "sample {} {:?} was dropped but does not repeat {:?}", index, s, last
+                );
             }
         }
         let input: Vec<Sample> = sent.iter().map(|&i| samples[i]).collect();
         let kept: Vec<usize> = simplify(&input, &params).into_iter().map(|k| sent[k]).collect();
-        for w in kept.windows(2) {
-            let (a, e) = (&samples[w[0]], &samples[w[1]]);
-            for q in &samples[w[0] + 1..w[1]] {
-                prop_assert!(
-                    segment_distance(q, a, e) <= params.tolerance + slack(a, q, e),
-                    "{:?} is {} from {:?}-{:?}", q, segment_distance(q, a, e), a, e
-                );
-            }
-        }
+        check_guarantee(&samples, &kept, &params);
     }
 
     // No stroke of finite values panics, whatever their magnitude, and the output keeps its

@@ -34,8 +34,8 @@ pub struct LiveArgs {
     /// repeats (see --keep-repeats).
     #[arg(long, default_value_t = penmesh::DEFAULT_RESAMPLE_DISTANCE)]
     pub resample: f64,
-    /// Stream samples that repeat the last sent position too. By default stage 1 drops a
-    /// sample at the position of the last one it kept when its pressure is within 0.2 of it.
+    /// Stream exact repeats too. By default stage 1 does not send a sample equal in x, y and
+    /// pressure to the last one it sent (a pen at rest), which costs no error.
     #[arg(long)]
     pub keep_repeats: bool,
     /// Brush size E (px): the radius at full pressure with a pressure response of 1.
@@ -228,11 +228,7 @@ pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOp
     Ok(DrawOptions {
         brush,
         resample: live.resample,
-        repeat_pressure: if live.keep_repeats {
-            None
-        } else {
-            Some(penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE)
-        },
+        drop_repeats: !live.keep_repeats,
         batch_interval: Duration::from_millis(live.batch_ms),
         batch_samples: live.batch_size,
         retry_for: Duration::from_secs(live.retry_for),

@@ -297,8 +297,8 @@ impl Live {
                     q.t = q.t.max(prev.t);
                 }
                 s.drawn.push(q);
-                if s.resampler.push(q) {
-                    s.keep(s.drawn.len() - 1, q);
+                for (drawn_idx, kept) in s.resampler.push(q) {
+                    s.keep(drawn_idx, kept);
                 }
                 Some(stroke_idx)
             }

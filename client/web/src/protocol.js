@@ -8,8 +8,6 @@
 // resume finds our stroke already done.
 
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
-// Stage 1's repeat rule, as the native client's (penmesh::DEFAULT_REPEAT_PRESSURE_TOLERANCE).
-const REPEAT_PRESSURE = 0.2;
 const FLUSH_MS = 16;
 // A page that only watches sends a Ping after this long without sending anything (ms): the
 // proxy closes a connection that sends nothing for --idle-timeout-secs (60 s by default), and
@@ -153,6 +151,10 @@ export class Connection {
       r = { next_seq: 0, status: "open" };
     }
     if (r.status === "done") return this.strokeDone(p.stroke);
+    if (!this.drawing && p.held) {
+      p.samples.push(p.held); // the pen lifted (or the page went away) on a rest
+      p.held = null;
+    }
     const rest = p.samples.slice(r.next_seq);
     if (rest.length) this.send({ points: { stroke: p.stroke, seq: r.next_seq, points: rest } });
     p.sent = p.samples.length;
@@ -178,16 +180,24 @@ export class Connection {
   }
 
   /// One sample of our stroke: `t` in ms since pen-down. Snapped to the grid; time never goes
-  /// backwards (coalesced events can share a timestamp).
+  /// backwards (coalesced events can share a timestamp). Stage 1's repeat rule, as the native
+  /// client's (penmesh::Resampler, docs/web.md): a sample equal in x, y and pressure to the last
+  /// one kept (a pen at rest) is held back, and kept only as the rest's last sample when the
+  /// pen leaves it with another pressure, or at pen-up: this costs no error.
   add(x, y, t, p) {
     const [position, time, pressure] = this.grid;
-    const samples = this.pending.samples;
-    const prev = samples[samples.length - 1];
-    const sample = [snap(x, position), snap(y, position), Math.max(prev ? prev[2] : 0, snap(t, time)), snap(p, pressure)];
-    // Stage 1 (docs/web.md), as the native client: a repeat of the last kept position whose
-    // pressure is within REPEAT_PRESSURE of it is dropped.
-    const repeat = prev && sample[0] === prev[0] && sample[1] === prev[1] && Math.abs(sample[3] - prev[3]) <= REPEAT_PRESSURE;
-    if (!repeat) samples.push(sample);
+    const pending = this.pending;
+    const samples = pending.samples;
+    const last = samples[samples.length - 1];
+    const latest = pending.held || last;
+    const sample = [snap(x, position), snap(y, position), Math.max(latest ? latest[2] : 0, snap(t, time)), snap(p, pressure)];
+    if (last && sample[0] === last[0] && sample[1] === last[1] && sample[3] === last[3]) {
+      pending.held = sample;
+      return;
+    }
+    if (pending.held && pending.held[3] !== sample[3]) samples.push(pending.held);
+    pending.held = null;
+    samples.push(sample);
   }
 
   /// Keeps every sample for a reload, and sends the unsent ones when `force` or FLUSH_MS have
@@ -210,6 +220,10 @@ export class Connection {
     const p = this.pending;
     this.drawing = false;
     p.ended = true;
+    if (p.held) {
+      p.samples.push(p.held); // the pen-up sample is always sent
+      p.held = null;
+    }
     this.flush(true);
     this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
   }

@@ -7,14 +7,19 @@
 //! at least `l_eps` from the last kept sample (compared as squared distances, no square root);
 //! the last sample (pen-up) is always kept, so the stroke ends where the pen lifted.
 //!
-//! The repeat rule (on by default, whatever `l_eps`): a sample whose `x` and `y` equal those of
-//! the last kept sample, and whose pressure is within [`DEFAULT_REPEAT_PRESSURE_TOLERANCE`] of
-//! it, is dropped (a pen at rest reports its position again and again). It costs no position
-//! error: the dropped sample lies where a sample stage 2 bounds lies, so it is as near to every
-//! segment as that one. It bounds pressure only against the kept sample at the same position;
-//! against the pressure interpolated in time along its segment (`P_max`) it bounds nothing:
-//! where the pressure ramps while the pen rests, a dropped repeat can be further than `delta_p`
-//! from it (0.253 on the Dutch signatures, `docs/results.md`).
+//! The repeat rule (on by default, whatever `l_eps`): a pen at rest reports the same sample
+//! again and again. A sample equal to the last kept one in `x`, `y` and `p` (an *exact repeat*)
+//! is held back; when the next sample that is not one comes, the last held repeat is let
+//! through first if that sample's pressure differs from it (so a rest is sent as its first and
+//! last sample, or as its first only when the pen leaves it at the same pressure), and at pen-up
+//! it is let through as the last sample. This never takes from stage 2's bounds, over every
+//! drawn sample, the dropped ones included: a dropped repeat `q` lies between two samples that
+//! stage 2 sees one after the other, `u` (the rest's first) and `v` (the rest's last, or the
+//! next sample when it has `u`'s pressure), at `u`'s position and with `p_q = p_u = p_v`; so
+//! a retained segment that spans `q` spans `u` and `v` too (or ends at them), `q` is as far
+//! from it as `u` is, and `q`'s pressure error is a weighted mean of `u`'s and `v`'s. A repeat
+//! whose pressure differs is not dropped: the pressure interpolated in time along its segment
+//! could miss it by more than stage 2 allows.
 //!
 //! # Stage 2: windowed simplification ([`Simplifier`], [`simplify`])
 //!
@@ -146,11 +151,10 @@ mod tests;
 
 pub use measures::{pressure_variance, segment_distance};
 pub use params::{
-    AcutsParams, DEFAULT_ANGLE_DEG, DEFAULT_PRESSURE_TOLERANCE, DEFAULT_REPEAT_PRESSURE_TOLERANCE,
-    DEFAULT_RESAMPLE_DISTANCE, DEFAULT_TOLERANCE, PAPER_PRESSURE_VARIANCE, PAPER_RESAMPLE_DISTANCE,
-    ParamError, PressureGate,
+    AcutsParams, DEFAULT_ANGLE_DEG, DEFAULT_PRESSURE_TOLERANCE, DEFAULT_RESAMPLE_DISTANCE,
+    DEFAULT_TOLERANCE, PAPER_PRESSURE_VARIANCE, PAPER_RESAMPLE_DISTANCE, ParamError, PressureGate,
 };
-pub use resample::{Resampler, resample};
+pub use resample::{Released, Resampler, resample};
 pub use simplifier::{Kept, Simplifier};
 
 use crate::model::Sample;
@@ -187,9 +191,9 @@ pub fn acuts(samples: &[Sample], resample_distance: f64, params: &AcutsParams) -
     };
     if resample_distance > 0.0 {
         let mut resampler = Resampler::new(resample_distance);
-        for (index, s) in samples.iter().enumerate() {
-            if resampler.push(*s) {
-                to_stage2(index, *s, &mut resampled);
+        for s in samples {
+            for (index, s) in resampler.push(*s) {
+                to_stage2(index, s, &mut resampled);
             }
         }
         if let Some((index, s)) = resampler.finish() {

@@ -9,11 +9,6 @@ use serde::{Deserialize, Serialize};
 /// within a fraction of a pixel), so the pressure bound of stage 2 would not hold end to end.
 /// With 0 the whole budget goes to stage 2 and both bounds hold end to end.
 pub const DEFAULT_RESAMPLE_DISTANCE: f64 = 0.0;
-/// Default pressure tolerance of stage 1's repeat rule ([`Resampler::repeat_pressure`]): a
-/// sample at the position of the last kept one is dropped when its pressure is within this of
-/// that sample's. The stage-2 pressure tolerance, so that a dropped repeat is never further in
-/// pressure from the sample kept in its place than stage 2 lets a removed sample be.
-pub const DEFAULT_REPEAT_PRESSURE_TOLERANCE: f64 = DEFAULT_PRESSURE_TOLERANCE;
 /// Default chord-height tolerance `d_d` (same unit as x, y; table 3: 0.74): the paper's
 /// guaranteed bound of 1.74 px, all of it for stage 2 (see [`DEFAULT_RESAMPLE_DISTANCE`]).
 pub const DEFAULT_TOLERANCE: f64 = 1.74;

@@ -57,37 +57,38 @@ fn resample_zero_distance_keeps_all_but_repeats() {
     assert_eq!(resample(&points(&[(0.0, 0.0), (0.0, 0.0)]), -1.0), [0, 1]);
 }
 
-// The repeat rule looks at pressure: a repeat whose pressure moved past the tolerance is
-// kept, and without the rule every repeat is kept.
+// The repeat rule drops exact repeats only, holds the rest's last sample back until the pen
+// leaves it with another pressure, and can be off.
 #[test]
-fn repeat_rule_keeps_pressure_changes_and_can_be_off() {
+fn repeat_rule_drops_exact_repeats_and_keeps_a_rest_at_both_ends() {
     let stroke = [
         Sample::new(0.0, 0.0, 0.0, 0.5),
-        Sample::new(0.0, 0.0, 1.0, 0.6),
-        Sample::new(0.0, 0.0, 2.0, 0.71),
-        Sample::new(0.0, 0.0, 3.0, 0.9),
-        Sample::new(0.5, 0.0, 4.0, 0.9),
+        Sample::new(0.0, 0.0, 1.0, 0.5), // dropped: the rest's middle
+        Sample::new(0.0, 0.0, 2.0, 0.5), // the rest's last: the pen leaves at another pressure
+        Sample::new(0.0, 0.0, 3.0, 0.9), // same place, other pressure: kept
+        Sample::new(0.0, 0.0, 4.0, 0.9), // dropped: the pen leaves it at the same pressure
+        Sample::new(0.5, 0.0, 5.0, 0.9),
+        Sample::new(0.5, 0.0, 6.0, 0.9), // the pen-up sample: always kept
     ];
     let kept = |resampler: Resampler| {
         let mut resampler = resampler;
         let mut kept: Vec<usize> =
-            (0..stroke.len()).filter(|&i| resampler.push(stroke[i])).collect();
+            stroke.iter().flat_map(|s| resampler.push(*s)).map(|(i, _)| i).collect();
         kept.extend(resampler.finish().map(|(i, _)| i));
         kept
     };
-    assert_eq!(kept(Resampler::new(0.0)), [0, 2, 4]);
-    assert_eq!(kept(Resampler::new(0.0).repeat_pressure(Some(0.0))), [0, 1, 2, 3, 4]);
-    assert_eq!(kept(Resampler::new(0.0).repeat_pressure(None)), [0, 1, 2, 3, 4]);
+    assert_eq!(kept(Resampler::new(0.0)), [0, 2, 3, 5, 6]);
+    assert_eq!(kept(Resampler::new(0.0).drop_repeats(false)), [0, 1, 2, 3, 4, 5, 6]);
 }
 
 // Stage 1 streaming reports each decision and the tail index at finish.
 #[test]
 fn resampler_streaming() {
     let mut r = Resampler::new(1.0);
-    assert!(r.push(at(0.0, 0.0)));
-    assert!(!r.push(at(0.5, 0.0)));
-    assert!(r.push(at(1.5, 0.0)));
-    assert!(!r.push(at(1.7, 0.0)));
+    assert_eq!(r.push(at(0.0, 0.0)).collect::<Vec<_>>(), [(0, at(0.0, 0.0))]);
+    assert_eq!(r.push(at(0.5, 0.0)).count(), 0);
+    assert_eq!(r.push(at(1.5, 0.0)).collect::<Vec<_>>(), [(2, at(1.5, 0.0))]);
+    assert_eq!(r.push(at(1.7, 0.0)).count(), 0);
     assert_eq!(r.finish(), Some((3, at(1.7, 0.0))));
     assert_eq!(r.finish(), None);
 }

@@ -29,7 +29,7 @@ pub(super) fn stage1_table(
     optimal: &[usize],
 ) -> Vec<Stage1Row> {
     let settings = [
-        ("repeats kept", Resampler::new(resample).repeat_pressure(None)),
+        ("repeats kept", Resampler::new(resample).drop_repeats(false)),
         ("repeats dropped (default)", Resampler::new(resample)),
     ];
     settings
@@ -47,7 +47,7 @@ pub(super) fn stage1_table(
             for samples in data_set.strokes() {
                 let mut resampler = resampler.clone();
                 let mut sent: Vec<usize> =
-                    (0..samples.len()).filter(|&i| resampler.push(samples[i])).collect();
+                    samples.iter().flat_map(|s| resampler.push(*s)).map(|(i, _)| i).collect();
                 sent.extend(resampler.finish().map(|(index, _)| index));
                 let kept: Vec<usize> = penmesh::simplify(&picked(samples, &sent), params)
                     .into_iter()
