@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use penmesh::protocol::{ErrorBody, MeshInfo, StrokeSamples};
-use penmesh::{GlbMeta, GlbOptions, OutlineOptions, Sample, SolidOptions};
+use penmesh::{GlbMeta, GlbOptions, OutlineOptions, Sample};
 use serde::{Deserialize, Serialize};
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -110,15 +110,16 @@ pub async fn reconstruct(
     // The smooth centreline (the default), checked against what was drawn when the proxy's
     // stroke is exactly the drawn samples it kept.
     let outline_options = OutlineOptions::default();
-    let outline = if exact {
-        penmesh::fitted_outline(&stroke.drawn, &kept, &options.brush, &outline_options)
-            .with_context(|| format!("stroke {id}: outlining"))?
-    } else {
-        penmesh::outline(&simplified.samples, &options.brush, &outline_options)
-    };
-    let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
     let meta = GlbMeta { stroke: id, author: options.name.clone(), brush: options.brush };
-    let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default().encoding(options.glb));
+    let glb_options = GlbOptions::default().encoding(options.glb);
+    let glb = if exact {
+        penmesh::mesh_drawn_stroke(&stroke.drawn, &kept, &meta, &outline_options, &glb_options)
+            .with_context(|| format!("stroke {id}: outlining"))?
+            .glb
+    } else {
+        penmesh::mesh_retained_stroke(&simplified.samples, &meta, &outline_options, &glb_options)
+            .glb
+    };
 
     since_pen_up("mesh built");
     let glb_path = match &options.out_dir {

@@ -6,7 +6,7 @@
 use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
-use penmesh::{GlbMeta, GlbOptions, OutlineOptions, SolidOptions};
+use penmesh::{GlbMeta, GlbOptions, OutlineOptions};
 
 use crate::http::{AppError, MeshInfo, owned_stroke, store_mesh};
 use crate::state::AppState;
@@ -63,10 +63,15 @@ pub async fn build_mesh(
     let meta = GlbMeta { stroke: row.id, author: PROXY_UPLOADER.into(), brush: row.brush };
     // LRPDP is CPU work of a few milliseconds: keep it off the connection threads.
     let glb = tokio::task::spawn_blocking(move || {
-        let outline = penmesh::fitted_outline(&raw, &kept, &meta.brush, &OutlineOptions::default())
-            .map_err(|e| anyhow::anyhow!("stored stroke {}: {e}", meta.stroke))?;
-        let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
-        anyhow::Ok(penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default()))
+        let meshed = penmesh::mesh_drawn_stroke(
+            &raw,
+            &kept,
+            &meta,
+            &OutlineOptions::default(),
+            &GlbOptions::default(),
+        )
+        .map_err(|e| anyhow::anyhow!("stored stroke {}: {e}", meta.stroke))?;
+        anyhow::Ok(meshed.glb)
     })
     .await
     .map_err(anyhow::Error::from)??;

@@ -15,6 +15,7 @@ mod generator;
 mod glb;
 mod lrpdp;
 mod mesh;
+mod mesh_path;
 mod metrics;
 mod model;
 pub mod protocol;
@@ -54,6 +55,7 @@ pub use crate::mesh::{
     MeshStats, SolidOptions, StrokeMesh, is_closed, mesh_defect, signed_volume, solid_mesh,
     stroke_mesh, visible_centres,
 };
+pub use crate::mesh_path::{MeshedStroke, mesh_drawn_stroke, mesh_retained_stroke};
 pub use crate::metrics::{
     MetricsError, SimplificationMetrics, cdf_error_area, e_max, p_max, pressure_error,
     simplification_metrics,

@@ -191,15 +191,13 @@ pub(super) fn centreline_table(
             {
                 let simplified = picked(samples, kept);
                 let started = Instant::now();
-                let outline = if fitted {
-                    penmesh::fitted_outline(samples, kept, &brush, &options)
+                let plain = GlbOptions::default().encoding(GlbEncoding::Plain);
+                let penmesh::MeshedStroke { outline, mesh, glb } = if fitted {
+                    penmesh::mesh_drawn_stroke(samples, kept, &meta, &options, &plain)
                         .expect("the simplifiers keep increasing indices of the stroke")
                 } else {
-                    penmesh::outline(&simplified, &brush, &options)
+                    penmesh::mesh_retained_stroke(&simplified, &meta, &options, &plain)
                 };
-                let mesh = penmesh::solid_mesh(&outline, &SolidOptions::default());
-                let plain = GlbOptions::default().encoding(GlbEncoding::Plain);
-                let glb = penmesh::stroke_glb(&mesh, &meta, &plain);
                 row.time_ms += started.elapsed().as_secs_f64() * 1e3;
                 let centres = &outline.centres;
                 row.points += centres.len();
