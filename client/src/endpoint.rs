@@ -32,7 +32,7 @@ impl Endpoint {
 
     pub fn ws_url(&self) -> String {
         let rest = self.base.strip_prefix("http://").unwrap_or(&self.base);
-        format!("ws://{rest}/v1/sessions/{}/ws", self.session)
+        format!("ws://{rest}{}", crate::api::session_ws(self.session))
     }
 
     pub fn url(&self, path: &str) -> String {

@@ -2,6 +2,7 @@
 //!
 //! File and network I/O happen here; the algorithms come from the pure `penmesh` crate.
 
+pub mod api;
 mod backoff;
 pub mod cli;
 mod commands;

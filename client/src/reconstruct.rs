@@ -68,7 +68,7 @@ pub async fn reconstruct(
         tracing::debug!(stroke = %id, ms = stroke.pen_up.elapsed().as_secs_f64() * 1e3, "{step}");
     };
     since_pen_up("stroke done");
-    let url = endpoint.url(&format!("/v1/strokes/{id}/simplified"));
+    let url = endpoint.url(&crate::api::stroke_simplified(id));
     let simplified: StrokeSamples = with_retries(options.retry_for, || async {
         let response = http.get(&url).bearer_auth(&endpoint.token).send().await?;
         Ok(response)
@@ -133,7 +133,7 @@ pub async fn reconstruct(
         None => None,
     };
 
-    let url = endpoint.url(&format!("/v1/strokes/{id}/mesh"));
+    let url = endpoint.url(&crate::api::stroke_mesh(id));
     let stored: MeshInfo = with_retries(options.retry_for, || async {
         let response = http
             .put(&url)

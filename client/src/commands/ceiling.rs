@@ -138,7 +138,7 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
         ClientMessage::StrokeEnd(end) => ServerMessage::StrokeDone(StrokeDone {
             stroke: end.stroke,
             n_retained: 0,
-            url: format!("/v1/strokes/{}/simplified", end.stroke),
+            url: crate::api::stroke_simplified(end.stroke),
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
     };

@@ -237,17 +237,7 @@ async fn draw_together(
 }
 
 async fn create_session(base: &str) -> anyhow::Result<NewSession> {
-    let response = reqwest::Client::new()
-        .post(format!("{base}/v1/sessions"))
-        .send()
-        .await
-        .context("creating a session")?;
-    anyhow::ensure!(
-        response.status().is_success(),
-        "creating a session: HTTP {}",
-        response.status()
-    );
-    response.json().await.context("reading the new session")
+    crate::api::create_session(&reqwest::Client::new(), base).await
 }
 
 /// The session's page. The token rides in the fragment, which the browser never sends.

@@ -162,7 +162,7 @@ pub(super) async fn pen(
 }
 
 async fn connect(base_ws: &str, session: Uuid, token: &str) -> anyhow::Result<Socket> {
-    let url = format!("{base_ws}/v1/sessions/{session}/ws");
+    let url = format!("{base_ws}{}", crate::api::session_ws(session));
     // A small read buffer: tungstenite zero-fills it all, and thousands of pens share this
     // process (acks are a few dozen bytes).
     let config = WebSocketConfig::default().read_buffer_size(4 * 1024);
