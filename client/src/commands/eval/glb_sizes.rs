@@ -3,6 +3,7 @@
 //! default brush and solid), in each encoding: median, 90th percentile and largest size, and
 //! bytes per raw sample. What `docs/performance.md` reports for issue 26.
 
+use super::table::{Table, fixed};
 use super::*;
 use penmesh::GlbEncoding;
 
@@ -147,30 +148,38 @@ fn size_row(data: &str, encoding: &str, sizes: &[(usize, usize, usize)]) -> GlbS
 
 /// The rows as one Markdown table.
 pub(super) fn glb_size_markdown(rows: &[GlbSizeRow]) -> String {
-    let mut md = String::new();
-    let _ = writeln!(
-        md,
-        "| data | encoding | strokes | raw samples | median B | p90 B | max B (its raw samples) \
-         | B per raw sample | median B per raw sample | median vertices | max vertices |"
+    let mut table = Table::new(
+        &[
+            "data",
+            "encoding",
+            "strokes",
+            "raw samples",
+            "median B",
+            "p90 B",
+            "max B (its raw samples)",
+            "B per raw sample",
+            "median B per raw sample",
+            "median vertices",
+            "max vertices",
+        ],
+        2,
     );
-    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {} | {} ({}) | {:.1} | {:.1} | {} | {} |",
-            r.data,
-            r.encoding,
-            r.strokes,
-            r.raw_samples,
-            r.median_bytes,
-            r.p90_bytes,
-            r.max_bytes,
-            r.max_stroke_samples,
-            r.bytes_per_sample,
-            r.median_bytes_per_sample,
-            r.median_vertices,
-            r.max_vertices,
-        );
+        table.row(vec![
+            r.data.to_string(),
+            r.encoding.to_string(),
+            r.strokes.to_string(),
+            r.raw_samples.to_string(),
+            r.median_bytes.to_string(),
+            r.p90_bytes.to_string(),
+            format!("{} ({})", r.max_bytes, r.max_stroke_samples),
+            fixed(r.bytes_per_sample, 1),
+            fixed(r.median_bytes_per_sample, 1),
+            r.median_vertices.to_string(),
+            r.max_vertices.to_string(),
+        ]);
     }
+    let mut md = String::new();
+    table.write(&mut md);
     md
 }

@@ -28,6 +28,7 @@ mod glb_sizes;
 mod meshes;
 mod report;
 mod stage1;
+mod table;
 mod table8;
 
 use self::algos::*;

@@ -1,15 +1,7 @@
 //! The report: Markdown tables and SVG figures.
 
+use super::table::{Table, fixed};
 use super::*;
-
-/// A Markdown table's header and its alignment row: the first `n_left` columns left, the rest
-/// right (numbers).
-fn table_head(md: &mut String, columns: &[&str], n_left: usize) {
-    let _ = writeln!(md, "| {} |", columns.join(" | "));
-    let align: Vec<&str> =
-        (0..columns.len()).map(|k| if k < n_left { "---" } else { "---:" }).collect();
-    let _ = writeln!(md, "|{}|", align.join("|"));
-}
 
 /// The Markdown tables of the whole report.
 pub fn markdown(report: &EvalReport) -> String {
@@ -37,103 +29,17 @@ pub fn markdown(report: &EvalReport) -> String {
             d.n_strokes,
             d.rows.first().map_or(0, |r| r.n)
         );
-        table_head(
-            &mut md,
-            &[
-                "algorithm",
-                "online",
-                "N",
-                "C",
-                "CR %",
-                "SED px",
-                "E_max px",
-                "mean E_max px",
-                "E_l %",
-                "P_max",
-                "time ms",
-                "C / opt at B",
-                "C / opt at reached E_max",
-            ],
-            2,
-        );
-        for r in &d.rows {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {:.2} | {:.3} | {:.2} | {:.3} | {:.3} |",
-                r.algo,
-                if r.online { "yes" } else { "no" },
-                r.n,
-                r.c,
-                r.cr,
-                r.sed,
-                r.e_max,
-                r.e_max_mean,
-                r.e_l,
-                r.p_max,
-                r.time_ms,
-                r.ratio_at_bound,
-                r.ratio_at_reached
-            );
-        }
+        algorithm_table(d).write(&mut md);
         if !d.stage1.is_empty() {
             let _ = writeln!(
                 md,
                 "\nStage 1 of the clients (ACUTS's setting; stage 2 over what stage 1 sent; \
                  errors over every drawn sample):\n"
             );
-            table_head(
-                &mut md,
-                &["stage 1", "N", "sent", "sent %", "C", "C / opt at B", "E_max px", "P_max"],
-                1,
-            );
-            for r in &d.stage1 {
-                let _ = writeln!(
-                    md,
-                    "| {} | {} | {} | {:.1} | {} | {:.3} | {:.3} | {:.3} |",
-                    r.stage1,
-                    r.n,
-                    r.sent,
-                    ratio(r.sent, r.n) * 100.0,
-                    r.c,
-                    r.ratio_at_bound,
-                    r.e_max,
-                    r.p_max
-                );
-            }
+            stage1_table(d).write(&mut md);
         }
         let _ = writeln!(md, "\nMeshes (LRPDP solid, default brush, one GLB per file):\n");
-        table_head(
-            &mut md,
-            &[
-                "from",
-                "samples",
-                "N' vertices",
-                "F triangles",
-                "S bytes",
-                "T ms",
-                "eta N' %",
-                "eta F %",
-                "eta S %",
-                "eta T %",
-            ],
-            1,
-        );
-        for r in &d.mesh {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} |",
-                r.algo,
-                r.samples,
-                r.vertices,
-                r.triangles,
-                r.bytes,
-                r.time_ms,
-                r.eta_vertices,
-                r.eta_triangles,
-                r.eta_bytes,
-                r.eta_time
-            );
-        }
+        mesh_table(d).write(&mut md);
         if !d.centreline.is_empty() {
             let _ = writeln!(
                 md,
@@ -141,77 +47,174 @@ pub fn markdown(report: &EvalReport) -> String {
                  turns < {SMOOTH_TURN_DEG}° within {SMOOTH_REACH_PX} px either side; distances \
                  against the raw samples; one GLB per stroke):\n"
             );
-            table_head(
-                &mut md,
-                &[
-                    "centreline",
-                    "points",
-                    "smooth-path points",
-                    "> 10° %",
-                    "> 20° %",
-                    "median turn °",
-                    "max turn °",
-                    "raw → centreline px",
-                    "strokes over B",
-                    "centreline → raw px",
-                    "vertices",
-                    "triangles",
-                    "GLB bytes",
-                    "largest GLB (raw samples)",
-                    "T ms",
-                ],
-                1,
-            );
-            for r in &d.centreline {
-                let _ = writeln!(
-                    md,
-                    "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {:.3} | {} | {} | {} | {} ({}) | {:.2} |",
-                    r.centreline,
-                    r.points,
-                    r.smooth_points,
-                    r.over_10_deg,
-                    r.over_20_deg,
-                    r.median_turn_deg,
-                    r.max_turn_deg,
-                    r.raw_to_centreline,
-                    r.strokes_over_bound,
-                    r.centreline_to_raw,
-                    r.vertices,
-                    r.triangles,
-                    r.bytes,
-                    r.max_stroke_bytes,
-                    r.max_stroke_samples,
-                    r.time_ms
-                );
-            }
+            centreline_table(d).write(&mut md);
         }
         if !d.sweep.is_empty() {
-            let algos: Vec<&str> =
-                d.sweep.iter().map(|p| p.algo.as_str()).fold(Vec::new(), |mut v, a| {
-                    if !v.contains(&a) {
-                        v.push(a);
-                    }
-                    v
-                });
             let _ = writeln!(md, "\nSweep: points kept / optimal min-# at each bound B:\n");
-            let columns: Vec<&str> = std::iter::once("B px").chain(algos.iter().copied()).collect();
-            table_head(&mut md, &columns, 0);
-            for &b in &SWEEP_BOUNDS {
-                let _ = write!(md, "| {b} |");
-                for a in &algos {
-                    let p = d.sweep.iter().find(|p| p.bound == b && p.algo == *a);
-                    let _ = write!(
-                        md,
-                        " {} |",
-                        p.map_or("".into(), |p| format!("{:.3}", p.ratio_at_bound))
-                    );
-                }
-                let _ = writeln!(md);
-            }
+            sweep_table(d).write(&mut md);
         }
         let _ = writeln!(md);
     }
     md
+}
+
+fn yes_no(yes: bool) -> String {
+    (if yes { "yes" } else { "no" }).to_string()
+}
+
+fn algorithm_table(d: &DataSetReport) -> Table {
+    let mut table = Table::new(
+        &[
+            "algorithm",
+            "online",
+            "N",
+            "C",
+            "CR %",
+            "SED px",
+            "E_max px",
+            "mean E_max px",
+            "E_l %",
+            "P_max",
+            "time ms",
+            "C / opt at B",
+            "C / opt at reached E_max",
+        ],
+        2,
+    );
+    for r in &d.rows {
+        table.row(vec![
+            r.algo.clone(),
+            yes_no(r.online),
+            r.n.to_string(),
+            r.c.to_string(),
+            fixed(r.cr, 1),
+            fixed(r.sed, 3),
+            fixed(r.e_max, 3),
+            fixed(r.e_max_mean, 3),
+            fixed(r.e_l, 2),
+            fixed(r.p_max, 3),
+            fixed(r.time_ms, 2),
+            fixed(r.ratio_at_bound, 3),
+            fixed(r.ratio_at_reached, 3),
+        ]);
+    }
+    table
+}
+
+fn stage1_table(d: &DataSetReport) -> Table {
+    let mut table = Table::new(
+        &["stage 1", "N", "sent", "sent %", "C", "C / opt at B", "E_max px", "P_max"],
+        1,
+    );
+    for r in &d.stage1 {
+        table.row(vec![
+            r.stage1.clone(),
+            r.n.to_string(),
+            r.sent.to_string(),
+            fixed(ratio(r.sent, r.n) * 100.0, 1),
+            r.c.to_string(),
+            fixed(r.ratio_at_bound, 3),
+            fixed(r.e_max, 3),
+            fixed(r.p_max, 3),
+        ]);
+    }
+    table
+}
+
+fn mesh_table(d: &DataSetReport) -> Table {
+    let mut table = Table::new(
+        &[
+            "from",
+            "samples",
+            "N' vertices",
+            "F triangles",
+            "S bytes",
+            "T ms",
+            "eta N' %",
+            "eta F %",
+            "eta S %",
+            "eta T %",
+        ],
+        1,
+    );
+    for r in &d.mesh {
+        table.row(vec![
+            r.algo.clone(),
+            r.samples.to_string(),
+            r.vertices.to_string(),
+            r.triangles.to_string(),
+            r.bytes.to_string(),
+            fixed(r.time_ms, 2),
+            fixed(r.eta_vertices, 1),
+            fixed(r.eta_triangles, 1),
+            fixed(r.eta_bytes, 1),
+            fixed(r.eta_time, 1),
+        ]);
+    }
+    table
+}
+
+fn centreline_table(d: &DataSetReport) -> Table {
+    let mut table = Table::new(
+        &[
+            "centreline",
+            "points",
+            "smooth-path points",
+            "> 10° %",
+            "> 20° %",
+            "median turn °",
+            "max turn °",
+            "raw → centreline px",
+            "strokes over B",
+            "centreline → raw px",
+            "vertices",
+            "triangles",
+            "GLB bytes",
+            "largest GLB (raw samples)",
+            "T ms",
+        ],
+        1,
+    );
+    for r in &d.centreline {
+        table.row(vec![
+            r.centreline.clone(),
+            r.points.to_string(),
+            r.smooth_points.to_string(),
+            fixed(r.over_10_deg, 1),
+            fixed(r.over_20_deg, 1),
+            fixed(r.median_turn_deg, 1),
+            fixed(r.max_turn_deg, 1),
+            fixed(r.raw_to_centreline, 3),
+            r.strokes_over_bound.to_string(),
+            fixed(r.centreline_to_raw, 3),
+            r.vertices.to_string(),
+            r.triangles.to_string(),
+            r.bytes.to_string(),
+            format!("{} ({})", r.max_stroke_bytes, r.max_stroke_samples),
+            fixed(r.time_ms, 2),
+        ]);
+    }
+    table
+}
+
+/// Points kept over optimal min-# at each bound, one column per algorithm of the sweep.
+fn sweep_table(d: &DataSetReport) -> Table {
+    let mut algos: Vec<&str> = Vec::new();
+    for p in &d.sweep {
+        if !algos.contains(&p.algo.as_str()) {
+            algos.push(&p.algo);
+        }
+    }
+    let head: Vec<&str> = std::iter::once("B px").chain(algos.iter().copied()).collect();
+    let mut table = Table::new(&head, 0);
+    for &b in &SWEEP_BOUNDS {
+        let ratios = algos.iter().map(|a| {
+            let p = d.sweep.iter().find(|p| p.bound == b && p.algo == *a);
+            p.map_or(String::new(), |p| fixed(p.ratio_at_bound, 3))
+        });
+        table.row(std::iter::once(b.to_string()).chain(ratios).collect());
+    }
+    table
 }
 
 pub(super) fn write_plots(

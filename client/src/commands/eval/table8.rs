@@ -11,6 +11,7 @@
 //! strokes. Both meshers build on the same outline (the default smooth centreline, checked
 //! against the raw samples), so the meshers are the only difference between a curve's halves.
 
+use super::table::{Table, fixed};
 use super::*;
 use crate::commands::mesh::{Mesher, build_mesh};
 use crate::mesh_distance::{Hausdorff, hausdorff};
@@ -193,31 +194,45 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
     }
     for curve in &curves {
         let _ = writeln!(md, "#### {curve}\n");
-        let _ = writeln!(
-            md,
-            "| method | mesher | C | N' | eta N' % | F | eta F % | S MB | eta S % | T s | eta T % | H mesh→ref px | H ref→mesh px |"
+        let mut table = Table::new(
+            &[
+                "method",
+                "mesher",
+                "C",
+                "N'",
+                "eta N' %",
+                "F",
+                "eta F %",
+                "S MB",
+                "eta S %",
+                "T s",
+                "eta T %",
+                "H mesh→ref px",
+                "H ref→mesh px",
+            ],
+            2,
         );
-        let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
         for r in rows.iter().filter(|r| r.curve == *curve) {
             let (to, from) = r.hausdorff.map_or(("-".into(), "-".into()), |h| {
-                (format!("{:.3}", h.to_reference), format!("{:.3}", h.from_reference))
+                (fixed(h.to_reference, 3), fixed(h.from_reference, 3))
             });
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {} | {} | {} | {} | {:.3} | {} | {:.4} | {} | {to} | {from} |",
-                r.algo,
-                r.mesher.name(),
-                r.samples,
-                r.vertices,
+            table.row(vec![
+                r.algo.clone(),
+                r.mesher.name().to_string(),
+                r.samples.to_string(),
+                r.vertices.to_string(),
                 percent(r.eta_vertices),
-                r.faces,
+                r.faces.to_string(),
                 percent(r.eta_faces),
-                r.bytes as f64 / 1e6,
+                fixed(r.bytes as f64 / 1e6, 3),
                 percent(r.eta_bytes),
-                r.seconds,
+                fixed(r.seconds, 4),
                 percent(r.eta_seconds),
-            );
+                to,
+                from,
+            ]);
         }
+        table.write(&mut md);
         md.push('\n');
     }
     let _ = writeln!(
@@ -225,8 +240,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
         "Poisson against the direct solid of the same samples (smallest ratio over the methods of \
          each curve, the unsimplified strokes included):\n"
     );
-    let _ = writeln!(md, "| curve | vertices × | bytes × | time × |");
-    let _ = writeln!(md, "|---|---:|---:|---:|");
+    let mut table = Table::new(&["curve", "vertices ×", "bytes ×", "time ×"], 1);
     for curve in &curves {
         let mut ratios = [f64::INFINITY; 3];
         for direct in rows.iter().filter(|r| r.curve == *curve && r.mesher == Mesher::Direct) {
@@ -244,9 +258,9 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
                 *ratio = ratio.min(p / d);
             }
         }
-        let _ =
-            writeln!(md, "| {curve} | {:.0} | {:.0} | {:.0} |", ratios[0], ratios[1], ratios[2]);
+        table.row(std::iter::once(curve.to_string()).chain(ratios.map(|r| fixed(r, 0))).collect());
     }
+    table.write(&mut md);
     md
 }
 
