@@ -29,7 +29,8 @@ use tokio::sync::Mutex;
 use tokio_util::sync::CancellationToken;
 use uuid::Uuid;
 
-use crate::fanout::{EventKind, Fanout, SessionEvent};
+use crate::events::{EventKind, SessionEvent};
+use crate::fanout::Fanout;
 use crate::store::{EVENTS_CHANNEL, Store, notify};
 
 /// The `application_name` of the listener's connection (so an operator, or a test, finds it).

@@ -26,7 +26,7 @@ pub(crate) use penmesh::protocol::{
     ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples,
 };
 
-use crate::fanout::{EventKind, SessionEvent};
+use crate::events::{EventKind, SessionEvent};
 use crate::identity::{KeyError, request_participant};
 use crate::state::{AppState, LARGE_BODY_BYTES};
 use crate::store::{

@@ -6,6 +6,7 @@
 
 mod cluster;
 mod config;
+mod events;
 mod fanout;
 mod glb;
 mod http;

@@ -13,7 +13,7 @@ use super::{
     LONG_STROKE_SAMPLES, STROKE_SELECT, Store, StrokeRow, WriteOp, decode_samples, end_with_log,
     log, parse_uuid, stroke_from_row,
 };
-use crate::fanout::{EventKind, SessionEvent};
+use crate::events::{EventKind, SessionEvent};
 
 /// What a newcomer to a session is owed ([`Store::session_history`]).
 #[derive(Debug, Clone, Default)]

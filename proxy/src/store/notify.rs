@@ -1,6 +1,6 @@
 //! Session events as PostgreSQL notifications of the transaction that commits them.
 
-use crate::fanout::SessionEvent;
+use crate::events::SessionEvent;
 
 /// The `LISTEN/NOTIFY` channel that carries session events between replicas (PostgreSQL).
 pub const EVENTS_CHANNEL: &str = "penmesh_events";

@@ -11,7 +11,8 @@ use super::Frame;
 use super::connection::Connection;
 use super::error::{ConnError, End};
 use super::outgoing::Form;
-use crate::fanout::{Admit, EventKind, Lag, Published, SessionEvent, Subscription};
+use crate::events::{EventKind, SessionEvent};
+use crate::fanout::{Admit, Lag, Published, Subscription};
 
 /// A connection that overflows its queue more than `MAX_LAGS` times within `LAG_WINDOW` is
 /// dropped (its client reconnects and resumes) instead of resynced once more.

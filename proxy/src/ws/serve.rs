@@ -15,7 +15,7 @@ use super::connection::Connection;
 use super::error::{ConnError, End, ReadError};
 use super::outgoing::{Form, Outgoing, forward};
 use super::{Frame, close_code};
-use crate::fanout::{EventKind, SessionEvent};
+use crate::events::{EventKind, SessionEvent};
 use crate::state::{AppState, SessionGuard};
 use crate::store::WriteOp;
 

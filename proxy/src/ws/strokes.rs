@@ -12,7 +12,7 @@ use penmesh::{Kept, Sample};
 
 use super::connection::{AfterCommit, Connection, Decided};
 use super::error::ConnError;
-use crate::fanout::{EventKind, SessionEvent};
+use crate::events::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
 use crate::store::{StrokeRow, WriteError, WriteOp};
 

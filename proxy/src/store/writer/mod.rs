@@ -65,7 +65,8 @@ use queue::WriteRequest;
 pub use queue::{Committed, Writer};
 
 use super::{Backend, Store};
-use crate::fanout::{Fanout, SessionEvent};
+use crate::events::SessionEvent;
+use crate::fanout::Fanout;
 
 /// The thread that owns the write connection.
 ///

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use tokio::sync::{mpsc, oneshot};
 
 use super::{WriteError, WriteOp};
-use crate::fanout::SessionEvent;
+use crate::events::SessionEvent;
 
 /// The answer to a submitted request: ready once it is committed (or failed). A named type, not
 /// a boxed future, so that a connection keeps its requests in a plain queue (one allocation

@@ -15,7 +15,7 @@ use super::known::{Known, load_stroke, recover};
 use super::plan::{Plan, Planned};
 use super::sql::{apply, finish, insert_chunks};
 use super::{IDLE_CHECK, TRIM_RECORDS, WriteError, WriteOp, WriteRequest, WriterLoop};
-use crate::fanout::SessionEvent;
+use crate::events::SessionEvent;
 use crate::store::log::{self, MOVE_AFTER};
 use crate::store::{Backend, notify, now_ms};
 
