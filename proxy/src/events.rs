@@ -5,7 +5,7 @@
 
 use penmesh::protocol::{
     ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerRetained, PeerStrokeBegin, PeerStrokeDone,
-    PointBatch, ServerMessage, StrokeId,
+    PointBatch, ServerMessage, StrokeId, StrokeRemoval,
 };
 use penmesh::{Brush, Sample};
 use serde::{Deserialize, Serialize};
@@ -13,7 +13,8 @@ use uuid::Uuid;
 
 /// Version of the `NOTIFY` payloads replicas exchange (a second protocol, between proxies):
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
-pub const NOTIFY_VERSION: u16 = 3;
+/// 4: strokes taken back and brought back (`removed`, `restored`), brushes with a colour.
+pub const NOTIFY_VERSION: u16 = 4;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -68,6 +69,18 @@ pub enum EventKind {
         participant: ParticipantId,
         stroke: StrokeId,
         created_at: i64,
+    },
+    /// The stroke was taken back by `by` (its drawer).
+    Removed {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        by: ParticipantId,
+    },
+    /// The stroke was brought back by `by`.
+    Restored {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        by: ParticipantId,
     },
 }
 
@@ -195,6 +208,20 @@ impl SessionEvent {
                 stroke: *stroke,
                 url: format!("/v1/strokes/{stroke}/mesh"),
             }),
+            EventKind::Removed { participant, stroke, by } => {
+                ServerMessage::StrokeRemoved(StrokeRemoval {
+                    participant: *participant,
+                    stroke: *stroke,
+                    by: *by,
+                })
+            }
+            EventKind::Restored { participant, stroke, by } => {
+                ServerMessage::StrokeRestored(StrokeRemoval {
+                    participant: *participant,
+                    stroke: *stroke,
+                    by: *by,
+                })
+            }
         }
     }
 
@@ -214,7 +241,9 @@ impl SessionEvent {
             EventKind::StrokeBegin { stroke, .. }
             | EventKind::Retained { stroke, .. }
             | EventKind::StrokeDone { stroke, .. }
-            | EventKind::Mesh { stroke, .. } => Some(*stroke),
+            | EventKind::Mesh { stroke, .. }
+            | EventKind::Removed { stroke, .. }
+            | EventKind::Restored { stroke, .. } => Some(*stroke),
         }
     }
 }

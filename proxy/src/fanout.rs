@@ -262,6 +262,8 @@ struct StrokeView {
     n_retained: u64,
     done: bool,
     mesh_at: Option<i64>,
+    /// Taken back (`StrokeRemoved` sent), until brought back.
+    removed: bool,
 }
 
 /// What [`PeerView::admit`] decided.
@@ -347,6 +349,36 @@ impl PeerView {
                 view.mesh_at = Some(*created_at);
                 Admit::Whole
             }
+            // A stroke the client never had (it joined while the stroke was taken back) need
+            // not be hidden; brought back, the client lacks all of it: resync (the history
+            // holds it again).
+            EventKind::Removed { stroke, .. } => match self.strokes.get_mut(stroke) {
+                Some(view) if !view.removed => {
+                    view.removed = true;
+                    Admit::Whole
+                }
+                _ => Admit::Skip,
+            },
+            EventKind::Restored { stroke, .. } => match self.strokes.get_mut(stroke) {
+                Some(view) if view.removed => {
+                    view.removed = false;
+                    Admit::Whole
+                }
+                Some(_) => Admit::Skip,
+                None => Admit::Gap,
+            },
+        }
+    }
+
+    /// Records that the client was told a peer stroke is taken back (`removed`) or brought
+    /// back, as the answer to its own request; `false` when it knew already or never had it.
+    pub fn set_removed(&mut self, stroke: StrokeId, removed: bool) -> bool {
+        match self.strokes.get_mut(&stroke) {
+            Some(view) if view.removed != removed => {
+                view.removed = removed;
+                true
+            }
+            _ => false,
         }
     }
 
@@ -393,6 +425,32 @@ mod tests {
             other => panic!("{other:?}"),
         }
         assert_eq!(view.admit(&retained(stroke, 9, 1)), Admit::Gap);
+    }
+
+    fn removal(stroke: Uuid, removed: bool) -> SessionEvent {
+        let (participant, by) = (Uuid::nil(), Uuid::nil());
+        let kind = if removed {
+            EventKind::Removed { participant, stroke, by }
+        } else {
+            EventKind::Restored { participant, stroke, by }
+        };
+        SessionEvent::new(Uuid::nil(), kind)
+    }
+
+    // A removal and a restore reach the client once each, in turn; a stroke the client never
+    // had is not hidden, and brought back it is a gap (the client lacks all of it).
+    #[test]
+    fn removals_and_restores_are_told_once_and_an_unknown_restore_is_a_gap() {
+        let (known, unknown) = (Uuid::new_v4(), Uuid::new_v4());
+        let mut view = PeerView::default();
+        assert_eq!(view.admit(&begin(known)), Admit::Whole);
+        assert_eq!(view.admit(&removal(known, false)), Admit::Skip, "not removed");
+        assert_eq!(view.admit(&removal(known, true)), Admit::Whole);
+        assert_eq!(view.admit(&removal(known, true)), Admit::Skip, "a repeat");
+        assert_eq!(view.admit(&removal(known, false)), Admit::Whole);
+        assert_eq!(view.admit(&removal(known, false)), Admit::Skip, "a repeat");
+        assert_eq!(view.admit(&removal(unknown, true)), Admit::Skip);
+        assert_eq!(view.admit(&removal(unknown, false)), Admit::Gap);
     }
 
     fn joined(participant: Uuid, connection: Uuid) -> SessionEvent {

@@ -13,7 +13,7 @@ use axum::body::{Body, Bytes};
 use futures_util::StreamExt;
 use tokio::sync::OwnedSemaphorePermit;
 
-use axum::extract::{ConnectInfo, Path, State};
+use axum::extract::{ConnectInfo, Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use penmesh::protocol::{
@@ -149,18 +149,20 @@ pub(crate) async fn authorized_stroke(
 
 /// The stroke `id` of the token's session when the request speaks for its drawer (the
 /// participant of its `x-penmesh-key`), and that participant; before any body is read.
+/// `action` names what only the drawer may do, for the refusal ("store or build its mesh").
 pub(crate) async fn owned_stroke(
     state: &AppState,
     headers: &HeaderMap,
     id: &str,
+    action: &str,
 ) -> Result<(StrokeRow, ParticipantId), AppError> {
     let row = authorized_stroke(state, headers, id).await?;
     let participant = match request_participant(row.session_id, headers) {
         Ok(participant) => participant,
         Err(KeyError::Missing) => {
             return Err(AppError::Forbidden(format!(
-                "only the drawer of stroke {} may store or build its mesh: send its participant \
-                 key (its hello.key) in the {KEY_HEADER} header",
+                "only the drawer of stroke {} may {action}: send its participant key (its \
+                 hello.key) in the {KEY_HEADER} header",
                 row.id
             )));
         }
@@ -168,8 +170,7 @@ pub(crate) async fn owned_stroke(
     };
     if participant != row.participant {
         return Err(AppError::Forbidden(format!(
-            "stroke {} was drawn by another participant: only its drawer may store or build its \
-             mesh",
+            "stroke {} was drawn by another participant: only its drawer may {action}",
             row.id
         )));
     }
@@ -218,21 +219,41 @@ impl From<StrokeRow> for StrokeInfo {
             has_mesh: row.has_mesh,
             created_at: row.created_at,
             updated_at: row.updated_at,
+            removed: row.removed,
         }
     }
 }
 
-/// The strokes of a session, oldest first.
+/// `?include=removed` of the strokes list.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+pub struct ListQuery {
+    /// `removed`: also the strokes taken back, each with who took it back and when.
+    include: Option<String>,
+}
+
+/// The strokes of a session, oldest first; those taken back (undo, the eraser) only with
+/// `?include=removed`.
 #[utoipa::path(get, path = "/v1/sessions/{session}/strokes", tag = "strokes",
-    params(("session" = Uuid, Path)), security(("bearer" = [])),
-    responses((status = 200, body = StrokeList), (status = 401, body = ErrorBody)))]
+    params(("session" = Uuid, Path), ListQuery), security(("bearer" = [])),
+    responses((status = 200, body = StrokeList), (status = 400, body = ErrorBody),
+        (status = 401, body = ErrorBody)))]
 pub async fn list_strokes(
     State(state): State<AppState>,
     Path(session): Path<String>,
+    Query(query): Query<ListQuery>,
     headers: HeaderMap,
 ) -> Result<Json<StrokeList>, AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
-    let rows = state.store.list_strokes(session).await?;
+    let include_removed = match query.include.as_deref() {
+        None => false,
+        Some("removed") => true,
+        Some(other) => {
+            return Err(AppError::BadRequest(format!(
+                "include={other:?}: the one thing a strokes list can include is `removed`"
+            )));
+        }
+    };
+    let rows = state.store.list_strokes(session, include_removed).await?;
     Ok(Json(StrokeList { strokes: rows.into_iter().map(StrokeInfo::from).collect() }))
 }
 
@@ -405,6 +426,9 @@ pub async fn raw(
     samples_response(&headers, row.into(), None, samples, permit).await
 }
 
+/// What only a stroke's drawer may do with its mesh, as the refusals say it.
+pub(crate) const STORE_MESH: &str = "store or build its mesh";
+
 /// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
 /// the stroke's drawer may (its participant key in `x-penmesh-key`). Vertex and triangle counts
 /// are read from the GLB's accessors. The uploader stored is the drawer's participant id. The
@@ -428,7 +452,7 @@ pub async fn put_mesh(
 ) -> Result<Json<MeshInfo>, AppError> {
     // The token, the stroke and its drawer first: a stranger's upload is refused before its
     // body is read.
-    let (row, participant) = owned_stroke(&state, &headers, &id).await?;
+    let (row, participant) = owned_stroke(&state, &headers, &id, STORE_MESH).await?;
     let limit = state.config.max_body_bytes;
     // As large as it says, or as the limit when it does not say.
     let length = headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse().ok());
@@ -588,6 +612,7 @@ mod tests {
             has_mesh: false,
             created_at: 1,
             updated_at: 2,
+            removed: None,
         };
         for indices in [None, Some(vec![0, 5, 9])] {
             let whole = StrokeSamples {

@@ -16,6 +16,7 @@ mod mesh_build;
 mod metrics;
 mod openapi;
 mod rate;
+mod removal;
 mod send_deadline;
 mod session_meshes;
 mod startup;

@@ -8,7 +8,7 @@ use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use penmesh::{GlbMeta, GlbOptions, OutlineOptions};
 
-use crate::http::{AppError, MeshInfo, owned_stroke, store_mesh};
+use crate::http::{AppError, MeshInfo, STORE_MESH, owned_stroke, store_mesh};
 use crate::state::AppState;
 
 /// What the proxy names as the uploader of the meshes it builds.
@@ -31,7 +31,7 @@ pub async fn build_mesh(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Json<MeshInfo>, AppError> {
-    let (row, _) = owned_stroke(&state, &headers, &id).await?;
+    let (row, _) = owned_stroke(&state, &headers, &id, STORE_MESH).await?;
     if row.has_mesh {
         let mesh = state.store.mesh(row.id).await?;
         if let Some(mesh) = mesh {

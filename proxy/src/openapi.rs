@@ -3,15 +3,16 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{http, mesh_build, session_meshes};
+use crate::{http, mesh_build, removal, session_meshes};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
 #[openapi(
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
         The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, or for browsers the `penmesh.token.TOKEN` \
-        WebSocket subprotocol). Reads need the session's token; storing or building a stroke's mesh also needs its \
-        drawer's participant key (the `key` of its WebSocket `Hello`) in the `x-penmesh-key` header."),
+        WebSocket subprotocol). Reads need the session's token; storing or building a stroke's mesh, and taking \
+        a stroke back or bringing it back, also need its drawer's participant key (the `key` of its WebSocket \
+        `Hello`) in the `x-penmesh-key` header."),
     paths(
         http::create_session,
         http::list_strokes,
@@ -21,6 +22,8 @@ use crate::{http, mesh_build, session_meshes};
         http::get_mesh,
         session_meshes::session_meshes,
         mesh_build::build_mesh,
+        removal::remove_stroke,
+        removal::restore_stroke,
         http::healthz,
         http::readyz,
         http::metrics,
@@ -28,6 +31,7 @@ use crate::{http, mesh_build, session_meshes};
     components(schemas(
         http::NewSession,
         http::StrokeInfo,
+        penmesh::protocol::Removal,
         http::StrokeList,
         http::StrokeSamples,
         http::MeshInfo,

@@ -15,7 +15,7 @@ use anyhow::Context;
 use axum::Router;
 use axum::extract::{ConnectInfo, DefaultBodyLimit};
 use axum::http::{Request, StatusCode};
-use axum::routing::{get, post, put};
+use axum::routing::{delete, get, post, put};
 use hyper::body::Incoming;
 use tokio::net::TcpListener;
 use tokio_util::sync::CancellationToken;
@@ -30,7 +30,7 @@ use crate::fanout::Fanout;
 use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
-use crate::{http, mesh_build, metrics, send_deadline, session_meshes, web, ws};
+use crate::{http, mesh_build, metrics, removal, send_deadline, session_meshes, web, ws};
 
 /// A bound, ready-to-run proxy.
 #[derive(Debug)]
@@ -315,6 +315,8 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/strokes/{id}/raw", get(http::raw))
         .route("/v1/strokes/{id}/mesh", put(http::put_mesh).get(http::get_mesh))
         .route("/v1/strokes/{id}/mesh/build", post(mesh_build::build_mesh))
+        .route("/v1/strokes/{id}", delete(removal::remove_stroke))
+        .route("/v1/strokes/{id}/restore", post(removal::restore_stroke))
         .route("/v1/openapi.json", get(openapi_json))
         .merge(web::routes())
         .route("/healthz", get(http::healthz))

@@ -198,12 +198,18 @@ pub struct Brush {
     pub pressure_response: f64,
     /// Smallest radius `r_min`, so a feather-light touch still has a body.
     pub min_radius: f64,
+    /// The colour the stroke is shown in, `0xRRGGBB`; `None`: its drawer's colour, which each
+    /// page works out from the participant id.
+    #[serde(default)]
+    pub color: Option<u32>,
 }
 
 impl Brush {
     pub const DEFAULT_SIZE: f64 = 8.0;
     pub const DEFAULT_PRESSURE_RESPONSE: f64 = 0.5;
     pub const DEFAULT_MIN_RADIUS: f64 = 0.25;
+    /// The largest colour, `0xFFFFFF` (white).
+    pub const MAX_COLOR: u32 = 0xFF_FF_FF;
 
     /// Radius at pressure `p`: `max(r_min, E * chi * p)`.
     pub fn radius(&self, p: f64) -> f64 {
@@ -222,6 +228,9 @@ impl Brush {
         check("size", self.size, 0.0, 10_000.0)?;
         check("pressure_response", self.pressure_response, 0.0, 1.0)?;
         check("min_radius", self.min_radius, 1e-6, 10_000.0)?;
+        if let Some(color) = self.color {
+            check("color", f64::from(color), 0.0, f64::from(Brush::MAX_COLOR))?;
+        }
         Ok(())
     }
 }
@@ -232,6 +241,7 @@ impl Default for Brush {
             size: Brush::DEFAULT_SIZE,
             pressure_response: Brush::DEFAULT_PRESSURE_RESPONSE,
             min_radius: Brush::DEFAULT_MIN_RADIUS,
+            color: None,
         }
     }
 }

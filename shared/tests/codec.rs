@@ -53,7 +53,12 @@ fn client_messages() -> Vec<ClientMessage> {
         }),
         ClientMessage::StrokeBegin(StrokeBegin {
             stroke: id(3),
-            brush: Brush { size: 3.5, pressure_response: 1.0, min_radius: 0.1 },
+            brush: Brush {
+                size: 3.5,
+                pressure_response: 1.0,
+                min_radius: 0.1,
+                color: Some(0x3366cc),
+            },
             device: None,
             params: None,
         }),
@@ -62,6 +67,8 @@ fn client_messages() -> Vec<ClientMessage> {
         ClientMessage::Points(Points { stroke: id(3), seq: 9, points: PointBatch(vec![]) }),
         ClientMessage::StrokeEnd(StrokeEnd { stroke: id(3), n_points: 109 }),
         ClientMessage::Ping(Ping { nonce: u64::MAX }),
+        ClientMessage::RemoveStroke(StrokeRef { stroke: id(3) }),
+        ClientMessage::RestoreStroke(StrokeRef { stroke: id(3) }),
     ]
 }
 
@@ -127,6 +134,16 @@ fn server_messages() -> Vec<ServerMessage> {
             stroke: id(4),
             url: "/v1/strokes/y/mesh".into(),
         }),
+        ServerMessage::StrokeRemoved(StrokeRemoval {
+            participant: id(12),
+            stroke: id(4),
+            by: id(12),
+        }),
+        ServerMessage::StrokeRestored(StrokeRemoval {
+            participant: id(12),
+            stroke: id(4),
+            by: id(12),
+        }),
     ]
 }
 
@@ -166,13 +183,13 @@ fn json_points_have_the_documented_shape() {
 #[test]
 fn hello_carries_the_participant_key_in_both_encodings() {
     let key = "Zx-_0123456789abcdefghijklmnopqrstu";
-    let text = format!(r#"{{"hello":{{"protocol":3,"client":"web","key":"{key}"}}}}"#);
+    let text = format!(r#"{{"hello":{{"protocol":4,"client":"web","key":"{key}"}}}}"#);
     let ClientMessage::Hello(hello) = decode_client_json(&text, LIMIT).unwrap() else {
         panic!("not hello")
     };
     assert_eq!(hello.key.as_deref(), Some(key));
     let ClientMessage::Hello(keyless) =
-        decode_client_json(r#"{"hello":{"protocol":3,"client":"web"}}"#, LIMIT).unwrap()
+        decode_client_json(r#"{"hello":{"protocol":4,"client":"web"}}"#, LIMIT).unwrap()
     else {
         panic!("not hello")
     };
@@ -182,7 +199,7 @@ fn hello_carries_the_participant_key_in_both_encodings() {
     let with = encode_client(&ClientMessage::Hello(hello.clone()));
     let without = encode_client(&ClientMessage::Hello(Hello { key: None, ..hello }));
     assert_eq!(with.len(), without.len() + 1 + key.len());
-    assert_eq!(PROTOCOL_VERSION, 3);
+    assert_eq!(PROTOCOL_VERSION, 4);
 
     assert_eq!(check_participant_key(key), Ok(()));
     assert_eq!(check_participant_key(&"a".repeat(KEY_MIN_CHARS)), Ok(()));
@@ -254,8 +271,8 @@ fn binary_refuses_empty_oversized_bad_version_trailing_and_unknown_frames() {
     assert!(
         matches!(decode_client(&trailing, LIMIT), Err(CodecError::Malformed(m)) if m.contains("trailing"))
     );
-    // Variant indices 5 and 200 are no client message.
-    for index in [5, 200] {
+    // Variant indices 7 and 200 are no client message.
+    for index in [7, 200] {
         assert!(matches!(
             decode_client(&[PROTOCOL_VERSION as u8, index], LIMIT),
             Err(CodecError::UnknownMessage(_))

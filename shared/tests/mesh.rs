@@ -78,7 +78,7 @@ fn awkward_strokes() -> Vec<(&'static str, Vec<Sample>)> {
 }
 
 fn brushes() -> Vec<(&'static str, Brush, OutlineOptions)> {
-    let big = Brush { size: 30.0, pressure_response: 1.0, min_radius: 0.25 };
+    let big = Brush { size: 30.0, pressure_response: 1.0, min_radius: 0.25, color: None };
     vec![
         ("default", Brush::default(), OutlineOptions::default()),
         ("default with miter", Brush::default(), OutlineOptions::default().miter(true)),
@@ -579,7 +579,7 @@ fn arb_stroke() -> impl Strategy<Value = Vec<Sample>> {
 
 fn arb_brush() -> impl Strategy<Value = Brush> {
     (0.0..60.0f64, 0.0..=1.0f64, 0.001..5.0f64).prop_map(|(size, pressure_response, min_radius)| {
-        Brush { size, pressure_response, min_radius }
+        Brush { size, pressure_response, min_radius, color: None }
     })
 }
 

@@ -23,8 +23,8 @@ use axum::serve::ListenerExt;
 use clap::Args;
 use futures_util::StreamExt;
 use penmesh::protocol::{
-    Ack, ClientMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION, ServerMessage, StrokeDone,
-    Welcome, decode_client, encode_server,
+    Ack, ClientMessage, ErrorCode, ErrorMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION,
+    ServerMessage, StrokeDone, Welcome, decode_client, encode_server,
 };
 use penmesh_proxy::Frame;
 use uuid::Uuid;
@@ -141,6 +141,14 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
             url: crate::api::stroke_simplified(end.stroke),
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
+        // The load tool never takes a stroke back; a no-op answer all the same.
+        ClientMessage::RemoveStroke(r) | ClientMessage::RestoreStroke(r) => {
+            ServerMessage::Error(ErrorMessage {
+                code: ErrorCode::UnknownStroke,
+                message: format!("the ceiling keeps no strokes ({})", r.stroke),
+                stroke: Some(r.stroke),
+            })
+        }
     };
     Some(encode_server(&reply))
 }

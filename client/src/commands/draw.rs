@@ -350,6 +350,9 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
             ServerMessage::PeerStrokeBegin(m) => Some(m.participant),
             ServerMessage::PeerStrokeDone(m) => Some(m.participant),
             ServerMessage::PeerMesh(m) => Some(m.participant),
+            ServerMessage::StrokeRemoved(m) | ServerMessage::StrokeRestored(m) => {
+                Some(m.participant)
+            }
             _ => None,
         };
         if participant.is_some_and(|p| mine.contains(&p)) {
@@ -400,6 +403,13 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                     short(m.stroke),
                     glb.len()
                 ))
+            }
+            // A stroke taken back (undo, the eraser) stays stored; its mesh file is left as is.
+            ServerMessage::StrokeRemoved(r) => {
+                Some(format!("{} took back stroke {}", who(&names, r.by), short(r.stroke)))
+            }
+            ServerMessage::StrokeRestored(r) => {
+                Some(format!("{} brought back stroke {}", who(&names, r.by), short(r.stroke)))
             }
             ServerMessage::Synced(s) => Some(format!(
                 "-- up to date: {} strokes by the others; live from here --",

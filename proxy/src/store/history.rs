@@ -65,7 +65,8 @@ impl Store {
             ));
         }
         let strokes = sqlx::query(&format!(
-            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+            "{STROKE_SELECT} WHERE s.session_id = $1 AND s.removed_at IS NULL \
+             ORDER BY s.created_at, s.id"
         ))
         .bind(session.to_string())
         .fetch_all(&mut *conn)

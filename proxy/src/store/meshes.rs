@@ -13,7 +13,7 @@ impl Store {
         let rows = sqlx::query(
             "SELECT m.stroke_id, s.participant, m.glb FROM meshes m \
              JOIN strokes s ON s.id = m.stroke_id \
-             WHERE s.session_id = $1 ORDER BY s.created_at, s.id",
+             WHERE s.session_id = $1 AND s.removed_at IS NULL ORDER BY s.created_at, s.id",
         )
         .bind(session.to_string())
         .fetch_all(&self.pool)

@@ -25,9 +25,16 @@ impl Store {
         Ok(rows.pop())
     }
 
-    pub async fn list_strokes(&self, session: Uuid) -> anyhow::Result<Vec<StrokeRow>> {
+    /// The strokes of `session`, oldest first; the removed ones (taken back) only with
+    /// `include_removed`.
+    pub async fn list_strokes(
+        &self,
+        session: Uuid,
+        include_removed: bool,
+    ) -> anyhow::Result<Vec<StrokeRow>> {
+        let removed = if include_removed { "" } else { " AND s.removed_at IS NULL" };
         let rows = sqlx::query(&format!(
-            "{STROKE_SELECT} WHERE s.session_id = $1 ORDER BY s.created_at, s.id"
+            "{STROKE_SELECT} WHERE s.session_id = $1{removed} ORDER BY s.created_at, s.id"
         ))
         .bind(session.to_string())
         .fetch_all(&self.pool)

@@ -22,6 +22,8 @@ pub struct StrokeRow {
     pub created_at: i64,
     pub updated_at: i64,
     pub has_mesh: bool,
+    /// Set while the stroke is taken back (`WriteOp::SetRemoved`): who and when.
+    pub removed: Option<penmesh::protocol::Removal>,
 }
 
 /// The simplified stroke: indices into the raw samples and the samples themselves.
@@ -57,7 +59,7 @@ pub(super) fn parse_uuid(s: &str) -> anyhow::Result<Uuid> {
 /// appends of the group commit write nothing but their chunk, so that a commit touches as few
 /// pages as it can.
 pub(super) const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, s.params, s.device, \
-     s.status, s.n_retained, s.created_at, s.updated_at, \
+     s.status, s.n_retained, s.created_at, s.updated_at, s.removed_at, s.removed_by, \
      COALESCE((SELECT c.seq + c.n FROM stroke_chunks c WHERE c.stroke_id = s.id \
      ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
      (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = s.id) AS n_meshes FROM strokes s";
@@ -103,6 +105,13 @@ pub(super) fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeR
         created_at: row.try_get("created_at")?,
         updated_at: row.try_get("updated_at")?,
         has_mesh: row.try_get::<i64, _>("n_meshes")? > 0,
+        removed: match (
+            row.try_get::<Option<i64>, _>("removed_at")?,
+            row.try_get::<Option<String>, _>("removed_by")?,
+        ) {
+            (Some(at), Some(by)) => Some(penmesh::protocol::Removal { by: parse_uuid(&by)?, at }),
+            _ => None,
+        },
     })
 }
 

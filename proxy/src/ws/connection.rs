@@ -25,8 +25,21 @@ use crate::store::{Committed, WriteError};
 /// the client sends one, and what the client is shown is stored, as for the peers.
 #[derive(Debug)]
 pub(super) enum AfterCommit {
-    Ack { stroke: StrokeId, upto_seq: u64, retained: Decided },
-    Done { stroke: StrokeId, n_retained: u64, retained: Decided },
+    Ack {
+        stroke: StrokeId,
+        upto_seq: u64,
+        retained: Decided,
+    },
+    Done {
+        stroke: StrokeId,
+        n_retained: u64,
+        retained: Decided,
+    },
+    /// A request about a done stroke (taking it back or bringing it back): this answer.
+    Answer {
+        stroke: StrokeId,
+        answer: ServerMessage,
+    },
 }
 
 /// Retained samples `first..first + kept.len()` of a stroke, decided by one request.
@@ -89,6 +102,9 @@ pub(super) struct Connection {
     pub joined: bool,
     /// Every stroke drawn on this connection: its client has them, peer events skip them.
     pub own: HashSet<StrokeId>,
+    /// Those of `own` the client knows to be taken back: a removal or restore of one is told
+    /// once, however many times it is asked for.
+    pub own_removed: HashSet<StrokeId>,
     /// What the client has of the other participants' strokes.
     pub view: PeerView,
     /// The session's events, once the client said hello.
@@ -118,6 +134,7 @@ impl Connection {
             hello: false,
             joined: false,
             own: HashSet::new(),
+            own_removed: HashSet::new(),
             view: PeerView::default(),
             events: None,
             lags: Vec::new(),

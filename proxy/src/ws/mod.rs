@@ -13,6 +13,7 @@
 //!   task that writes frames to the socket.
 //! - `strokes.rs`: the stroke lifecycle: begin, points, end, resume, acks after commit.
 //! - `peers.rs`: the session's events to this client, and the resync after a gap.
+//! - `removals.rs`: a stroke taken back or brought back by its drawer (`crate::removal`).
 //! - `error.rs`: [`ConnError`](error::ConnError), why a message was not carried out; every one
 //!   is answered and logged in one place (`Connection::fail`).
 //!
@@ -50,6 +51,7 @@ mod connection;
 mod error;
 mod outgoing;
 mod peers;
+mod removals;
 mod serve;
 mod strokes;
 

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, Synced};
+use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, StrokeId, Synced};
 use tokio::time::Instant;
 
 use super::Frame;
@@ -31,10 +31,19 @@ impl Connection {
     /// A live event of the session.
     pub(super) async fn on_event(&mut self, published: &Published) {
         let event = &published.event;
-        if self.is_own(event) {
-            return;
-        }
-        match self.view.admit(event) {
+        let admit = match &event.kind {
+            // The client has its own strokes, so it is told when one is taken back or brought
+            // back elsewhere (over HTTP, or by another connection of its participant).
+            EventKind::Removed { stroke, .. } | EventKind::Restored { stroke, .. }
+                if self.own.contains(stroke) =>
+            {
+                let removed = matches!(event.kind, EventKind::Removed { .. });
+                if self.told_removed(*stroke, removed) { Admit::Whole } else { Admit::Skip }
+            }
+            _ if self.is_own(event) => return,
+            _ => self.view.admit(event),
+        };
+        match admit {
             Admit::Whole => {
                 self.state.counters.fanout_events.increment(1);
                 // Encoded once for every participant of the session.
@@ -54,6 +63,15 @@ impl Connection {
                 self.resync(Some(Lag::Gap)).await;
             }
         }
+    }
+
+    /// Records that the client is told `stroke` is taken back (`removed`) or brought back;
+    /// `false` when it knew already (or never had the stroke).
+    pub(super) fn told_removed(&mut self, stroke: StrokeId, removed: bool) -> bool {
+        if !self.own.contains(&stroke) {
+            return self.view.set_removed(stroke, removed);
+        }
+        if removed { self.own_removed.insert(stroke) } else { self.own_removed.remove(&stroke) }
     }
 
     fn is_own(&self, event: &SessionEvent) -> bool {

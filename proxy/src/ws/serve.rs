@@ -262,6 +262,8 @@ impl Connection {
             ClientMessage::StrokeBegin(begin) => self.on_stroke_begin(begin).await,
             ClientMessage::Points(points) => self.on_points(points).await,
             ClientMessage::StrokeEnd(end) => self.on_stroke_end(end).await,
+            ClientMessage::RemoveStroke(stroke) => self.on_set_removed(stroke, true).await,
+            ClientMessage::RestoreStroke(stroke) => self.on_set_removed(stroke, false).await,
             ClientMessage::Ping(ping) => {
                 self.send(ServerMessage::Pong(ping));
                 Ok(())

@@ -380,9 +380,24 @@ impl Connection {
                 self.send_retained(stroke, retained.first, &retained.kept);
                 self.send(ServerMessage::StrokeDone(done_message(stroke, n_retained)));
             }
+            (Ok(()), AfterCommit::Answer { stroke, answer }) => {
+                // Answered whatever the client knew: it asked.
+                self.told_removed(stroke, matches!(answer, ServerMessage::StrokeRemoved(_)));
+                self.send(answer)
+            }
+            (Err(err), AfterCommit::Answer { stroke, .. }) => {
+                self.fail(ConnError::internal(
+                    "storing a stroke's removal",
+                    err,
+                    "storing that failed, so nothing changed; try again",
+                    Some(stroke),
+                ));
+            }
             (Err(err), after) => {
                 let stroke = match after {
-                    AfterCommit::Ack { stroke, .. } | AfterCommit::Done { stroke, .. } => stroke,
+                    AfterCommit::Ack { stroke, .. }
+                    | AfterCommit::Done { stroke, .. }
+                    | AfterCommit::Answer { stroke, .. } => stroke,
                 };
                 // The in-memory state is ahead of the database: drop it, so the client
                 // resumes from what is committed.

@@ -46,6 +46,19 @@ pub struct StrokeInfo {
     /// Milliseconds since the Unix epoch.
     pub created_at: i64,
     pub updated_at: i64,
+    /// Set while the stroke is taken back (undo, the eraser): who took it back and when.
+    /// Only listed with `?include=removed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub removed: Option<Removal>,
+}
+
+/// Who took a stroke back, and when.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct Removal {
+    /// The participant who took it back (its drawer).
+    pub by: Uuid,
+    /// Milliseconds since the Unix epoch.
+    pub at: i64,
 }
 
 /// The strokes of a session, oldest first.

@@ -41,7 +41,7 @@ pub use codec::{
     decode_server_json, encode_client, encode_client_json, encode_point_batch, encode_server,
     encode_server_json, quantize_sample,
 };
-pub use http::{ErrorBody, MeshInfo, NewSession, StrokeInfo, StrokeList, StrokeSamples};
+pub use http::{ErrorBody, MeshInfo, NewSession, Removal, StrokeInfo, StrokeList, StrokeSamples};
 pub use mesh_bundle::{
     BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MeshBundleError, decode_mesh_bundle,
     encode_mesh_bundle,
@@ -106,8 +106,9 @@ pub fn check_participant_key(key: &str) -> Result<(), String> {
 pub struct PointBatch(pub Vec<Sample>);
 
 /// Client to proxy.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, strum::VariantNames)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum ClientMessage {
     /// First message on a connection. `resume` lists strokes the client was drawing when its
     /// last connection dropped; the proxy answers with how far it has committed each.
@@ -116,6 +117,13 @@ pub enum ClientMessage {
     Points(Points),
     StrokeEnd(StrokeEnd),
     Ping(Ping),
+    /// Takes back a done stroke of this participant's (undo, the eraser): answered with
+    /// `StrokeRemoved` once the mark is stored, and told to every connection of the session.
+    /// Idempotent. Only the stroke's drawer may (`not_owner`); a stroke not of this session is
+    /// `unknown_stroke`; one still being drawn is `stroke_open`.
+    RemoveStroke(StrokeRef),
+    /// Brings a taken-back stroke back (redo): answered with `StrokeRestored`, the same rules.
+    RestoreStroke(StrokeRef),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -174,8 +182,9 @@ pub struct Ping {
 }
 
 /// Proxy to client.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, strum::VariantNames)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum ServerMessage {
     Welcome(Welcome),
     /// Every sample of `stroke` with `seq < upto_seq` is committed to the database: the client
@@ -197,6 +206,28 @@ pub enum ServerMessage {
     /// since an `Error {lagged}`) came from storage, every one after it is live. History and
     /// live events never overlap or leave a gap.
     Synced(Synced),
+    /// A stroke was taken back by its drawer (`RemoveStroke`, or `DELETE /v1/strokes/{id}`):
+    /// hide it. Sent to every connection of the session, the drawer's own included. A late
+    /// joiner's history leaves a removed stroke out.
+    StrokeRemoved(StrokeRemoval),
+    /// A taken-back stroke is back (`RestoreStroke`, or `POST /v1/strokes/{id}/restore`): show
+    /// it again. A client that never had the stroke (it joined while the stroke was removed)
+    /// gets the stroke's events instead, as in a history.
+    StrokeRestored(StrokeRemoval),
+}
+
+/// The stroke a `RemoveStroke` or `RestoreStroke` is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StrokeRef {
+    pub stroke: StrokeId,
+}
+
+/// A stroke taken back or brought back: `participant` drew it, `by` asked (its drawer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StrokeRemoval {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub by: ParticipantId,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -315,6 +346,9 @@ pub enum ErrorCode {
     /// draws: resume it from the last ack. With another's (a stroke of the session's history
     /// that cannot be read): that stroke is missing, the others are sent.
     Internal,
+    /// A `RemoveStroke` or `RestoreStroke` of a stroke still being drawn (open or interrupted):
+    /// only a finished stroke can be taken back.
+    StrokeOpen,
 }
 
 impl ErrorCode {

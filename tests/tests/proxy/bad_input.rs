@@ -167,17 +167,20 @@ async fn a_stroke_id_of_another_session_is_a_conflict_and_a_bad_brush_is_refused
     let (_, mut other) = ready(&proxy).await;
     other.begin(stroke).await;
     other.expect_error(ErrorCode::StrokeConflict).await;
-    let brush = penmesh::Brush { pressure_response: 3.0, ..Default::default() };
-    other
-        .send(&ClientMessage::StrokeBegin(StrokeBegin {
-            stroke: Uuid::new_v4(),
-            brush,
-            device: None,
-            params: None,
-        }))
-        .await;
-    let err = other.expect_error(ErrorCode::BadBrush).await;
-    assert!(err.message.contains("pressure_response"), "{}", err.message);
+    let bad_response = penmesh::Brush { pressure_response: 3.0, ..Default::default() };
+    let bad_colour = penmesh::Brush { color: Some(0x1_00_00_00), ..Default::default() };
+    for (brush, field) in [(bad_response, "pressure_response"), (bad_colour, "color")] {
+        other
+            .send(&ClientMessage::StrokeBegin(StrokeBegin {
+                stroke: Uuid::new_v4(),
+                brush,
+                device: None,
+                params: None,
+            }))
+            .await;
+        let err = other.expect_error(ErrorCode::BadBrush).await;
+        assert!(err.message.contains(field), "{}", err.message);
+    }
     still_alive(&mut other).await;
     // The first connection did not notice.
     still_alive(&mut ws).await;

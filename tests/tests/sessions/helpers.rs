@@ -20,6 +20,8 @@ pub struct PeerStroke {
     pub retained: Vec<Sample>,
     pub done: bool,
     pub meshes: u32,
+    /// Taken back (`StrokeRemoved`), until brought back (`StrokeRestored`).
+    pub removed: bool,
 }
 
 /// Everything a participant received of the others, checked as it arrives.
@@ -50,6 +52,7 @@ impl View {
                     retained: Vec::new(),
                     done: false,
                     meshes: 0,
+                    removed: false,
                 };
                 assert!(self.strokes.insert(b.stroke, fresh).is_none(), "stroke begun twice");
             }
@@ -78,6 +81,22 @@ impl View {
                 assert!(s.done, "mesh before done");
                 assert_eq!(m.url, format!("/v1/strokes/{}/mesh", m.stroke));
                 s.meshes += 1;
+            }
+            // Of a peer stroke this view holds; the participant's own strokes are not in it.
+            ServerMessage::StrokeRemoved(r) => {
+                if let Some(s) = self.strokes.get_mut(&r.stroke) {
+                    assert!(s.done, "removed before done");
+                    assert!(!s.removed, "removed twice");
+                    assert_eq!(r.participant, s.participant);
+                    s.removed = true;
+                }
+            }
+            ServerMessage::StrokeRestored(r) => {
+                let s = self.strokes.get_mut(&r.stroke);
+                if let Some(s) = s {
+                    assert!(s.removed, "restored while not removed");
+                    s.removed = false;
+                }
             }
             ServerMessage::Synced(synced) => {
                 self.n_synced += 1;

@@ -1,7 +1,7 @@
 //! What a connection asks the writer to do ([`WriteOp`]) and how a request can fail
 //! ([`WriteError`]).
 
-use penmesh::protocol::StrokeStatus;
+use penmesh::protocol::{Removal, StrokeStatus};
 use penmesh::{AcutsParams, Brush, Kept, Sample};
 use uuid::Uuid;
 
@@ -38,6 +38,9 @@ pub enum WriteOp {
     /// that the next history of its session need not replay them (`Store::session_history`).
     /// Never replaces the simplified stroke of a stroke that is done.
     KeepRetained { stroke: Uuid, upto: u64, kept: Vec<Kept> },
+    /// Takes a stroke back (`Some`: who and when; a stroke already taken back keeps its first
+    /// mark) or brings it back (`None`). Nothing of the stroke is deleted.
+    SetRemoved { stroke: Uuid, removed: Option<Removal> },
 }
 
 impl WriteOp {

@@ -251,6 +251,23 @@ pub(super) async fn apply(
             .execute(&mut *conn)
             .await?;
         }
+        WriteOp::SetRemoved { stroke, removed: Some(removal) } => {
+            sqlx::query(
+                "UPDATE strokes SET removed_at = $1, removed_by = $2 \
+                 WHERE id = $3 AND removed_at IS NULL",
+            )
+            .bind(removal.at)
+            .bind(removal.by.to_string())
+            .bind(stroke.to_string())
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::SetRemoved { stroke, removed: None } => {
+            sqlx::query("UPDATE strokes SET removed_at = NULL, removed_by = NULL WHERE id = $1")
+                .bind(stroke.to_string())
+                .execute(&mut *conn)
+                .await?;
+        }
         WriteOp::SetStatus { stroke, status } => {
             sqlx::query(
                 "UPDATE strokes SET status = $1, updated_at = $2 WHERE id = $3 AND status <> 'done'",

@@ -14,33 +14,19 @@ fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
     out
 }
 
-/// The variant names and count of a message enum, so decoding can tell an unknown message from
-/// a malformed one without reading error texts.
+/// The variant names and count of a message enum (serde's names, which strum derives from the
+/// enum itself), so decoding can tell an unknown message from a malformed one without reading
+/// error texts.
 trait MessageKind {
     const NAMES: &'static [&'static str];
 }
 
 impl MessageKind for ClientMessage {
-    const NAMES: &'static [&'static str] =
-        &["hello", "stroke_begin", "points", "stroke_end", "ping"];
+    const NAMES: &'static [&'static str] = <ClientMessage as strum::VariantNames>::VARIANTS;
 }
 
 impl MessageKind for ServerMessage {
-    const NAMES: &'static [&'static str] = &[
-        "welcome",
-        "ack",
-        "retained",
-        "stroke_done",
-        "pong",
-        "error",
-        "peer_joined",
-        "peer_left",
-        "peer_stroke_begin",
-        "peer_retained",
-        "peer_stroke_done",
-        "peer_mesh",
-        "synced",
-    ];
+    const NAMES: &'static [&'static str] = <ServerMessage as strum::VariantNames>::VARIANTS;
 }
 
 fn decode<T: DeserializeOwned + MessageKind>(

@@ -78,7 +78,9 @@ use crate::model::Sample;
 /// 2: `AcutsParams` carries the pressure gate as an enum and the `angle_near_anchor` flag, so
 /// a version-1 peer would misread a session's parameters.
 /// 3: `Hello` carries the participant's `key`, and `ErrorCode` has `not_owner`.
-pub const PROTOCOL_VERSION: u16 = 3;
+/// 4: `Brush` carries a `color`; strokes can be taken back and brought back (`RemoveStroke`,
+/// `RestoreStroke`, `StrokeRemoved`, `StrokeRestored`, `ErrorCode::StrokeOpen`).
+pub const PROTOCOL_VERSION: u16 = 4;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
 /// Default largest frame a decoder accepts.
