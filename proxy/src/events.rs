@@ -70,6 +70,11 @@ pub enum EventKind {
         stroke: StrokeId,
         created_at: i64,
     },
+    /// A participant present chose another name.
+    Renamed {
+        participant: ParticipantId,
+        name: String,
+    },
     /// The stroke was taken back by `by` (its drawer).
     Removed {
         participant: ParticipantId,
@@ -208,6 +213,10 @@ impl SessionEvent {
                 stroke: *stroke,
                 url: format!("/v1/strokes/{stroke}/mesh"),
             }),
+            EventKind::Renamed { participant, name } => ServerMessage::PeerRenamed(PeerJoined {
+                participant: *participant,
+                name: name.clone(),
+            }),
             EventKind::Removed { participant, stroke, by } => {
                 ServerMessage::StrokeRemoved(StrokeRemoval {
                     participant: *participant,
@@ -237,7 +246,7 @@ impl SessionEvent {
     /// The stroke the event is about, if any.
     pub fn stroke(&self) -> Option<StrokeId> {
         match &self.kind {
-            EventKind::Joined { .. } | EventKind::Left { .. } => None,
+            EventKind::Joined { .. } | EventKind::Left { .. } | EventKind::Renamed { .. } => None,
             EventKind::StrokeBegin { stroke, .. }
             | EventKind::Retained { stroke, .. }
             | EventKind::StrokeDone { stroke, .. }

@@ -299,6 +299,15 @@ impl PeerView {
                 self.present.remove(participant);
                 Admit::Whole
             }
+            // Only of a participant the client knows to be present (else its join, to come or
+            // in a history, carries the name).
+            EventKind::Renamed { participant, .. } => {
+                if self.present.contains_key(participant) {
+                    Admit::Whole
+                } else {
+                    Admit::Skip
+                }
+            }
             EventKind::StrokeBegin { stroke, .. } => {
                 if self.strokes.contains_key(stroke) {
                     return Admit::Skip;

@@ -69,6 +69,7 @@ fn client_messages() -> Vec<ClientMessage> {
         ClientMessage::Ping(Ping { nonce: u64::MAX }),
         ClientMessage::RemoveStroke(StrokeRef { stroke: id(3) }),
         ClientMessage::RestoreStroke(StrokeRef { stroke: id(3) }),
+        ClientMessage::Rename(Rename { name: "Ada Lovelace".into() }),
     ]
 }
 
@@ -144,6 +145,7 @@ fn server_messages() -> Vec<ServerMessage> {
             stroke: id(4),
             by: id(12),
         }),
+        ServerMessage::PeerRenamed(PeerJoined { participant: id(12), name: "Grace".into() }),
     ]
 }
 
@@ -271,8 +273,8 @@ fn binary_refuses_empty_oversized_bad_version_trailing_and_unknown_frames() {
     assert!(
         matches!(decode_client(&trailing, LIMIT), Err(CodecError::Malformed(m)) if m.contains("trailing"))
     );
-    // Variant indices 7 and 200 are no client message.
-    for index in [7, 200] {
+    // Variant indices 8 and 200 are no client message.
+    for index in [8, 200] {
         assert!(matches!(
             decode_client(&[PROTOCOL_VERSION as u8, index], LIMIT),
             Err(CodecError::UnknownMessage(_))

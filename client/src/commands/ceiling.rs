@@ -141,7 +141,7 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
             url: crate::api::stroke_simplified(end.stroke),
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
-        // The load tool never takes a stroke back; a no-op answer all the same.
+        // The load tool never takes a stroke back nor renames; a no-op answer all the same.
         ClientMessage::RemoveStroke(r) | ClientMessage::RestoreStroke(r) => {
             ServerMessage::Error(ErrorMessage {
                 code: ErrorCode::UnknownStroke,
@@ -149,6 +149,11 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
                 stroke: Some(r.stroke),
             })
         }
+        ClientMessage::Rename(_) => ServerMessage::Error(ErrorMessage {
+            code: ErrorCode::UnknownMessage,
+            message: "the ceiling keeps no names".into(),
+            stroke: None,
+        }),
     };
     Some(encode_server(&reply))
 }

@@ -1,15 +1,21 @@
 // The penmesh page: a session in 3D (history, live strokes, meshes) and a pen that draws into it.
 // This module wires the others: the connection (protocol.js) and the HTTP calls (api.js) feed
-// the 3D view (scene.js); the pen (pen.js) feeds the connection and the ink (ink.js). It asks the
-// proxy to build the mesh of its own strokes (POST /v1/strokes/{id}/mesh/build). See docs/web.md.
+// the 3D view (scene.js); the pen (pen.js) feeds the connection and the ink (ink.js), or the
+// eraser; undo and redo go through takeback.js; the brush and the name are settings.js's. It
+// asks the proxy to build the mesh of its own strokes (POST /v1/strokes/{id}/mesh/build). See
+// docs/web.md.
 import { Api, createSession } from "./api.js";
 import { Ink } from "./ink.js";
 import { attachPen } from "./pen.js";
 import { Connection } from "./protocol.js";
-import { SceneView, colourOf } from "./scene.js";
+import { SceneView, colourOf, strokeColour } from "./scene.js";
+import { cleanName, hexOf, colourOf as colourNumber, saveBrush, saveName, savedBrush, savedName } from "./settings.js";
+import { TakeBack } from "./takeback.js";
 
-// The brush of our strokes (the proxy's default brush).
-const BRUSH = { size: 8, pressure_response: 0.5, min_radius: 0.25 };
+// The brush of our strokes (this tab's choice of colour and size).
+const brush = savedBrush();
+// Half the eraser's width, in CSS pixels.
+const ERASER_RADIUS_PX = 8;
 const meta = (name) => document.querySelector(`meta[name="${name}"]`).content;
 const $ = (id) => document.getElementById(id);
 
@@ -52,8 +58,9 @@ const api = new Api(token);
 // meanwhile (docs/performance.md, "A busy board").
 const bundleRequest = session ? api.meshBundle(session) : null;
 bundleRequest?.catch(() => {}); // its failure is reported where it is awaited (loadBundle)
-// The proxy refuses a name over 200 characters or with a NUL byte (hello.name).
-const myName = (localStorage.getItem("penmesh:name") || "browser").replace(/\0/g, "").slice(0, 200);
+// Asked once (the name field is offered first), then kept; a guest name until then.
+const askName = savedName() === null;
+let myName = savedName() || `guest ${Math.floor(Math.random() * 0x10000).toString(16).padStart(4, "0")}`;
 const conn = new Connection({
   session,
   token,
@@ -65,7 +72,9 @@ const conn = new Connection({
 });
 if (session) conn.connect(); // its messages are handled once this module has run
 const view = new SceneView($("gl"));
-const ink = new Ink($("ink"), BRUSH);
+const ink = new Ink($("ink"), brush);
+const takeBack = new TakeBack((stroke, remove) => conn.setRemoved(stroke, remove));
+let eraser = false; // the eraser tool (for a mouse or a finger; a pen's eraser end always erases)
 
 // For the browser tests and the curious.
 window.penmesh = {
@@ -77,6 +86,14 @@ window.penmesh = {
   get meshes() { return view.meshCount; },
   get frames() { return view.frames; },
   get drawCalls() { return view.renderer.info.render.calls; }, // of the last frame
+  get shown() { return view.shownMeshes; },
+  get removed() { return [...view.strokes].filter(([, s]) => s.removed).map(([id]) => id); },
+  get brush() { return brush; },
+  // Asks the proxy to take back (`remove`) or bring back any stroke, ours or not (the tests
+  // check that the proxy refuses another's).
+  setRemoved: (stroke, remove) => conn.setRemoved(stroke, remove),
+  undo: () => takeBack.undo(),
+  redo: () => takeBack.redo(),
   people,
   errors,
   timings,
@@ -147,7 +164,8 @@ async function loadMesh(id, participant) {
 }
 
 async function ownStrokeDone(id) {
-  view.stroke(id, conn.me);
+  view.stroke(id, conn.me).done = true;
+  takeBack.drawn(id);
   try {
     await api.buildMesh(id, conn.participantKey());
     await loadMesh(id, conn.me); // our own: not announced to us
@@ -166,7 +184,7 @@ function onMessage(kind, m) {
     case "welcome":
       people.set(m.participant, myName);
       showPeople();
-      ink.setColour(`#${colourOf(m.participant).getHexString()}`);
+      showBrush();
       $("status").textContent = "loading the session…";
       break;
     case "synced":
@@ -175,6 +193,10 @@ function onMessage(kind, m) {
         fitted = true;
         view.fitToDrawing();
         ink.setScale(view.pixelsPerUnit());
+        // After a reload, undo takes back our strokes of the history, the last first.
+        if (takeBack.undone.length === 0) {
+          for (const [id, s] of view.strokes) if (s.participant === conn.me && s.done && !s.removed) takeBack.drawn(id);
+        }
       }
       break;
     case "retained": // our own stroke
@@ -184,18 +206,26 @@ function onMessage(kind, m) {
       ownStrokeDone(m.stroke);
       break;
     case "peer_joined":
+    case "peer_renamed":
       people.set(m.participant, m.name);
       showPeople();
+      break;
+    case "stroke_removed":
+    case "stroke_restored":
+      view.setRemoved(m.stroke, kind === "stroke_removed");
       break;
     case "peer_left":
       people.delete(m.participant);
       showPeople();
       break;
     case "peer_stroke_begin":
-      view.stroke(m.stroke, m.participant);
+      view.stroke(m.stroke, m.participant, m.brush);
       break;
     case "peer_retained":
       view.addRetained(m.stroke, m.participant, m.first, m.points);
+      break;
+    case "peer_stroke_done":
+      view.stroke(m.stroke, m.participant).done = true;
       break;
     case "peer_mesh":
       meshAnnounced(m.stroke, m.participant);
@@ -221,11 +251,23 @@ function addSamples(stroke, samples) {
     ink.add(stroke, s.clientX, s.clientY, s.p);
   }
 }
+// Our strokes the eraser touches at a point of the page: each taken back (and undo brings it
+// back).
+function erase(clientX, clientY) {
+  const at = view.toStroke(clientX, clientY);
+  if (!at || !conn.me) return;
+  const radius = ERASER_RADIUS_PX / view.pixelsPerUnit() + brush.size * brush.pressure_response;
+  for (const stroke of view.strokesAt(at[0], at[1], radius, conn.me)) {
+    if (!takeBack.erase(stroke)) fail("cannot erase: not connected to the proxy; try again");
+  }
+}
 attachPen($("ink"), {
   canStart: () => conn.canBegin(),
+  eraserTool: () => eraser,
+  erase,
   down: (device, sample) => {
-    const stroke = conn.begin(BRUSH, device);
-    view.stroke(stroke, conn.me);
+    const stroke = conn.begin({ ...brush }, device);
+    view.stroke(stroke, conn.me, brush);
     ink.begin(stroke);
     addSamples(stroke, [sample]);
     conn.flush(true);
@@ -253,6 +295,60 @@ function setMode(orbit) {
 }
 $("draw").onclick = () => setMode(false);
 $("orbit").onclick = () => setMode(true);
+
+// --- undo, redo, the eraser, the brush and the name --------------------------------------------
+function undoOrRedo(redo) {
+  const done = redo ? takeBack.redo() : takeBack.undo();
+  if (!done && conn.ws === null) fail("cannot undo or redo: not connected to the proxy; try again");
+}
+$("undo").onclick = () => undoOrRedo(false);
+$("redo").onclick = () => undoOrRedo(true);
+addEventListener("keydown", (e) => {
+  if (!(e.ctrlKey || e.metaKey) || e.target instanceof HTMLInputElement) return;
+  const key = e.key.toLowerCase();
+  if (key === "z" || key === "y") {
+    e.preventDefault();
+    undoOrRedo(key === "y" || e.shiftKey);
+  }
+});
+$("eraser").onclick = () => {
+  eraser = !eraser;
+  $("eraser").setAttribute("aria-pressed", String(eraser));
+};
+
+function showBrush() {
+  const colour = brush.color === null ? colourOf(conn.me || "") : strokeColour(conn.me, brush);
+  $("colour").value = `#${colour.getHexString()}`;
+  $("size").value = String(brush.size);
+  ink.setColour(`#${colour.getHexString()}`);
+}
+$("colour").oninput = (e) => {
+  brush.color = colourNumber(e.target.value);
+  saveBrush(brush);
+  ink.setColour(hexOf(brush.color));
+};
+$("size").oninput = (e) => {
+  brush.size = Number(e.target.value);
+  saveBrush(brush);
+};
+$("name").value = myName;
+if (askName) {
+  $("name").classList.add("ask");
+  $("name").placeholder = "your name";
+}
+$("name").onchange = (e) => {
+  const name = cleanName(e.target.value);
+  if (!name) {
+    e.target.value = myName;
+    return;
+  }
+  myName = name;
+  saveName(name);
+  $("name").classList.remove("ask");
+  conn.rename(name);
+  if (conn.me) people.set(conn.me, name);
+  showPeople();
+};
 $("download").onclick = async () => {
   try {
     const glb = await view.exportGlb();

@@ -1,6 +1,8 @@
 // One person's finished meshes merged into one geometry, so they cost one draw call however
 // many there are (docs/web.md). A new mesh is appended and only its part is uploaded; the
-// buffers double when full. Each stroke keeps its range, for the GLB export.
+// buffers double when full. Each stroke keeps its range, for the GLB export, its colour (a
+// vertex colour: a person may draw in several) and being hidden (a stroke taken back: its
+// triangles collapse to one point, and come back when it is brought back).
 import * as THREE from "three";
 
 const FIRST_VERTICES = 4096;
@@ -12,6 +14,7 @@ export class MergedMeshes {
     this.indexCount = 0;
     this.positions = new Float32Array(0);
     this.normals = new Float32Array(0);
+    this.colours = new Uint8Array(0);
     this.indices = new Uint32Array(0);
     this.mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
     // The drawing is one connected board; culling per person would save nothing.
@@ -19,27 +22,58 @@ export class MergedMeshes {
   }
 
   /// Appends a mesh given as flat `positions`, `normals` (Float32Array, 3 per vertex) and
-  /// `indices` (into its own vertices); returns its range.
-  add({ positions, normals, indices }) {
+  /// `indices` (into its own vertices), in `colour` (a THREE.Color); returns its range.
+  add({ positions, normals, indices }, colour) {
     const nVertices = positions.length / 3;
     this.reserve(this.vertexCount + nVertices, this.indexCount + indices.length);
-    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: indices.length };
+    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: indices.length, hidden: false };
     this.positions.set(positions, range.firstVertex * 3);
     this.normals.set(normals, range.firstVertex * 3);
-    for (let i = 0; i < indices.length; i++) this.indices[range.firstIndex + i] = indices[i] + range.firstVertex;
     this.vertexCount += nVertices;
     this.indexCount += indices.length;
     const g = this.mesh.geometry;
     for (const [attribute, start, count] of [
       [g.attributes.position, range.firstVertex * 3, nVertices * 3],
       [g.attributes.normal, range.firstVertex * 3, nVertices * 3],
-      [g.index, range.firstIndex, indices.length],
     ]) {
       attribute.addUpdateRange(start, count);
       attribute.needsUpdate = true;
     }
+    range.local = indices;
+    this.writeIndices(range);
+    this.setColour(range, colour);
     g.setDrawRange(0, this.indexCount);
     return range;
+  }
+
+  /// Writes a range's indices: its own triangles, or, hidden, every index at its first vertex
+  /// (triangles of no area, which draw nothing).
+  writeIndices(range) {
+    const { firstVertex, firstIndex, local } = range;
+    for (let i = 0; i < local.length; i++) this.indices[firstIndex + i] = range.hidden ? firstVertex : local[i] + firstVertex;
+    const index = this.mesh.geometry.index;
+    index.addUpdateRange(firstIndex, local.length);
+    index.needsUpdate = true;
+  }
+
+  /// Hides (`hidden`) or shows again one stroke's mesh.
+  setHidden(range, hidden) {
+    if (range.hidden === hidden) return;
+    range.hidden = hidden;
+    this.writeIndices(range);
+  }
+
+  /// Paints one stroke's mesh in `colour` (a THREE.Color).
+  setColour(range, colour) {
+    const [r, g, b] = [colour.r, colour.g, colour.b].map((c) => Math.round(c * 255));
+    for (let v = range.firstVertex; v < range.firstVertex + range.vertexCount; v++) {
+      this.colours[v * 3] = r;
+      this.colours[v * 3 + 1] = g;
+      this.colours[v * 3 + 2] = b;
+    }
+    const attribute = this.mesh.geometry.attributes.colour;
+    attribute.addUpdateRange(range.firstVertex * 3, range.vertexCount * 3);
+    attribute.needsUpdate = true;
   }
 
   /// Room for this many vertices and indices: a new geometry with buffers twice as large (the
@@ -55,10 +89,12 @@ export class MergedMeshes {
     };
     this.positions = grow(Float32Array, this.positions, vertices * 3);
     this.normals = grow(Float32Array, this.normals, vertices * 3);
+    this.colours = grow(Uint8Array, this.colours, vertices * 3);
     this.indices = grow(Uint32Array, this.indices, indices);
     const g = new THREE.BufferGeometry();
     g.setAttribute("position", new THREE.BufferAttribute(this.positions, 3).setUsage(THREE.DynamicDrawUsage));
     g.setAttribute("normal", new THREE.BufferAttribute(this.normals, 3).setUsage(THREE.DynamicDrawUsage));
+    g.setAttribute("colour", new THREE.BufferAttribute(this.colours, 3, true).setUsage(THREE.DynamicDrawUsage));
     g.setIndex(new THREE.BufferAttribute(this.indices, 1).setUsage(THREE.DynamicDrawUsage));
     g.setDrawRange(0, this.indexCount);
     this.mesh.geometry.dispose();
@@ -66,11 +102,11 @@ export class MergedMeshes {
   }
 
   /// One stroke's mesh on its own (for the export): copies of its range.
-  geometryOf({ firstVertex, vertexCount, firstIndex, indexCount }) {
+  geometryOf({ firstVertex, vertexCount, local }) {
     const g = new THREE.BufferGeometry();
     g.setAttribute("position", new THREE.BufferAttribute(this.positions.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
     g.setAttribute("normal", new THREE.BufferAttribute(this.normals.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
-    g.setIndex(Array.from(this.indices.subarray(firstIndex, firstIndex + indexCount), (i) => i - firstVertex));
+    g.setIndex(Array.from(local));
     return g;
   }
 }

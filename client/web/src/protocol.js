@@ -98,11 +98,27 @@ export class Connection {
     };
   }
 
+  /// Sends `msg` when connected; returns whether it went out.
   send(msg) {
     if (this.ws && this.ws.readyState === WebSocket.OPEN) {
       this.ws.send(JSON.stringify(msg));
       this.lastSent = performance.now();
+      return true;
     }
+    return false;
+  }
+
+  /// Asks the proxy to take back (`remove`) or bring back one of our finished strokes; it
+  /// answers `stroke_removed` or `stroke_restored` (to every page of the session), or an error.
+  /// Returns whether the request went out.
+  setRemoved(stroke, remove) {
+    return this.send(remove ? { remove_stroke: { stroke } } : { restore_stroke: { stroke } });
+  }
+
+  /// Our display name changed: told to the session now, and said in every later hello.
+  rename(name) {
+    this.name = name;
+    this.send({ rename: { name } });
   }
 
   receive(msg) {

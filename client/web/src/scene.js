@@ -1,6 +1,7 @@
 // The 3D view: the three.js renderer, camera and orbit controls, and the session's strokes in
 // it: a live stroke as a polyline of its retained points, finished ones as meshes merged per
-// person (one draw call each, batch.js), in the person's colour. It renders only when something
+// person (one draw call each, batch.js), each in its brush's colour or else its person's. A
+// stroke taken back is hidden until it is brought back. It renders only when something
 // changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
 // coordinates are screen-like (y down); the scene flips y.
 import * as THREE from "three";
@@ -17,10 +18,23 @@ export function colourOf(participant) {
   return new THREE.Color().setHSL((h % 360) / 360, 0.65, 0.45);
 }
 
+/// A stroke's colour: its brush's (`color`, 0xRRGGBB) when it has one, else its drawer's.
+export function strokeColour(participant, brush) {
+  return brush && Number.isInteger(brush.color) ? new THREE.Color(brush.color) : colourOf(participant);
+}
+
+/// The distance from point `p` to the segment `a`-`b` (each with `x` and `y`).
+function segmentDistance(p, a, b) {
+  const [dx, dy] = [b.x - a.x, b.y - a.y];
+  const length2 = dx * dx + dy * dy;
+  const t = length2 > 0 ? Math.max(0, Math.min(1, ((p.x - a.x) * dx + (p.y - a.y) * dy) / length2)) : 0;
+  return Math.hypot(p.x - (a.x + t * dx), p.y - (a.y + t * dy));
+}
+
 // Cheap to shade: the light is worked out once per vertex (a light over the viewer's shoulder
 // and an ambient part), and a pixel only takes the colour its vertices give it.
 const VERTEX_SHADER = `
-uniform vec3 colour;
+attribute vec3 colour;
 varying vec3 vColour;
 void main() {
   vec3 n = normalize(normalMatrix * normal);
@@ -73,9 +87,11 @@ export class SceneView {
     this.controls = new OrbitControls(this.camera, this.canvas);
     this.controls.enabled = false;
     this.controls.addEventListener("change", () => this.requestRender());
-    this.strokes = new Map(); // stroke -> {participant, points: [Vector3], line, mesh: its range in its person's merged meshes}
+    this.strokes = new Map(); // stroke -> {participant, colour, done, removed, points: [Vector3], line, mesh: its range in its person's merged meshes}
     this.meshCount = 0;
-    this.people = new Map(); // participant -> {merged: MergedMeshes, lineMaterial}
+    this.people = new Map(); // participant -> MergedMeshes
+    this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER });
+    this.lineMaterials = new Map(); // colour as hex -> LineBasicMaterial
     this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
     this.front = null; // the front view fitted to the drawing, {x, y, distance}; null: one to one
     this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
@@ -131,7 +147,7 @@ export class SceneView {
   /// margin), never closer than one to one; the front view stays where it is when nothing is.
   fitToDrawing() {
     const box = new THREE.Box2();
-    for (const s of this.strokes.values()) for (const p of s.points) box.expandByPoint(p);
+    for (const s of this.strokes.values()) if (!s.removed) for (const p of s.points) box.expandByPoint(p);
     if (box.isEmpty()) return;
     const size = box.getSize(new THREE.Vector2());
     const margin = 0.05 * Math.max(size.x, size.y) + 10;
@@ -149,13 +165,61 @@ export class SceneView {
     if (!orbit) this.frontView();
   }
 
-  stroke(id, participant) {
+  /// The stroke `id` of `participant`, drawn with `brush` when it is known (its begin): its
+  /// colour follows the brush, a mesh already shown included.
+  stroke(id, participant, brush) {
     let s = this.strokes.get(id);
     if (!s) {
-      s = { participant, points: [], line: null, mesh: null };
+      s = { participant, colour: strokeColour(participant, brush), done: false, removed: false, points: [], line: null, mesh: null };
       this.strokes.set(id, s);
+    } else if (brush) {
+      s.colour = strokeColour(participant, brush);
+      if (s.mesh) this.person(participant).setColour(s.mesh, s.colour);
+      if (s.line) s.line.material = this.lineMaterial(s.colour);
+      this.requestRender();
     }
     return s;
+  }
+
+  /// Hides a stroke taken back (`removed`) or shows it again.
+  setRemoved(id, removed) {
+    const s = this.strokes.get(id);
+    if (!s || s.removed === removed) return;
+    s.removed = removed;
+    if (s.mesh) this.person(s.participant).setHidden(s.mesh, removed);
+    if (s.line) s.line.visible = !removed;
+    this.requestRender();
+  }
+
+  /// Strokes shown with a mesh.
+  get shownMeshes() {
+    let n = 0;
+    for (const s of this.strokes.values()) if (s.mesh && !s.removed) n += 1;
+    return n;
+  }
+
+  /// The shown, finished strokes of `participant` that pass within `radius` of the point
+  /// (`x`, `y`) of the drawing plane (their retained points joined by segments), for the eraser.
+  strokesAt(x, y, radius, participant) {
+    const p = { x, y };
+    const hits = [];
+    for (const [id, s] of this.strokes) {
+      if (s.participant !== participant || s.removed || !s.done) continue;
+      const pts = s.points;
+      for (let i = 0; i < pts.length; i++) {
+        if (segmentDistance(p, pts[i], pts[Math.min(i + 1, pts.length - 1)]) <= radius) {
+          hits.push(id);
+          break;
+        }
+      }
+    }
+    return hits;
+  }
+
+  lineMaterial(colour) {
+    const hex = colour.getHex();
+    if (!this.lineMaterials.has(hex)) this.lineMaterials.set(hex, new THREE.LineBasicMaterial({ color: colour }));
+    return this.lineMaterials.get(hex);
   }
 
   hasMesh(id) {
@@ -163,20 +227,15 @@ export class SceneView {
     return Boolean(s && s.mesh);
   }
 
+  /// A person's merged meshes.
   person(participant) {
-    let p = this.people.get(participant);
-    if (!p) {
-      const colour = colourOf(participant);
-      const material = new THREE.ShaderMaterial({
-        uniforms: { colour: { value: colour } },
-        vertexShader: VERTEX_SHADER,
-        fragmentShader: FRAGMENT_SHADER,
-      });
-      p = { merged: new MergedMeshes(material), lineMaterial: new THREE.LineBasicMaterial({ color: colour }) };
-      this.world.add(p.merged.mesh);
-      this.people.set(participant, p);
+    let merged = this.people.get(participant);
+    if (!merged) {
+      merged = new MergedMeshes(this.material);
+      this.world.add(merged.mesh);
+      this.people.set(participant, merged);
     }
-    return p;
+    return merged;
   }
 
   /// A stroke's retained points from index `first` on (kept for the fit): until its mesh
@@ -193,7 +252,8 @@ export class SceneView {
   rebuildLine(s) {
     this.removeLine(s);
     if (s.mesh || s.points.length === 0) return;
-    s.line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(s.points), this.person(s.participant).lineMaterial);
+    s.line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(s.points), this.lineMaterial(s.colour));
+    s.line.visible = !s.removed;
     this.world.add(s.line);
   }
 
@@ -214,7 +274,9 @@ export class SceneView {
   addMesh(id, participant, flat) {
     const s = this.stroke(id, participant);
     if (s.mesh) return false;
-    s.mesh = this.person(participant).merged.add(flat);
+    const merged = this.person(participant);
+    s.mesh = merged.add(flat, s.colour);
+    if (s.removed) merged.setHidden(s.mesh, true);
     this.removeLine(s);
     this.meshCount += 1;
     this.requestRender();
@@ -238,15 +300,17 @@ export class SceneView {
     return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
   }
 
-  /// Every mesh on screen in one GLB, each stroke a node named by its id.
+  /// Every mesh on screen in one GLB (strokes taken back left out), each stroke a node named by
+  /// its id, in its colour.
   async exportGlb() {
     const root = new THREE.Group();
     root.scale.set(1, -1, 1);
-    const materials = new Map();
+    const materials = new Map(); // colour as hex -> material
     for (const [id, s] of this.strokes) {
-      if (!s.mesh) continue;
-      if (!materials.has(s.participant)) materials.set(s.participant, new THREE.MeshStandardMaterial({ color: colourOf(s.participant) }));
-      const mesh = new THREE.Mesh(this.person(s.participant).merged.geometryOf(s.mesh), materials.get(s.participant));
+      if (!s.mesh || s.removed) continue;
+      const hex = s.colour.getHex();
+      if (!materials.has(hex)) materials.set(hex, new THREE.MeshStandardMaterial({ color: s.colour }));
+      const mesh = new THREE.Mesh(this.person(s.participant).geometryOf(s.mesh), materials.get(hex));
       mesh.name = id;
       root.add(mesh);
     }

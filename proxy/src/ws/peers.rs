@@ -76,9 +76,9 @@ impl Connection {
 
     fn is_own(&self, event: &SessionEvent) -> bool {
         match &event.kind {
-            EventKind::Joined { participant, .. } | EventKind::Left { participant, .. } => {
-                *participant == self.participant
-            }
+            EventKind::Joined { participant, .. }
+            | EventKind::Left { participant, .. }
+            | EventKind::Renamed { participant, .. } => *participant == self.participant,
             _ => event.stroke().is_some_and(|s| self.own.contains(&s)),
         }
     }

@@ -264,6 +264,7 @@ impl Connection {
             ClientMessage::StrokeEnd(end) => self.on_stroke_end(end).await,
             ClientMessage::RemoveStroke(stroke) => self.on_set_removed(stroke, true).await,
             ClientMessage::RestoreStroke(stroke) => self.on_set_removed(stroke, false).await,
+            ClientMessage::Rename(rename) => self.on_rename(rename.name).await,
             ClientMessage::Ping(ping) => {
                 self.send(ServerMessage::Pong(ping));
                 Ok(())
@@ -355,6 +356,34 @@ impl Connection {
             }
         }
         self.resync(None).await;
+        Ok(())
+    }
+
+    /// A new display name: stored on the participant's presence rows and told to the others.
+    /// Not answered: the client knows its name.
+    async fn on_rename(&mut self, name: String) -> Result<(), ConnError> {
+        check_text(&name, MAX_NAME_CHARS).map_err(|why| {
+            ConnError::refused(ErrorCode::Malformed, format!("rename.name {why}"), None)
+        })?;
+        let name = name.trim().to_string();
+        if name.is_empty() {
+            return Err(ConnError::refused(ErrorCode::Malformed, "rename.name is empty", None));
+        }
+        let (participant, session) = (self.participant, self.session);
+        let event = SessionEvent::from_connection(
+            self.id,
+            session,
+            EventKind::Renamed { participant, name: name.clone() },
+        );
+        let op = WriteOp::Rename { participant, session, name };
+        if let Err(err) = self.state.writer.write_with(vec![op], vec![event]).await {
+            return Err(ConnError::internal(
+                "storing a new name",
+                err,
+                "the new name could not be stored; send it again",
+                None,
+            ));
+        }
         Ok(())
     }
 

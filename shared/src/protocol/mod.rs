@@ -124,6 +124,14 @@ pub enum ClientMessage {
     RemoveStroke(StrokeRef),
     /// Brings a taken-back stroke back (redo): answered with `StrokeRestored`, the same rules.
     RestoreStroke(StrokeRef),
+    /// The participant's new display name ([`check_text`], [`MAX_NAME_CHARS`]): the session's
+    /// other connections hear `PeerRenamed`, and newcomers see it in their history.
+    Rename(Rename),
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Rename {
+    pub name: String,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -214,6 +222,8 @@ pub enum ServerMessage {
     /// it again. A client that never had the stroke (it joined while the stroke was removed)
     /// gets the stroke's events instead, as in a history.
     StrokeRestored(StrokeRemoval),
+    /// A participant present chose another display name (`Rename`).
+    PeerRenamed(PeerJoined),
 }
 
 /// The stroke a `RemoveStroke` or `RestoreStroke` is about.

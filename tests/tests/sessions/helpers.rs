@@ -43,6 +43,10 @@ impl View {
                     "joined twice"
                 );
             }
+            ServerMessage::PeerRenamed(r) => {
+                let name = self.present.get_mut(&r.participant).expect("renamed while absent");
+                *name = r.name.clone();
+            }
             ServerMessage::PeerLeft(l) => {
                 assert!(self.present.remove(&l.participant).is_some(), "left without joining");
             }

@@ -11,6 +11,7 @@ mod helpers;
 mod history_cost;
 mod history_pool;
 mod latency;
+mod names;
 mod removal;
 mod replicas;
 mod sessions;

@@ -30,6 +30,8 @@ pub enum WriteOp {
     Join { connection: Uuid, participant: Uuid, session: Uuid, name: String, replica: Option<i64> },
     /// A participant's connection ended.
     Leave { connection: Uuid },
+    /// A participant present in a session took another name (every presence row of it).
+    Rename { participant: Uuid, session: Uuid, name: String },
     /// Stores (or replaces) a done stroke's mesh, unless the meshes of `session` would then
     /// hold more than `quota` bytes (refused: [`WriteError::Quota`]). A request of its own: it
     /// is written where it is planned, as only the write tells whether it fits.

@@ -268,6 +268,17 @@ pub(super) async fn apply(
                 .execute(&mut *conn)
                 .await?;
         }
+        WriteOp::Rename { participant, session, name } => {
+            sqlx::query(
+                "UPDATE participants SET name = $1 \
+                 WHERE session_id = $2 AND participant = $3 AND left_at IS NULL",
+            )
+            .bind(name.clone())
+            .bind(session.to_string())
+            .bind(participant.to_string())
+            .execute(&mut *conn)
+            .await?;
+        }
         WriteOp::SetStatus { stroke, status } => {
             sqlx::query(
                 "UPDATE strokes SET status = $1, updated_at = $2 WHERE id = $3 AND status <> 'done'",

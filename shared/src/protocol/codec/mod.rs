@@ -79,7 +79,8 @@ use crate::model::Sample;
 /// a version-1 peer would misread a session's parameters.
 /// 3: `Hello` carries the participant's `key`, and `ErrorCode` has `not_owner`.
 /// 4: `Brush` carries a `color`; strokes can be taken back and brought back (`RemoveStroke`,
-/// `RestoreStroke`, `StrokeRemoved`, `StrokeRestored`, `ErrorCode::StrokeOpen`).
+/// `RestoreStroke`, `StrokeRemoved`, `StrokeRestored`, `ErrorCode::StrokeOpen`); a participant
+/// can change its name (`Rename`, `PeerRenamed`).
 pub const PROTOCOL_VERSION: u16 = 4;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
