@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The test command of the README: every test of the workspace on the embedded default (SQLite),
-# then the browser test of the page (client/web/test/browser.mjs, Debian's Chromium through
+# then the browser tests of the page (client/web/test/browser.mjs and drawing-tool.mjs, Debian's Chromium through
 # playwright-core; installed here when missing, and a failure when it cannot be had), the GLB
 # of every real stroke of ../shared/data through the glTF-Validator and three.js, then, when
 # PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
@@ -23,6 +23,8 @@ fi
 cargo build --bin penmesh
 # Fails (never skips) when Chromium is still missing.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
+# The drawing tool: undo, redo, the eraser, brushes and names, with two people (issue 29).
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/drawing-tool.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

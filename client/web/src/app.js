@@ -108,7 +108,7 @@ addEventListener("resize", resize);
 resize();
 
 function showStatus() {
-  if (conn.synced) $("status").textContent = `${view.strokes.size} strokes, ${view.meshCount} meshes`;
+  if (conn.synced) $("status").textContent = `${view.shownStrokes} strokes, ${view.shownMeshes} meshes`;
 }
 
 function showPeople() {
@@ -188,7 +188,7 @@ function onMessage(kind, m) {
       $("status").textContent = "loading the session…";
       break;
     case "synced":
-      $("status").textContent = `${view.strokes.size} strokes`;
+      $("status").textContent = `${view.shownStrokes} strokes`;
       if (!fitted) {
         fitted = true;
         view.fitToDrawing();

@@ -36,7 +36,11 @@ export function attachPen(element, { canStart, down, move, up, eraserTool, erase
     const erasing = (e.buttons & ERASER_BUTTONS) !== 0 || eraserTool();
     if (e.pointerType === "mouse" && e.button !== 0) return;
     if (!erasing && !canStart()) return;
-    element.setPointerCapture(e.pointerId);
+    try {
+      element.setPointerCapture(e.pointerId);
+    } catch {
+      // A pointer the browser does not know as active (an event made by a script): no capture.
+    }
     drawing = { pointerId: e.pointerId, t0: e.timeStamp, erasing };
     if (erasing) erase(e.clientX, e.clientY);
     else down(`web:${e.pointerType}`, sampleOf(e));

@@ -89,6 +89,8 @@ export class SceneView {
     this.controls.addEventListener("change", () => this.requestRender());
     this.strokes = new Map(); // stroke -> {participant, colour, done, removed, points: [Vector3], line, mesh: its range in its person's merged meshes}
     this.meshCount = 0;
+    this.removedCount = 0; // strokes taken back
+    this.hiddenMeshCount = 0; // meshes of strokes taken back
     this.people = new Map(); // participant -> MergedMeshes
     this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER });
     this.lineMaterials = new Map(); // colour as hex -> LineBasicMaterial
@@ -186,16 +188,23 @@ export class SceneView {
     const s = this.strokes.get(id);
     if (!s || s.removed === removed) return;
     s.removed = removed;
-    if (s.mesh) this.person(s.participant).setHidden(s.mesh, removed);
+    const change = removed ? 1 : -1;
+    this.removedCount += change;
+    if (s.mesh) {
+      this.hiddenMeshCount += change;
+      this.person(s.participant).setHidden(s.mesh, removed);
+    }
     if (s.line) s.line.visible = !removed;
     this.requestRender();
   }
 
-  /// Strokes shown with a mesh.
+  /// Strokes shown (not taken back), and those of them shown with a mesh.
+  get shownStrokes() {
+    return this.strokes.size - this.removedCount;
+  }
+
   get shownMeshes() {
-    let n = 0;
-    for (const s of this.strokes.values()) if (s.mesh && !s.removed) n += 1;
-    return n;
+    return this.meshCount - this.hiddenMeshCount;
   }
 
   /// The shown, finished strokes of `participant` that pass within `radius` of the point
@@ -276,7 +285,10 @@ export class SceneView {
     if (s.mesh) return false;
     const merged = this.person(participant);
     s.mesh = merged.add(flat, s.colour);
-    if (s.removed) merged.setHidden(s.mesh, true);
+    if (s.removed) {
+      merged.setHidden(s.mesh, true);
+      this.hiddenMeshCount += 1;
+    }
     this.removeLine(s);
     this.meshCount += 1;
     this.requestRender();

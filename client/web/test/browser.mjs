@@ -6,13 +6,12 @@
 import { mkdirSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { drawStroke, launch, log, newSession, requireTools, root, runPenmesh, startProxy, until } from "./harness.mjs";
+import { drawStroke, isBackground, launch, log, newSession, pixelsAt, requireTools, root, runPenmesh, startProxy, until } from "./harness.mjs";
 
 const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
 // The page sends JSON (exact values); the native client's binary frames are on this grid.
 const POSITION_STEP = 1 / 16;
 const PRESSURE_STEP = 1 / 1024;
-const BACKGROUND = [0xf4, 0xf3, 0xef];
 
 requireTools();
 mkdirSync(ARTIFACTS, { recursive: true });
@@ -65,32 +64,6 @@ async function main() {
     });
   }
 
-  // The WebGL canvas, read back from a screenshot (decoded by the browser itself).
-  async function pixelsAt(page, points, file) {
-    const png = await page.locator("#gl").screenshot({ path: join(ARTIFACTS, file) });
-    return page.evaluate(
-      async ({ data, points }) => {
-        const img = new Image();
-        img.src = `data:image/png;base64,${data}`;
-        await img.decode();
-        const c = document.createElement("canvas");
-        c.width = img.width;
-        c.height = img.height;
-        const g = c.getContext("2d");
-        g.drawImage(img, 0, 0);
-        // Darkest pixel of a 5x5 neighbourhood: the mesh is a few px wide.
-        return points.map(([x, y]) => {
-          const d = g.getImageData(Math.round(x) - 2, Math.round(y) - 2, 5, 5).data;
-          let best = [255, 255, 255];
-          for (let i = 0; i < d.length; i += 4) if (d[i] + d[i + 1] + d[i + 2] < best[0] + best[1] + best[2]) best = [d[i], d[i + 1], d[i + 2]];
-          return best;
-        });
-      },
-      { data: png.toString("base64"), points },
-    );
-  }
-  const isBackground = ([r, g, b]) => Math.abs(r - BACKGROUND[0]) + Math.abs(g - BACKGROUND[1]) + Math.abs(b - BACKGROUND[2]) < 24;
-
   // --- 1. three pen strokes in page A ------------------------------------------------------
   const a = await openPage("A");
   const cdpA = await context.newCDPSession(a);
@@ -125,10 +98,10 @@ async function main() {
 
   // The meshes are on screen where the strokes were drawn, and the rest is background.
   const onStroke = drawn.flatMap((s) => [s[10], s[Math.floor(s.length / 2)], s[s.length - 10]]);
-  const onPixels = await pixelsAt(a, onStroke, "page-a.png");
+  const onPixels = await pixelsAt(a, onStroke, join(ARTIFACTS, "page-a.png"));
   onPixels.forEach((px, i) => assert.ok(!isBackground(px), `no mesh on screen at drawn point ${i} (${onStroke[i]}): ${px}`));
   const empty = [[950, 650], [500, 650], [950, 400]];
-  (await pixelsAt(a, empty, "page-a.png")).forEach((px, i) => assert.ok(isBackground(px), `something drawn at empty point ${empty[i]}: ${px}`));
+  (await pixelsAt(a, empty, join(ARTIFACTS, "page-a.png"))).forEach((px, i) => assert.ok(isBackground(px), `something drawn at empty point ${empty[i]}: ${px}`));
   log("page A shows the three meshes");
 
   // --- 2. a later page sees the history, and a native client drawing live ------------------

@@ -121,3 +121,34 @@ export async function drawStroke(cdp, { x0, y0, dx, dy, n, lift = true }) {
   }
   return sent;
 }
+
+/// The page's background colour (index.html, scene.js).
+export const BACKGROUND = [0xf4, 0xf3, 0xef];
+
+export const isBackground = ([r, g, b]) => Math.abs(r - BACKGROUND[0]) + Math.abs(g - BACKGROUND[1]) + Math.abs(b - BACKGROUND[2]) < 24;
+
+/// The WebGL canvas of `page` at `points` (CSS pixels), read back from a screenshot saved to
+/// `file` (decoded by the browser itself): the darkest pixel of the 5x5 around each point, as
+/// the mesh is a few pixels wide.
+export async function pixelsAt(page, points, file) {
+  const png = await page.locator("#gl").screenshot({ path: file });
+  return page.evaluate(
+    async ({ data, points }) => {
+      const img = new Image();
+      img.src = `data:image/png;base64,${data}`;
+      await img.decode();
+      const c = document.createElement("canvas");
+      c.width = img.width;
+      c.height = img.height;
+      const g = c.getContext("2d");
+      g.drawImage(img, 0, 0);
+      return points.map(([x, y]) => {
+        const d = g.getImageData(Math.round(x) - 2, Math.round(y) - 2, 5, 5).data;
+        let best = [255, 255, 255];
+        for (let i = 0; i < d.length; i += 4) if (d[i] + d[i + 1] + d[i + 2] < best[0] + best[1] + best[2]) best = [d[i], d[i + 1], d[i + 2]];
+        return best;
+      });
+    },
+    { data: png.toString("base64"), points },
+  );
+}
