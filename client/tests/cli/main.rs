@@ -10,3 +10,4 @@ mod errors;
 mod evdev;
 mod helpers;
 mod resume;
+mod watch;

@@ -200,9 +200,12 @@ async fn only_the_drawer_may_store_or_build_a_strokes_mesh() {
     // The API's description says so.
     let openapi: serde_json::Value =
         proxy.http.get(proxy.url("/v1/openapi.json")).send().await.unwrap().json().await.unwrap();
-    for (path, method) in
-        [("/v1/strokes/{id}/mesh", "put"), ("/v1/strokes/{id}/mesh/build", "post")]
-    {
+    for (path, method) in [
+        ("/v1/strokes/{id}/mesh", "put"),
+        ("/v1/strokes/{id}/mesh/build", "post"),
+        ("/v1/strokes/{id}", "delete"),
+        ("/v1/strokes/{id}/restore", "post"),
+    ] {
         let call = &openapi["paths"][path][method];
         assert!(call["parameters"].to_string().contains(KEY_HEADER), "{path}: {call}");
         assert!(call["responses"]["403"].is_object(), "{path}: {call}");
