@@ -148,6 +148,7 @@ function viewPlan(json, bin, v) {
   need(extensions.every((e) => e === MESHOPT), `a buffer view extension (${extensions})`);
   const m = v.extensions?.[MESHOPT];
   if (m) {
+    need(MeshoptDecoder.supported, "no WebAssembly for MeshoptDecoder");
     need(MESHOPT_MODES.has(m.mode) && MESHOPT_FILTERS.has(m.filter), `meshopt mode ${m.mode}, filter ${m.filter}`);
     need(Number.isInteger(m.count) && m.count >= 0 && Number.isInteger(m.byteStride) && m.byteStride > 0, "meshopt count or stride");
     chunk(m.buffer, m.byteOffset ?? 0, m.byteLength ?? 0);
