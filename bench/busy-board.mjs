@@ -6,11 +6,15 @@
 //   3. HTTP requests (the WebSocket is one connection more);
 //   4. frames per second while orbiting (a mouse drag through CDP, frames the page rendered);
 //   5. the browser's CPU while nothing changes (all of Chromium's processes, from /proc).
+// Also the page's main-thread tasks over 50 ms (the Long Tasks API: `long_tasks`, [start, ms]
+// from navigation start, and their sum from the bundle's arrival until the view was complete),
+// and with --profile the first open's CPU profile until then (DevTools' .cpuprofile; the page
+// is minified: an esbuild build of the same sources with `sourcemap: true` maps it back).
 //
 // Usage (from the repository root, after `cargo build --release --bin penmesh` and
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
-//                             [--size 140] [--json OUT.json]
+//                             [--size 140] [--json OUT.json] [--profile OUT.cpuprofile]
 //
 // The strokes are SVC2004 and SigComp2011 signatures from ../shared/data (read in place, split
 // at pen lifts by the rules of shared/src/formats.rs), each scaled to --size px across and put
@@ -37,6 +41,8 @@ const PEOPLE = Number(option("--people", "10"));
 const STROKES = Number(option("--strokes", "1000"));
 const SIZE = Number(option("--size", "140"));
 const JSON_OUT = option("--json", null);
+const PROFILE = option("--profile", null); // the first open's CPU profile (.cpuprofile, DevTools)
+let profiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
 const ORBIT_SECONDS = 5;
@@ -175,6 +181,20 @@ async function measurePage(context, url, expected) {
   cdp.on("Network.webSocketFrameReceived", (e) => (traffic.wsBytes += Buffer.byteLength(e.response.payloadData)));
   cdp.on("Network.webSocketFrameSent", (e) => (traffic.wsBytes += Buffer.byteLength(e.response.payloadData)));
   page.on("pageerror", (e) => console.error("page error:", e.message));
+  // The page's main-thread tasks over 50 ms (the Long Tasks API), from before its script runs.
+  await page.addInitScript(() => {
+    window.__longTasks = [];
+    try {
+      new PerformanceObserver((list) => {
+        for (const e of list.getEntries()) window.__longTasks.push([Math.round(e.startTime), Math.round(e.duration)]);
+      }).observe({ type: "longtask", buffered: true });
+    } catch {}
+  });
+  if (PROFILE && !profiled) {
+    await cdp.send("Profiler.enable");
+    await cdp.send("Profiler.setSamplingInterval", { interval: 250 });
+    await cdp.send("Profiler.start");
+  }
 
   await page.goto(url);
   const completeMs = await page.evaluate(
@@ -197,6 +217,21 @@ async function measurePage(context, url, expected) {
         .map((e) => [e.name.endsWith("app.js") ? "script_ms" : "bundle_ms", Math.round(e.responseEnd)]),
     ),
   );
+  // The main thread's long tasks from the bundle's arrival until the view was complete: the
+  // longest is the one that reads the bundle's GLBs and merges them (docs/performance.md).
+  const longTasks = await page.evaluate(() => window.__longTasks);
+  const afterBundle = longTasks.filter(([start, duration]) => start + duration >= (arrived.bundle_ms ?? 0) && start <= completeMs);
+  const mainThread = {
+    long_tasks_after_bundle_ms: afterBundle.reduce((a, [, d]) => a + d, 0),
+    longest_task_after_bundle_ms: afterBundle.reduce((a, [, d]) => Math.max(a, d), 0),
+    long_tasks: longTasks,
+  };
+  if (PROFILE && !profiled) {
+    profiled = true;
+    const { profile } = await cdp.send("Profiler.stop");
+    writeFileSync(PROFILE, JSON.stringify(profile));
+    log(`CPU profile of the first open (until the view was complete): ${PROFILE}`);
+  }
   await page.waitForTimeout(1000); // let stragglers (late frames, acks) be counted
   await page.screenshot({ path: join(work, "busy-board-open.png") });
   const errors = await page.evaluate(() => window.penmesh.errors);
@@ -243,6 +278,7 @@ async function measurePage(context, url, expected) {
   return {
     complete_ms: Math.round(completeMs),
     ...arrived,
+    ...mainThread,
     http_bytes: traffic.httpBytes,
     ws_bytes: traffic.wsBytes,
     bytes: traffic.httpBytes + traffic.wsBytes,

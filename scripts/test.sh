@@ -2,7 +2,8 @@
 # The test command of the README: every test of the workspace on the embedded default (SQLite),
 # then the browser tests of the page (client/web/test/browser.mjs and drawing-tool.mjs, Debian's Chromium through
 # playwright-core; installed here when missing, and a failure when it cannot be had), the GLB
-# of every real stroke of ../shared/data through the glTF-Validator and three.js, then, when
+# of every real stroke of ../shared/data through the glTF-Validator and three.js, and through
+# the page's own GLB reader against three.js's (client/web/test/glb-reader.mjs), then, when
 # PENMESH_TEST_POSTGRES_URL is set, the end-to-end suite again on PostgreSQL (a fresh
 # database per test; a Postgres test that cannot run fails, it never skips).
 set -euo pipefail
@@ -30,6 +31,8 @@ echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/perfor
 glbs=$(mktemp -d)
 "${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" eval ../shared/data --glb-sizes --glb-out "$glbs" >/dev/null
 node client/web/test/glb-check.mjs "$glbs"
+echo "== the page's GLB reader (client/web/src/glb.js) against GLTFLoader"
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/glb-reader.mjs "$glbs"
 rm -rf "$glbs"
 
 if [ -n "$pg_url" ]; then

@@ -10,6 +10,7 @@ import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { MergedMeshes, flatten } from "./batch.js";
+import { readGlb } from "./glb.js";
 
 /// A participant's colour, the same on every page.
 export function colourOf(participant) {
@@ -98,8 +99,9 @@ export class SceneView {
     this.front = null; // the front view fitted to the drawing, {x, y, distance}; null: one to one
     this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
     this.frameQueued = false;
+    // For GLBs the page's own reader leaves alone (parse). The meshes may be meshopt-compressed
+    // (EXT_meshopt_compression); plain ones load as well.
     this.loader = new GLTFLoader();
-    // The meshes may be meshopt-compressed (EXT_meshopt_compression); plain ones load as well.
     this.loader.setMeshoptDecoder(MeshoptDecoder);
     this.ray = new THREE.Raycaster();
     this.plane = new THREE.Plane(new THREE.Vector3(0, 0, 1), 0);
@@ -273,9 +275,10 @@ export class SceneView {
     s.line = null;
   }
 
-  /// Reads a stroke's mesh (a GLB) for `addMesh`.
+  /// Reads a stroke's mesh (a GLB) for `addMesh`: with the page's own reader (glb.js), or,
+  /// for a file it leaves alone (its `plan` says which), with three.js's GLTFLoader.
   async parse(glb) {
-    return flatten((await this.loader.parseAsync(glb, "")).scene);
+    return (await readGlb(glb)) ?? flatten((await this.loader.parseAsync(glb, "")).scene);
   }
 
   /// Shows a stroke's mesh (from `parse`) in its person's merged meshes, in place of its
