@@ -19,7 +19,7 @@
 // The strokes are SVC2004 and SigComp2011 signatures from ../shared/data (read in place, split
 // at pen lifts by the rules of shared/src/formats.rs), each scaled to --size px across and put
 // at a seeded random place on a 1000x700 board, reused in turn until there are --strokes; person
-// k draws every tenth with `penmesh draw --input` against a `penmesh serve-proxy` on a fresh
+// k draws every tenth with `penmesh draw --input` against a `penmesh-proxy` on a fresh
 // SQLite file. Needs Debian's Chromium (/usr/bin/chromium, or PENMESH_CHROMIUM).
 import { mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";

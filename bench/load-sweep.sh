@@ -11,8 +11,8 @@ shift || true
 pens=("${@:-250 500 1000 1500 2000}")
 read -r -a pens <<< "${pens[*]}"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-penmesh="$CARGO_TARGET_DIR/release/penmesh"
+cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-lab --bin penmesh-lab
+penmesh="$CARGO_TARGET_DIR/release/penmesh-lab"
 mkdir -p "$out"
 
 for n in "${pens[@]}"; do

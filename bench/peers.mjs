@@ -1,4 +1,4 @@
-// Times the peers on the strokes penmesh exported (`penmesh peers export`):
+// Times the peers on the strokes penmesh exported (`penmesh-lab peers export`):
 // - perfect-freehand's getStroke (the outline most web drawing apps use for pressure strokes),
 // - simplify-js (Douglas-Peucker; highQuality = pure DP, and the default radial pre-pass + DP)
 //   at the same tolerance as ACUTS.

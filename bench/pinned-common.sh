@@ -1,18 +1,19 @@
 # Sourced by the pinned benches (pinned-load.sh, pinned-replicas.sh, wal-pages.sh): what they
 # share. Expects `root` (the checkout) to be set.
 
-# The penmesh binary: $PENMESH_BIN, or this checkout's release build (built if needed).
+# The lab's binary (load, serve-proxy, ceiling): $PENMESH_LAB_BIN, or this checkout's release
+# build (built if needed).
 penmesh_binary() {
-    if [ -n "${PENMESH_BIN:-}" ]; then
-        echo "$PENMESH_BIN"
+    if [ -n "${PENMESH_LAB_BIN:-}" ]; then
+        echo "$PENMESH_LAB_BIN"
         return
     fi
     export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
-    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-    echo "$CARGO_TARGET_DIR/release/penmesh"
+    cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-lab --bin penmesh-lab
+    echo "$CARGO_TARGET_DIR/release/penmesh-lab"
 }
 
-# Moves the server that `penmesh load --spawn-…` (pid $1, started on core 1) spawned to core 0,
+# Moves the server that `penmesh-lab load --spawn-…` (pid $1, started on core 1) spawned to core 0,
 # every thread (-a), as soon as it exists: threads it starts later inherit core 0 from their
 # parent. Prints the server's pid; fails when it did not start within 10 s.
 pin_spawned_server() {

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The pinned setting of issue 13: the server (the proxy or the no-op ceiling) on core 0, the load
 # tool on core 1, 200 Hz pens, 12 ms batches. For each pen count, runs the ceiling then the proxy
-# and records `penmesh load`'s JSON as OUT_DIR/pinned-{ceiling,proxy}-PENS.json, with what this
+# and records `penmesh-lab load`'s JSON as OUT_DIR/pinned-{ceiling,proxy}-PENS.json, with what this
 # script reads from /proc added under "pinned": the server's bytes written to storage
 # (/proc/PID/io write_bytes), its CPU by thread, and the database file's size after the run.
 # Then prints one line per run: throughput, p99, CPU per acknowledged sample, bytes per sample.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The pinned setting of issue 13 on PostgreSQL: REPLICAS proxies (`penmesh serve-proxy`) on one
-# fresh database, the replicas AND the PostgreSQL server on core 0, one `penmesh load --url`
+# The pinned setting of issue 13 on PostgreSQL: REPLICAS proxies (`penmesh-lab serve-proxy`) on one
+# fresh database, the replicas AND the PostgreSQL server on core 0, one `penmesh-lab load --url`
 # per replica on core 1, the pens split evenly. Records each load tool's JSON as
 # OUT_DIR/pinned-postgres-rREPLICAS-PENS-I.json and the combined figures (acknowledged samples/s,
 # worst p99, lost, CPU per acknowledged sample of the replicas and of PostgreSQL) as

@@ -11,8 +11,8 @@ mkdir -p "$out"
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
 
 (cd "$here" && npm ci --no-audit --no-fund --silent)
-cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-client --bin penmesh
-penmesh="$CARGO_TARGET_DIR/release/penmesh"
+cargo build --release --quiet --manifest-path "$root/Cargo.toml" -p penmesh-lab --bin penmesh-lab
+penmesh="$CARGO_TARGET_DIR/release/penmesh-lab"
 
 "$penmesh" peers export --out "$out/strokes.json"
 node "$here/peers.mjs" "$out/strokes.json" "$out/node.json" > /dev/null

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Which tables the SQLite write-ahead log's frames belong to, under `penmesh load`: runs the
+# Which tables the SQLite write-ahead log's frames belong to, under `penmesh-lab load`: runs the
 # proxy (pinned as in bench/pinned-load.sh) for 20 s, records the frame headers it writes for 4 s
 # of the steady load (strace on pwrite64: each frame's 24-byte header starts with its page
 # number and, on a commit's last frame, the database size), then maps each page to the table

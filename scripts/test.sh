@@ -21,7 +21,7 @@ if [ ! -x "$chromium" ] && command -v apt-get >/dev/null 2>&1; then
   apt-get install -y chromium || { apt-get update && apt-get install -y chromium; } ||
     echo "could not install chromium with apt-get" >&2
 fi
-cargo build --bin penmesh
+cargo build --bin penmesh --bin penmesh-proxy --bin penmesh-lab
 # Fails (never skips) when Chromium is still missing.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
 # The drawing tool: undo, redo, the eraser, brushes and names, with two people (issue 29).
@@ -29,7 +29,7 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)
-"${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" eval ../shared/data --glb-sizes --glb-out "$glbs" >/dev/null
+"${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh-lab" eval ../shared/data --glb-sizes --glb-out "$glbs" >/dev/null
 node client/web/test/glb-check.mjs "$glbs"
 echo "== the page's GLB reader (client/web/src/glb.js) against GLTFLoader"
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/glb-reader.mjs "$glbs"

@@ -21,26 +21,8 @@ pub enum Command {
     Mesh(commands::mesh::MeshArgs),
     /// Generate a stroke like a person draws on a tablet and write it as CSV or JSON.
     Synth(commands::synth::SynthArgs),
-    /// Evaluate ACUTS against the baselines and optimal min-#: tables, sweeps, plots.
-    Eval(commands::eval::EvalArgs),
     /// Draw into a proxy session live: resample, stream, reconstruct, upload the meshes.
     Draw(commands::draw::DrawArgs),
-    /// Start a proxy in process and let simulated people draw at once through the real path.
-    Demo(commands::demo::DemoArgs),
-    /// Load a proxy on this machine with many simulated pens; throughput, latency, lost samples.
-    Load(commands::load::LoadArgs),
-    /// The ceiling server for `load`: decode and ack only, on the proxy's stack.
-    #[command(hide = true)]
-    Ceiling(commands::ceiling::CeilingArgs),
-    /// The proxy itself, for `load --spawn-proxy` (the flags of `penmesh-proxy`).
-    #[command(hide = true)]
-    ServeProxy(commands::demo::ServeProxyArgs),
-    /// Time LRPDP and ACUTS against perfect-freehand and simplify-js (see bench/run.sh).
-    #[command(hide = true)]
-    Peers(commands::peers::PeersArgs),
-    /// Tables and plots from `load --json` summaries.
-    #[command(hide = true)]
-    LoadReport(commands::load::LoadReportArgs),
 }
 
 /// Runs the parsed command.
@@ -49,19 +31,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simplify(args) => commands::simplify::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Synth(args) => commands::synth::run(&args),
-        Command::Eval(args) => commands::eval::run(&args),
         Command::Draw(args) => commands::draw::run(&args),
-        Command::Demo(args) => commands::demo::run(&args),
-        Command::Load(args) => commands::load::run(&args),
-        Command::Ceiling(args) => commands::ceiling::run(&args),
-        Command::ServeProxy(args) => commands::demo::serve_proxy(&args),
-        Command::Peers(args) => commands::peers::run(&args),
-        Command::LoadReport(args) => commands::load::report(&args),
     }
 }
 
-/// Prints a command-line mistake as one line (help and version print as usual).
-pub fn report_parse_error(err: clap::Error) -> ExitCode {
+/// Prints a command-line mistake of `program` (`penmesh`, or the lab's `penmesh-lab`) as one
+/// line (help and version print as usual).
+pub fn report_parse_error(err: clap::Error, program: &str) -> ExitCode {
     use clap::error::ErrorKind;
     match err.kind() {
         ErrorKind::DisplayHelp
@@ -85,7 +61,7 @@ pub fn report_parse_error(err: clap::Error) -> ExitCode {
                 .collect::<Vec<_>>()
                 .join(" ");
             let line = if line.is_empty() { "error: bad command line".to_string() } else { line };
-            eprintln!("{line} (see 'penmesh --help')");
+            eprintln!("{line} (see '{program} --help')");
             ExitCode::from(2)
         }
     }

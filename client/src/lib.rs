@@ -5,15 +5,14 @@
 pub mod api;
 mod backoff;
 pub mod cli;
-mod commands;
+pub mod commands;
 pub mod draw_options;
 pub mod endpoint;
 pub mod input;
-mod io;
+pub mod io;
 pub mod live;
 pub mod mesh_distance;
-mod plot;
 pub mod poisson;
 pub mod reconstruct;
 pub mod report;
-mod wire;
+pub mod wire;

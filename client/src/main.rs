@@ -8,7 +8,7 @@ use penmesh_client::cli::Cli;
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
-        Err(err) => return penmesh_client::cli::report_parse_error(err),
+        Err(err) => return penmesh_client::cli::report_parse_error(err, "penmesh"),
     };
     match penmesh_client::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,7 +2,7 @@
 //! (Kazhdan and Hoppe, 2013) of LRPDP's layered point cloud, by the `poisson_reconstruction`
 //! crate, whose isosurface is taken by marching cubes over its finest cells.
 //!
-//! For comparison only (`penmesh mesh --mesher poisson`, `penmesh eval --meshes`): every other
+//! For comparison only (`penmesh mesh --mesher poisson`, `penmesh-lab eval --meshes`): every other
 //! path builds the direct solid (`penmesh::solid_mesh`), which is exact, closed and far lighter.
 //! The cloud is the paper's (9 copies of `T_c` over `±2 max r`), made dense along the stroke
 //! ([`penmesh::CloudOptions::dense`]) so that no stretch between two outline points is left

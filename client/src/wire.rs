@@ -1,6 +1,6 @@
 //! The client's side of a WebSocket to the proxy: opening it with the session's token, frames
 //! to and from typed messages, and the `Hello` → `Welcome` handshake. Used by the live path
-//! ([`crate::live`]) and by `penmesh load`, so both speak the protocol the same way.
+//! ([`crate::live`]) and by `penmesh-lab load`, so both speak the protocol the same way.
 
 use std::time::Duration;
 

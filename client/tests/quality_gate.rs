@@ -21,7 +21,7 @@ use serde::Deserialize;
 struct Gate {
     /// Files relative to the data folder, each `folder/name`.
     files: Vec<String>,
-    /// Px per tablet unit, by folder (the units `penmesh eval` uses).
+    /// Px per tablet unit, by folder (the units `penmesh-lab eval` uses).
     px_per_unit: std::collections::BTreeMap<String, f64>,
     /// Points kept by ACUTS over optimal min-# at the guaranteed bound, on `files`.
     ratio_to_optimal: f64,

@@ -6,7 +6,7 @@
 //!
 //! Besides the generated stroke, the longest stroke of a real recording is measured when it is
 //! there: `PENMESH_BENCH_STROKE` (an .hwr, .txt, .csv or .json file; SigComp2011 and SVC2004
-//! tablet units are converted to px as `penmesh eval` does), by default the 945-sample stroke of
+//! tablet units are converted to px as `penmesh-lab eval` does), by default the 945-sample stroke of
 //! `../shared/data/sigcomp2011_dutch/002_177_02.hwr` next to the checkout.
 //!
 //! Run: `cargo bench -p penmesh --bench mesh -- --warm-up-time 1 --measurement-time 3`

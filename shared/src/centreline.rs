@@ -37,7 +37,7 @@
 //!
 //! No guarantee here needs the raw samples: the curve passes through the retained samples and,
 //! between them, bulges from the chord by what the neighbouring samples imply. How far the raw
-//! samples are from it is measured ([`directed_distance`], `penmesh eval`) and property-tested.
+//! samples are from it is measured ([`directed_distance`], `penmesh-lab eval`) and property-tested.
 
 use glam::DVec2;
 
@@ -436,7 +436,7 @@ pub fn polyline_turns(path: &[DVec2]) -> Vec<f64> {
 /// Where the pen's path counts as smooth: it turns by less than [`SMOOTH_PATH_TURN_DEG`]
 /// between the chords [`SMOOTH_PATH_REACH`] px back and ahead along it ([`smooth_at_samples`]).
 /// [`crate::fitted_outline`] keeps a retained sample as a corner exactly where the path is not
-/// smooth, and `penmesh eval` judges the centreline's turns where it is.
+/// smooth, and `penmesh-lab eval` judges the centreline's turns where it is.
 pub const SMOOTH_PATH_REACH: f64 = 3.0;
 pub const SMOOTH_PATH_TURN_DEG: f64 = 30.0;
 

@@ -1,4 +1,4 @@
-//! The recorded pen data sets that the tests, the benches and `penmesh eval` read in place:
+//! The recorded pen data sets that the tests, the benches and `penmesh-lab eval` read in place:
 //! SigComp2011 Dutch (`sigcomp2011_dutch/*.hwr`) and SVC2004 (`svc2004/*.TXT`), in
 //! `../shared/data` beside the checkout, or wherever [`DATA_ENV`] points. They are never copied
 //! into the repository. This is the one place that knows where they are and their tablet scale.

@@ -4,7 +4,7 @@
 //! **This crate does no I/O**: no files, no network, no async. Everything here is a pure function
 //! or a state machine, so the proxy, the client and the tests share one implementation. The
 //! one exception is [`data_sets`], which finds and reads the recorded pen data sets in place for
-//! the tests, the benches and `penmesh eval`.
+//! the tests, the benches and `penmesh-lab eval`.
 
 mod acuts;
 pub mod baselines;

@@ -1,5 +1,5 @@
 //! The one path from a stroke to its GLB, which the native client, the proxy's mesh build and
-//! `penmesh eval` share: the outline (the smooth centreline checked against the drawn samples
+//! `penmesh-lab eval` share: the outline (the smooth centreline checked against the drawn samples
 //! when they are known, [`fitted_outline`]; [`outline`] of the retained samples when they are
 //! not), the direct solid ([`solid_mesh`], default options), the GLB ([`stroke_glb`]).
 

@@ -78,12 +78,12 @@ proptest! {
     #[test]
     fn fitted_centreline_turns_little_where_the_pen_path_is_smooth(raw in stroke_strategy()) {
         // At each centreline point whose nearest raw sample is on a smooth stretch of the pen's
-        // path (the measure of `penmesh eval`), the centreline turns by at most 10°, except at
+        // path (the measure of `penmesh-lab eval`), the centreline turns by at most 10°, except at
         // a knot next to a segment that had to be its straight chord to stay within the bound
         // (two raw samples with no tessellated point between them: nothing left to insert), and
         // where the raw path doubles back (turns over 90° between two of its segments) within
         // the measure's 3 px, which its chords do not see. Real strokes never need these
-        // exceptions (`penmesh eval`); random ones sometimes do.
+        // exceptions (`penmesh-lab eval`); random ones sometimes do.
         let kept = simplified(&raw);
         let out = fitted_outline(&raw, &kept, &Brush::default(), &OutlineOptions::default())
             .expect("ACUTS keeps increasing indices");

@@ -67,7 +67,7 @@ pub struct DrawArgs {
     /// The proxy, e.g. http://127.0.0.1:8080.
     #[arg(long, env = "PENMESH_SERVER")]
     pub server: String,
-    /// The session id (from POST /v1/sessions or `penmesh demo --keep-serving`).
+    /// The session id (from POST /v1/sessions or `penmesh-lab demo --keep-serving`).
     #[arg(long, env = "PENMESH_SESSION")]
     pub session: uuid::Uuid,
     /// The session's bearer token.
@@ -210,7 +210,7 @@ fn source(args: &DrawArgs) -> anyhow::Result<Box<dyn PenSource>> {
 }
 
 /// The live settings of `draw` and `demo`, checked.
-pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOptions> {
+pub fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOptions> {
     let brush = Brush {
         size: live.brush_size,
         pressure_response: live.pressure_response,
@@ -238,7 +238,7 @@ pub(crate) fn draw_options(live: &LiveArgs, name: &str) -> anyhow::Result<DrawOp
 }
 
 /// A bar for a replay of known length, a spinner otherwise; hidden when stderr is no terminal.
-pub(crate) fn progress_bar(total: Option<u64>, name: &str) -> ProgressBar {
+pub fn progress_bar(total: Option<u64>, name: &str) -> ProgressBar {
     let bar = match total {
         Some(total) => ProgressBar::new(total).with_style(
             ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} samples {elapsed}")
@@ -264,12 +264,12 @@ fn interrupts() -> tokio::sync::watch::Receiver<u32> {
     rx
 }
 
-pub(crate) fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+pub fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting the runtime")
 }
 
 /// Logs to stderr: warnings by default, `-v` info, `-vv` debug; `RUST_LOG` wins.
-pub(crate) fn init_tracing(verbose: u8) {
+pub fn init_tracing(verbose: u8) {
     let default = match verbose {
         0 => "warn",
         1 => "info",

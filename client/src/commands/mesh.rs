@@ -48,7 +48,7 @@ pub struct MeshArgs {
     #[arg(long, value_enum, default_value_t = CentrelineKind::Smooth)]
     pub centreline: CentrelineKind,
     /// Multiply x and y by this on reading (for example 0.0378 for SVC2004 tablet units to
-    /// px, as `penmesh eval` does); tolerances and the brush stay in the scaled unit.
+    /// px, as `penmesh-lab eval` does); tolerances and the brush stay in the scaled unit.
     #[arg(long)]
     pub px_per_unit: Option<f64>,
     /// Print one JSON object instead of the summary lines: the centreline of each stroke as
@@ -66,7 +66,7 @@ pub enum CentrelineKind {
     Straight,
 }
 
-/// `penmesh mesh --mesher` and the meshers `penmesh eval --meshes` compares.
+/// `penmesh mesh --mesher` and the meshers `penmesh-lab eval --meshes` compares.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mesher {

@@ -1,6 +1,6 @@
-//! Running the binary, a proxy process, and reading the database it leaves behind.
+//! Running the binary, a proxy, and reading the database it leaves behind (`support/stored.rs`,
+//! shared with the lab's tests).
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -8,7 +8,12 @@ use std::time::{Duration, Instant};
 use penmesh::protocol::quantize_sample;
 use penmesh::{Sample, Stroke};
 use serde_json::Value;
-use sqlx::Row;
+
+// Each test crate that includes it reads a part of what it holds.
+#[allow(dead_code)]
+#[path = "../support/stored.rs"]
+mod stored;
+pub use stored::{assert_stored_complete, stored_strokes};
 
 /// How long any single wait may take.
 pub const TIMEOUT: Duration = Duration::from_secs(60);
@@ -59,9 +64,13 @@ pub fn json_of(out: &Output) -> Value {
     })
 }
 
-/// A proxy process serving one session (`penmesh demo --people 0 --keep-serving`).
+/// A proxy serving one session on the SQLite file `db`: the proxy's own `Application`, in a
+/// thread and runtime of its own, so that [`Proxy::kill`] stops it at once, with no wind-down
+/// (its sockets and database connections close as in a crash). The user's CLI does not link
+/// the server; its tests do.
 pub struct Proxy {
-    child: Child,
+    stop: Option<std::sync::mpsc::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
     pub url: String,
     pub session: String,
     pub token: String,
@@ -70,30 +79,49 @@ pub struct Proxy {
 }
 
 impl Proxy {
-    /// Starts a proxy on `port` (0: any) with the database `db`.
+    /// Starts a proxy on `port` (0: any) with the database `db`, and makes a session.
     pub fn start(db: &Path, port: u16) -> Proxy {
-        let mut child = penmesh()
-            .args(["demo", "--people", "0", "--keep-serving", "--json", "--port"])
-            .arg(port.to_string())
-            .arg("--db")
-            .arg(db)
-            .arg("--out")
-            .arg(db.with_extension("out"))
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("spawn the proxy");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("read proxy line");
-        let info: Value = serde_json::from_str(&line)
-            .unwrap_or_else(|e| panic!("the proxy printed {line:?}: {e}"));
-        let url = info["proxy"].as_str().unwrap().to_string();
+        let mut config = penmesh_proxy::Config::defaults();
+        config.host = "127.0.0.1".into();
+        config.port = port;
+        config.database_url = format!("sqlite://{}", db.display()).into();
+        config.shutdown_grace_secs = 1;
+        let (started, ready) = std::sync::mpsc::channel();
+        let (stop, stopped) = std::sync::mpsc::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .expect("a runtime for the proxy");
+            let session = runtime.block_on(async {
+                let app =
+                    penmesh_proxy::Application::build(config).await.expect("the proxy starts");
+                let url = format!("http://127.0.0.1:{}", app.port());
+                tokio::spawn(app.run_until_stopped());
+                let created: Value = reqwest::Client::new()
+                    .post(format!("{url}/v1/sessions"))
+                    .send()
+                    .await
+                    .and_then(reqwest::Response::error_for_status)
+                    .expect("POST /v1/sessions")
+                    .json()
+                    .await
+                    .expect("a new session");
+                (url, created)
+            });
+            started.send(session).expect("the test waits");
+            let _ = stopped.recv();
+            runtime.shutdown_background();
+        });
+        let (url, created) = ready.recv_timeout(TIMEOUT).expect("the proxy started");
         let port = url.rsplit(':').next().unwrap().parse().unwrap();
         Proxy {
-            child,
+            stop: Some(stop),
+            thread: Some(thread),
+            session: created["session"].as_str().unwrap().to_string(),
+            token: created["token"].as_str().unwrap().to_string(),
             url,
-            session: info["session"].as_str().unwrap().to_string(),
-            token: info["token"].as_str().unwrap().to_string(),
             port,
             db: db.to_path_buf(),
         }
@@ -107,10 +135,12 @@ impl Proxy {
         cmd
     }
 
-    /// Kills the process, as a crash or `kill -9` would.
+    /// Stops the proxy at once, as a crash or `kill -9` would.
     pub fn kill(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        drop(self.stop.take());
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
     }
 }
 
@@ -118,83 +148,6 @@ impl Drop for Proxy {
     fn drop(&mut self) {
         self.kill();
     }
-}
-
-/// One stroke as the database holds it.
-#[derive(Debug, Clone)]
-pub struct StoredStroke {
-    pub id: String,
-    pub session: String,
-    pub status: String,
-    pub n_points: u64,
-    pub n_retained: u64,
-    /// The raw (resampled) samples, from the stored chunks in seq order.
-    pub raw: Vec<Sample>,
-    /// `(seq, n)` of each stored chunk.
-    pub chunks: Vec<(u64, u64)>,
-    /// `(glb length, vertices, triangles)` of the stored mesh.
-    pub mesh: Option<(u64, u64, u64)>,
-    pub glb: Option<Vec<u8>>,
-}
-
-/// Every stroke of the database, oldest first.
-pub async fn stored_strokes(db: &Path) -> Vec<StoredStroke> {
-    let url = format!("sqlite://{}?mode=ro", db.display());
-    let pool = sqlx::SqlitePool::connect(&url).await.expect("open the database");
-    let rows = sqlx::query(
-        "SELECT id, session_id, status, n_retained FROM strokes ORDER BY created_at, id",
-    )
-    .fetch_all(&pool)
-    .await
-    .unwrap();
-    let mut strokes = Vec::new();
-    for row in rows {
-        let id: String = row.get("id");
-        let chunks = sqlx::query(
-            "SELECT seq, n, layout, data FROM stroke_chunks WHERE stroke_id = ? ORDER BY seq",
-        )
-        .bind(&id)
-        .fetch_all(&pool)
-        .await
-        .unwrap();
-        let mut raw = Vec::new();
-        let mut spans = Vec::new();
-        for chunk in chunks {
-            let data: Vec<u8> = chunk.get("data");
-            spans.push((chunk.get::<i64, _>("seq") as u64, chunk.get::<i64, _>("n") as u64));
-            // The layout is the store's to know: decode through it.
-            let layout: i64 = chunk.get("layout");
-            raw.extend(
-                penmesh_proxy::decode_stored_samples(layout, &data).expect("a stored chunk"),
-            );
-        }
-        let mesh = sqlx::query("SELECT glb, vertices, triangles FROM meshes WHERE stroke_id = ?")
-            .bind(&id)
-            .fetch_optional(&pool)
-            .await
-            .unwrap();
-        let glb: Option<Vec<u8>> = mesh.as_ref().map(|m| m.get("glb"));
-        strokes.push(StoredStroke {
-            session: row.get("session_id"),
-            status: row.get("status"),
-            // As the proxy counts them: where the last chunk ends.
-            n_points: spans.last().map_or(0, |&(seq, n)| seq + n),
-            n_retained: row.get::<i64, _>("n_retained") as u64,
-            raw,
-            chunks: spans,
-            mesh: mesh.map(|m| {
-                (
-                    m.get::<Vec<u8>, _>("glb").len() as u64,
-                    m.get::<i64, _>("vertices") as u64,
-                    m.get::<i64, _>("triangles") as u64,
-                )
-            }),
-            glb,
-            id,
-        });
-    }
-    pool.close().await;
-    strokes
 }
 
 /// What the client streams for a drawn stroke: times from pen-down, snapped to the codec's
@@ -225,16 +178,4 @@ pub fn synth(shape: penmesh::Shape, speed: f64, size: f64, seed: u64) -> Stroke 
         seed,
     })
     .unwrap()
-}
-
-/// Checks a stroke is stored once, complete, contiguous, done, and with its mesh.
-pub fn assert_stored_complete(stored: &StoredStroke) {
-    assert_eq!(stored.status, "done", "stroke {}", stored.id);
-    assert_eq!(stored.raw.len() as u64, stored.n_points, "stroke {}", stored.id);
-    let mut next = 0;
-    for &(seq, n) in &stored.chunks {
-        assert_eq!(seq, next, "stroke {}: chunks overlap or leave a gap", stored.id);
-        next += n;
-    }
-    assert!(stored.mesh.is_some(), "stroke {} has no mesh", stored.id);
 }

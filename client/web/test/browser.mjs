@@ -1,4 +1,4 @@
-// The browser test of the page (docs/web.md): a real proxy (`penmesh serve-proxy`), Debian's
+// The browser test of the page (docs/web.md): a real proxy (`penmesh-proxy`), Debian's
 // Chromium driven by playwright-core, a pen through the DevTools protocol. Run by
 // scripts/test.sh as `node client/web/test/browser.mjs` with PENMESH_BIN set to the built
 // `penmesh` binary. Screenshots go to target/web-test/. Any failure exits non-zero; a missing

@@ -3,10 +3,10 @@
 // vertex and triangle counts its accessors declare. The validator (2.0.0-dev.3.10) does not
 // know EXT_meshopt_compression, so it checks such a file's document but not its compressed
 // data; so a compressed file that has its uncompressed twin beside it (NAME.meshopt.glb and
-// NAME.quantised.glb, as `penmesh eval --glb-out` writes them) must load in three.js as the very
+// NAME.quantised.glb, as `penmesh-lab eval --glb-out` writes them) must load in three.js as the very
 // same triangles, and the twin is validated in full. Prints the validator's warnings and infos
 // by code; exits 1 on any failure. The real strokes of ../shared/data, every encoding:
-//   cargo run --bin penmesh -- eval ../shared/data --glb-sizes --glb-out /tmp/penmesh-glbs
+//   cargo run --bin penmesh-lab -- eval ../shared/data --glb-sizes --glb-out /tmp/penmesh-glbs
 //   node client/web/test/glb-check.mjs /tmp/penmesh-glbs
 import { existsSync, readFileSync, readdirSync, statSync } from "node:fs";
 import { join } from "node:path";

@@ -5,7 +5,7 @@
 // - penmesh's own, made here with $PENMESH_BIN (default target/debug/penmesh): `penmesh synth`
 //   strokes and real recordings of ../shared/data through `penmesh mesh --glb meshopt|quantized|
 //   plain` (readGlb must read these itself, never fall back);
-// - every .glb of the folders or files given (`penmesh eval --glb-out`, all real strokes);
+// - every .glb of the folders or files given (`penmesh-lab eval --glb-out`, all real strokes);
 // - GLBs made here of other layouts a tool may write: a node hierarchy with matrices and
 //   rotations, normalised and integer positions, interleaved views, u8/u16/u32 indices,
 //   unindexed triangles, missing normals, several primitives;

@@ -1,4 +1,4 @@
-// What the browser test and the measurements share: a real proxy (`penmesh serve-proxy` on a
+// What the browser test and the measurements share: a real proxy (`penmesh-proxy` on a
 // fresh SQLite file), Debian's Chromium through playwright-core, and a pen through CDP.
 import { chromium } from "playwright-core";
 import { spawn } from "node:child_process";
@@ -11,6 +11,8 @@ import { fileURLToPath } from "node:url";
 export const root = resolve(dirname(fileURLToPath(import.meta.url)), "../../..");
 export const CHROMIUM = process.env.PENMESH_CHROMIUM || "/usr/bin/chromium";
 export const BIN = process.env.PENMESH_BIN || join(root, "target/debug/penmesh");
+// The proxy's own binary: $PENMESH_PROXY_BIN, or the one built beside `penmesh`.
+export const PROXY_BIN = process.env.PENMESH_PROXY_BIN || join(dirname(BIN), "penmesh-proxy");
 
 const started = Date.now();
 export const log = (...a) => console.log(`[${((Date.now() - started) / 1000).toFixed(1)}s]`, ...a);
@@ -23,6 +25,10 @@ export function requireTools() {
   }
   if (!existsSync(BIN)) {
     console.error(`FAIL: no penmesh binary at ${BIN}; build it (cargo build --bin penmesh) or set PENMESH_BIN`);
+    process.exit(1);
+  }
+  if (!existsSync(PROXY_BIN)) {
+    console.error(`FAIL: no penmesh-proxy binary at ${PROXY_BIN}; build it (cargo build --bin penmesh-proxy) or set PENMESH_PROXY_BIN`);
     process.exit(1);
   }
 }
@@ -58,7 +64,7 @@ export async function startProxy(children) {
   const dir = mkdtempSync(join(tmpdir(), "penmesh-web-test-"));
   const port = await freePort();
   const base = `http://127.0.0.1:${port}`;
-  const proxy = spawn(BIN, ["serve-proxy", "--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${dir}/t.db`], {
+  const proxy = spawn(PROXY_BIN, ["--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${dir}/t.db`], {
     stdio: ["ignore", "ignore", "pipe"],
   });
   const out = { base, log: "" };

@@ -43,7 +43,7 @@
 //! **Guarantee**: every removed sample `q` of the stage-2 input lies within `d_d` of the retained
 //! segment `a–e` that spans it, `angle(a->q, a->e) <= d_alpha` (when `q != a`, `e != a`, and
 //! `|aq| > d_d` or `angle_near_anchor`), and with the interpolation gate its pressure lies
-//! within `delta_p` of the pressure interpolated in time along `a–e` (what `penmesh eval`
+//! within `delta_p` of the pressure interpolated in time along `a–e` (what `penmesh-lab eval`
 //! reports as `P_max`), up to float rounding: a few ulps of the coordinates, the angle and the
 //! pressure. End to end, stage 1 adds `l_eps` to the distance and bounds nothing of pressure;
 //! the default `l_eps = 0` keeps both bounds end to end.
@@ -55,7 +55,7 @@
 //!   error (measured `P_max` 0.275 on SVC2004 at 0.01) yet retains a sample at every ~0.2 of
 //!   drift on a linear pressure ramp, which interpolation reproduces exactly; on the 200 Hz
 //!   Dutch signatures it was the largest cost (1.97x the optimum with the former defaults).
-//!   The interpolation test bounds exactly the error `penmesh eval` measures as `P_max` (time
+//!   The interpolation test bounds exactly the error `penmesh-lab eval` measures as `P_max` (time
 //!   interpolation, a close stand-in for the radius the mesh interpolates along a segment), and
 //!   lets ramps through. `delta_p = 0.2` is 0.8 px of radius with the
 //!   default brush, under half of the 1.74 px position bound. The variance gate stays

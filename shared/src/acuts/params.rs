@@ -49,7 +49,7 @@ pub enum PressureGate {
     /// The interpolation test (the default): `m` is removed only if every skipped `q` in
     /// `R ∪ {m}` has `|p_q - lerp(p_a, p_e, tau_q)| <= delta_p`, this value, with
     /// `tau_q = (t_q - t_a) / (t_e - t_a)`. A guarantee: stage 2's pressure error is at most
-    /// `delta_p`, measured as `penmesh eval`'s `P_max`.
+    /// `delta_p`, measured as `penmesh-lab eval`'s `P_max`.
     Interpolation(f64),
 }
 

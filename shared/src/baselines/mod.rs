@@ -39,7 +39,7 @@ use crate::model::Sample;
 
 /// A simplifier that keeps a subset of a stroke's samples.
 pub trait Simplify {
-    /// The short name `penmesh eval --algos` uses.
+    /// The short name `penmesh-lab eval --algos` uses.
     fn name(&self) -> &'static str;
     /// Whether it decides each sample from the samples seen so far, as they arrive.
     fn is_online(&self) -> bool;
@@ -47,7 +47,7 @@ pub trait Simplify {
     fn run(&self, samples: &[Sample], tolerance: f64) -> Vec<usize>;
 }
 
-/// Every baseline's name, in the order of `penmesh eval`'s tables.
+/// Every baseline's name, in the order of `penmesh-lab eval`'s tables.
 pub const BASELINE_NAMES: [&str; 11] = [
     "dp",
     "vw",

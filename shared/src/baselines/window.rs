@@ -20,7 +20,7 @@ use super::{Simplify, angle_between, greedy_window};
 use crate::acuts::segment_distance;
 use crate::model::Sample;
 
-/// The angle threshold `penmesh eval` gives the window (ISWTC), degrees: ACUTS's default.
+/// The angle threshold `penmesh-lab eval` gives the window (ISWTC), degrees: ACUTS's default.
 pub const DEFAULT_WINDOW_ANGLE_DEG: f64 = 15.0;
 
 /// Opening window; `angle_deg: None` checks distances only.

@@ -46,7 +46,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         .context("building the HTTP client")?;
     let mut sessions = Vec::with_capacity(plan.sessions);
     for _ in 0..plan.sessions {
-        let reply: SessionReply = crate::api::create_session(&http, base).await?;
+        let reply: SessionReply = penmesh_client::api::create_session(&http, base).await?;
         sessions.push(reply);
     }
     let is_ceiling = sessions.first().is_some_and(|s| s.ceiling);
@@ -249,7 +249,7 @@ async fn count_stored(
     let mut done = 0;
     for chunk in sessions.chunks(16) {
         let replies = futures_util::future::join_all(chunk.iter().map(|s| async move {
-            let url = format!("{base}{}", crate::api::session_strokes(s.new.session));
+            let url = format!("{base}{}", penmesh_client::api::session_strokes(s.new.session));
             let rows: StrokeList = http
                 .get(&url)
                 .bearer_auth(&s.new.token)

@@ -1,4 +1,4 @@
-//! `penmesh demo`: the whole system in one command. A proxy starts in process on an embedded
+//! `penmesh-lab demo`: the whole system in one command. A proxy starts in process on an embedded
 //! SQLite file, a session is created, and several simulated people draw at once, each through
 //! the real path: the live client, a WebSocket, the proxy's ACUTS and storage, HTTP, LRPDP,
 //! GLB upload.
@@ -13,12 +13,12 @@ use penmesh::{GeneratorParams, Shape};
 use penmesh_proxy::{Application, Config};
 use serde::Serialize;
 
-use super::draw::{draw_options, init_tracing, progress_bar, runtime};
-use crate::endpoint::Endpoint;
-use crate::input::{Pacing, PenSource, ReplaySource};
-use crate::live;
-use crate::reconstruct::StrokeReport;
-use crate::report::{self, Totals};
+use penmesh_client::commands::draw::{draw_options, init_tracing, progress_bar, runtime};
+use penmesh_client::endpoint::Endpoint;
+use penmesh_client::input::{Pacing, PenSource, ReplaySource};
+use penmesh_client::live;
+use penmesh_client::reconstruct::StrokeReport;
+use penmesh_client::report::{self, Totals};
 
 #[derive(Debug, Args)]
 pub struct DemoArgs {
@@ -44,7 +44,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 0)]
     pub port: u16,
     #[command(flatten)]
-    pub live: crate::commands::draw::LiveArgs,
+    pub live: penmesh_client::commands::draw::LiveArgs,
 }
 
 const NAMES: [&str; 8] = ["ada", "grace", "alan", "edsger", "barbara", "donald", "frances", "ken"];
@@ -237,7 +237,7 @@ async fn draw_together(
 }
 
 async fn create_session(base: &str) -> anyhow::Result<NewSession> {
-    crate::api::create_session(&reqwest::Client::new(), base).await
+    penmesh_client::api::create_session(&reqwest::Client::new(), base).await
 }
 
 /// The session's page. The token rides in the fragment, which the browser never sends.
@@ -253,8 +253,8 @@ fn absolute(path: &Path) -> PathBuf {
     std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
-/// `penmesh serve-proxy` (hidden): the proxy, the same code as the `penmesh-proxy` binary,
-/// so that `penmesh load --spawn-proxy` needs nothing but this program.
+/// `penmesh-lab serve-proxy` (hidden): the proxy, the same code as the `penmesh-proxy` binary,
+/// so that `penmesh-lab load --spawn-proxy` needs nothing but this program.
 #[derive(Debug, clap::Args)]
 pub struct ServeProxyArgs {
     /// The proxy's own flags (see `penmesh-proxy --help`).

@@ -18,7 +18,7 @@ use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use uuid::Uuid;
 
 use super::Plan;
-use crate::wire::{self, Socket};
+use penmesh_client::wire::{self, Socket};
 
 /// Different generated strokes the pens share (each pen walks through them in its own order).
 const STROKE_POOL: usize = 40;
@@ -162,7 +162,7 @@ pub(super) async fn pen(
 }
 
 async fn connect(base_ws: &str, session: Uuid, token: &str) -> anyhow::Result<Socket> {
-    let url = format!("{base_ws}{}", crate::api::session_ws(session));
+    let url = format!("{base_ws}{}", penmesh_client::api::session_ws(session));
     // A small read buffer: tungstenite zero-fills it all, and thousands of pens share this
     // process (acks are a few dozen bytes).
     let config = WebSocketConfig::default().read_buffer_size(4 * 1024);

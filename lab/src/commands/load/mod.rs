@@ -1,4 +1,4 @@
-//! `penmesh load`: many simulated pens drawing at once from one process, through the real
+//! `penmesh-lab load`: many simulated pens drawing at once from one process, through the real
 //! protocol, against a proxy (or the ceiling server) on this machine.
 //!
 //! Each pen is one tokio task with one WebSocket. It draws generated strokes at a tablet's
@@ -209,7 +209,7 @@ pub fn check_loopback(url: &str) -> anyhow::Result<()> {
     };
     anyhow::ensure!(
         loopback,
-        "--url {url}: penmesh load only targets this machine (localhost, 127.0.0.0/8 or ::1)"
+        "--url {url}: penmesh-lab load only targets this machine (localhost, 127.0.0.0/8 or ::1)"
     );
     Ok(())
 }

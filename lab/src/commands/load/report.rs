@@ -1,4 +1,4 @@
-//! `penmesh load-report`: the tables and plots of `docs/performance.md` from several runs.
+//! `penmesh-lab load-report`: the tables and plots of `docs/performance.md` from several runs.
 
 use std::path::PathBuf;
 
@@ -8,11 +8,11 @@ use clap::Args;
 use super::summary::Summary;
 use crate::plot::{LineChart, Series, SeriesLabelPosition};
 
-/// `penmesh load-report` (hidden): the tables and plots of `docs/performance.md` from the JSON
+/// `penmesh-lab load-report` (hidden): the tables and plots of `docs/performance.md` from the JSON
 /// summaries of several runs (a sweep of client counts, against the proxy and the ceiling).
 #[derive(Debug, Args)]
 pub struct LoadReportArgs {
-    /// Summaries written by `penmesh load --json`.
+    /// Summaries written by `penmesh-lab load --json`.
     #[arg(required = true)]
     pub runs: Vec<PathBuf>,
     /// Where to write `load_throughput.svg` and `load_p99.svg`.
@@ -27,7 +27,7 @@ pub fn report(args: &LoadReportArgs) -> anyhow::Result<()> {
         .map(|path| {
             let text = fs_err::read_to_string(path)?;
             serde_json::from_str(&text)
-                .with_context(|| format!("{}: not a penmesh load summary", path.display()))
+                .with_context(|| format!("{}: not a penmesh-lab load summary", path.display()))
         })
         .collect::<anyhow::Result<_>>()?;
     runs.retain(|r| r.settings["idle"] != serde_json::Value::Bool(true));

@@ -1,4 +1,4 @@
-//! What a run of `penmesh load` reports: the `--json` summary and its table.
+//! What a run of `penmesh-lab load` reports: the `--json` summary and its table.
 
 use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
@@ -123,7 +123,7 @@ pub struct ProcessStats {
     pub kb_per_connection: Option<f64>,
 }
 
-/// The summary as the table `penmesh load` prints.
+/// The summary as the table `penmesh-lab load` prints.
 pub(super) fn print_table(s: &Summary) {
     let lat = &s.latency_ms;
     println!("target            {} at {}", s.target, s.url);

@@ -31,7 +31,7 @@ impl Drop for Spawned {
     }
 }
 
-/// Starts the proxy (`penmesh serve-proxy`, the same code as `penmesh-proxy`) or the ceiling on
+/// Starts the proxy (`penmesh-lab serve-proxy`, the same code as `penmesh-proxy`) or the ceiling on
 /// a free loopback port and waits until it answers.
 pub(super) fn spawn_server(args: &LoadArgs, plan: &Plan) -> anyhow::Result<(String, Spawned)> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")

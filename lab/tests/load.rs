@@ -1,11 +1,11 @@
-//! Tests of `penmesh load`: its argument checks, and short real runs against a spawned proxy and
+//! Tests of `penmesh-lab load`: its argument checks, and short real runs against a spawned proxy and
 //! the ceiling server (each a process of its own, as in a measurement).
 
 use std::path::Path;
 use std::process::{Command, Output};
 
 fn penmesh(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_penmesh")).args(args).output().expect("penmesh runs")
+    Command::new(env!("CARGO_BIN_EXE_penmesh-lab")).args(args).output().expect("penmesh runs")
 }
 
 fn stderr(output: &Output) -> String {

@@ -1,4 +1,4 @@
-//! `penmesh eval --meshes`: the paper's table 8 in one run, with both meshers.
+//! `penmesh-lab eval --meshes`: the paper's table 8 in one run, with both meshers.
 //!
 //! For each curve (the paper's four classic contours from the generator at 300 px/s, one stroke
 //! each, and each data set of real recordings, summed over its strokes), each simplifier and the
@@ -13,9 +13,9 @@
 
 use super::table::{Table, fixed};
 use super::*;
-use crate::commands::mesh::{Mesher, build_mesh};
-use crate::mesh_distance::{Hausdorff, hausdorff};
-use crate::poisson::PoissonOptions;
+use penmesh_client::commands::mesh::{Mesher, build_mesh};
+use penmesh_client::mesh_distance::{Hausdorff, hausdorff};
+use penmesh_client::poisson::PoissonOptions;
 
 /// The simplifiers of `--meshes` unless `--algos` says otherwise: the paper's five (BQS, IDP as
 /// Douglas–Peucker, ISWTC as the opening window, PSQUISH-E as SQUISH-E, ODPTS as DPTS), ACUTS
@@ -183,7 +183,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
          Poisson mesh of the curve; Hausdorff against the same mesher's mesh of the \
          unsimplified strokes (sampled every {} px).\n",
         poisson.cell,
-        crate::mesh_distance::SAMPLE_STEP
+        penmesh_client::mesh_distance::SAMPLE_STEP
     );
     let percent = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.1}"));
     let mut curves: Vec<&str> = Vec::new();

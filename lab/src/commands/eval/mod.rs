@@ -1,4 +1,4 @@
-//! `penmesh eval`: ACUTS and the baselines over every stroke of one or more data sets, with the
+//! `penmesh-lab eval`: ACUTS and the baselines over every stroke of one or more data sets, with the
 //! paper's table 6 metrics, the equal-error comparison against optimal min-#, rate–distortion
 //! sweeps and the mesh table (table 8).
 //!
@@ -54,9 +54,9 @@ use penmesh::{
 };
 use serde::Serialize;
 
-use crate::commands::args::AcutsArgs;
-use crate::io;
 use crate::plot::{LineChart, Series, SeriesLabelPosition};
+use penmesh_client::commands::args::AcutsArgs;
+use penmesh_client::io;
 
 /// The bounds of `--sweep`, px.
 const SWEEP_BOUNDS: [f64; 10] = [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0];
@@ -117,7 +117,7 @@ pub struct EvalArgs {
     #[arg(long, value_delimiter = ',')]
     pub curves: Option<Vec<String>>,
     /// With --meshes: the width of the Poisson reconstruction's finest cell, px.
-    #[arg(long, default_value_t = crate::poisson::DEFAULT_CELL)]
+    #[arg(long, default_value_t = penmesh_client::poisson::DEFAULT_CELL)]
     pub poisson_cell: f64,
 }
 
@@ -270,7 +270,8 @@ fn split_names(names: &str) -> Vec<String> {
 
 /// `--meshes`: table 8, printed as Markdown; `--markdown` and `--json` write it.
 fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
-    let poisson = crate::poisson::PoissonOptions { cell: args.poisson_cell, ..Default::default() };
+    let poisson =
+        penmesh_client::poisson::PoissonOptions { cell: args.poisson_cell, ..Default::default() };
     poisson.validate()?;
     let names = args.algos.clone().unwrap_or_else(|| split_names(MESH_ALGOS));
     let algos = algos(&names, (args.acuts.resample, params))?;

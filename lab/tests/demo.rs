@@ -1,8 +1,38 @@
-//! `penmesh demo --fast`: everything it reports is in the database, with the counts it printed.
+//! `penmesh-lab demo --fast`: everything it reports is in the database, with the counts it
+//! printed.
 
 use std::collections::HashMap;
+use std::process::{Command, Output};
 
-use crate::helpers::{assert_stored_complete, json_of, penmesh, run, stored_strokes};
+#[allow(dead_code)]
+#[path = "../../client/tests/support/stored.rs"]
+mod stored;
+use stored::{assert_stored_complete, stored_strokes};
+
+fn penmesh() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_penmesh-lab"));
+    cmd.env_remove("RUST_LOG");
+    cmd
+}
+
+/// Runs to the end (the demo paces nothing with `--fast`; the test harness's own timeout
+/// bounds it).
+fn run(cmd: &mut Command) -> Output {
+    cmd.output().expect("penmesh-lab runs")
+}
+
+/// The one JSON object a `--json` run prints, failing with its stderr otherwise.
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "penmesh-lab failed ({}): {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!("stdout is not one JSON object ({e}): {}", String::from_utf8_lossy(&out.stdout))
+    })
+}
 
 #[tokio::test]
 async fn demo_stores_every_stroke_and_mesh_it_reports() {

@@ -1,4 +1,4 @@
-//! `penmesh ceiling` (hidden): the most a server on the proxy's stack can do, for `penmesh load`
+//! `penmesh-lab ceiling` (hidden): the most a server on the proxy's stack can do, for `penmesh-lab load`
 //! to measure the proxy against.
 //!
 //! The same stack as the proxy (axum's WebSocket on tokio, the same binary codec), and nothing
@@ -138,7 +138,7 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
         ClientMessage::StrokeEnd(end) => ServerMessage::StrokeDone(StrokeDone {
             stroke: end.stroke,
             n_retained: 0,
-            url: crate::api::stroke_simplified(end.stroke),
+            url: penmesh_client::api::stroke_simplified(end.stroke),
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
         // The load tool never takes a stroke back nor renames; a no-op answer all the same.

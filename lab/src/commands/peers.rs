@@ -1,4 +1,4 @@
-//! `penmesh peers` (hidden): the Rust half of `bench/run.sh`, which times penmesh against the
+//! `penmesh-lab peers` (hidden): the Rust half of `bench/run.sh`, which times penmesh against the
 //! libraries web drawing apps use, on identical strokes.
 //!
 //! - `peers export` writes the benchmark strokes (every generated shape, several seeds, at a

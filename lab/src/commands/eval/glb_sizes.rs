@@ -1,4 +1,4 @@
-//! `penmesh eval --glb-sizes`: the one-stroke GLB of every stroke as the pipeline builds it
+//! `penmesh-lab eval --glb-sizes`: the one-stroke GLB of every stroke as the pipeline builds it
 //! (ACUTS with the given setting, the smooth centreline checked against the raw samples, the
 //! default brush and solid), in each encoding: median, 90th percentile and largest size, and
 //! bytes per raw sample. What `docs/performance.md` reports for issue 26.

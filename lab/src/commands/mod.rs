@@ -1,0 +1,7 @@
+//! One module per lab subcommand.
+
+pub mod ceiling;
+pub mod demo;
+pub mod eval;
+pub mod load;
+pub mod peers;
