@@ -161,7 +161,10 @@ pub async fn start_listener(
                 }
                 Ok(Some(notification)) => {
                     match SessionEvent::from_payload(notification.payload()) {
-                        Ok(events) => events.into_iter().for_each(|event| fanout.dispatch(event)),
+                        Ok(events) => {
+                            let tag = fanout.tag();
+                            events.into_iter().for_each(|event| fanout.dispatch(event.arrived(tag)))
+                        }
                         Err(err) => {
                             // An event this replica cannot read is an event its clients miss:
                             // resync them from the database rather than lose it in silence.

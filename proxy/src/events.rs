@@ -5,7 +5,7 @@
 
 use penmesh::protocol::{
     ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerRetained, PeerStrokeBegin, PeerStrokeDone,
-    PointBatch, ServerMessage, StrokeId, StrokeRemoval,
+    PointBatch, ServerMessage, StrokeId, StrokeRemoval, mesh_url, simplified_url,
 };
 use penmesh::{Brush, Sample};
 use serde::{Deserialize, Serialize};
@@ -13,7 +13,8 @@ use uuid::Uuid;
 
 /// Version of the `NOTIFY` payloads replicas exchange (a second protocol, between proxies):
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
-/// 4: strokes taken back and brought back (`removed`, `restored`), brushes with a colour.
+/// 4: strokes taken back and brought back (`removed`, `restored`), names changed (`renamed`),
+/// brushes with a colour, and the replica and connection that caused an event (`from`).
 pub const NOTIFY_VERSION: u16 = 4;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
@@ -26,10 +27,15 @@ pub struct SessionEvent {
     #[serde(flatten)]
     pub kind: EventKind,
     /// The connection of this replica that caused the event, if any: the fan-out does not
-    /// hand an event back to its own connection (whose client has it already), which would
-    /// only wake that connection to drop it. Local to a replica, so never sent to the others.
+    /// hand an event back to its own connection (whose client has it already, or has it in
+    /// the answer to its request). Local to a replica: see `from`.
     #[serde(skip)]
     pub origin: Option<u64>,
+    /// In a `NOTIFY` payload: the replica ([`crate::fanout::Fanout::tag`]) and connection that
+    /// caused the event, so that the replica's own listener, which receives its own
+    /// notifications, restores `origin` ([`SessionEvent::arrived`]); other replicas ignore it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from: Option<(u64, u64)>,
 }
 
 /// What happened. Stroke events name the participant who began the stroke. Presence events
@@ -91,12 +97,24 @@ pub enum EventKind {
 
 impl SessionEvent {
     pub fn new(session: Uuid, kind: EventKind) -> SessionEvent {
-        SessionEvent { session, kind, origin: None }
+        SessionEvent { session, kind, origin: None, from: None }
     }
 
     /// The event, caused by connection `origin` of this replica.
     pub fn from_connection(origin: u64, session: Uuid, kind: EventKind) -> SessionEvent {
-        SessionEvent { session, kind, origin: Some(origin) }
+        SessionEvent { session, kind, origin: Some(origin), from: None }
+    }
+
+    /// The event as notified by the replica tagged `replica`: its origin goes with it.
+    pub fn to_notify(&self, replica: u64) -> SessionEvent {
+        SessionEvent { from: self.origin.map(|connection| (replica, connection)), ..self.clone() }
+    }
+
+    /// The event as received by the replica tagged `replica`'s listener: its origin back when
+    /// it caused it, none otherwise.
+    pub fn arrived(self, replica: u64) -> SessionEvent {
+        let origin = self.from.filter(|(r, _)| *r == replica).map(|(_, connection)| connection);
+        SessionEvent { origin, from: None, ..self }
     }
 
     /// This event as JSON for a `NOTIFY` payload, in pieces of at most `max` bytes: a
@@ -205,13 +223,13 @@ impl SessionEvent {
                     participant: *participant,
                     stroke: *stroke,
                     n_retained: *n_retained,
-                    url: format!("/v1/strokes/{stroke}/simplified"),
+                    url: simplified_url(*stroke),
                 })
             }
             EventKind::Mesh { participant, stroke, .. } => ServerMessage::PeerMesh(PeerMesh {
                 participant: *participant,
                 stroke: *stroke,
-                url: format!("/v1/strokes/{stroke}/mesh"),
+                url: mesh_url(*stroke),
             }),
             EventKind::Renamed { participant, name } => ServerMessage::PeerRenamed(PeerJoined {
                 participant: *participant,
@@ -283,6 +301,22 @@ mod tests {
         assert!(SessionEvent::from_payload(&other).unwrap_err().to_string().contains("999"));
         let unversioned = serde_json::to_string(&event).unwrap();
         assert!(SessionEvent::from_payload(&unversioned).is_err());
+    }
+
+    // A replica's own notifications come back to its listener with their origin, so that the
+    // connection that caused an event is not handed it; another replica's carry none.
+    #[test]
+    fn an_event_comes_back_with_its_origin_only_to_the_replica_that_caused_it() {
+        let kind =
+            EventKind::StrokeDone { participant: Uuid::nil(), stroke: Uuid::nil(), n_retained: 3 };
+        let event = SessionEvent::from_connection(42, Uuid::nil(), kind);
+        let payload = SessionEvent::notify_payloads(&[event.to_notify(7)]).remove(0);
+        let read = SessionEvent::from_payload(&payload).unwrap().remove(0);
+        assert_eq!(read.clone().arrived(7), event, "back on the replica that caused it");
+        assert_eq!(read.arrived(8).origin, None, "on another replica");
+        let plain = SessionEvent::new(Uuid::nil(), event.kind.clone());
+        let payload = SessionEvent::notify_payloads(&[plain.to_notify(7)]).remove(0);
+        assert!(!payload.contains("from"), "{payload}");
     }
 
     #[test]

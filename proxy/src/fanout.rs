@@ -96,9 +96,18 @@ struct Registry {
 }
 
 /// The subscribers of every session on this replica. Cheap to clone.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Fanout {
     registry: Arc<Mutex<Registry>>,
+    /// This replica's tag in the events it notifies (`SessionEvent::from`): random, so that
+    /// its listener knows its own events among the other replicas'.
+    tag: u64,
+}
+
+impl Default for Fanout {
+    fn default() -> Fanout {
+        Fanout { registry: Arc::default(), tag: rand::random() }
+    }
 }
 
 /// A connection's place in its session's fan-out; unsubscribes when dropped.
@@ -113,6 +122,11 @@ pub struct Subscription {
 }
 
 impl Fanout {
+    /// This replica's tag in the events it notifies.
+    pub fn tag(&self) -> u64 {
+        self.tag
+    }
+
     /// Subscribes to `session`'s events with a queue of `capacity` events and `byte_limit`
     /// bytes of samples, for `connection`: events that connection caused are not handed back
     /// to it.
@@ -389,6 +403,11 @@ impl PeerView {
             }
             _ => false,
         }
+    }
+
+    /// Whether the client has heard of the peer stroke `stroke`.
+    pub fn has_stroke(&self, stroke: &StrokeId) -> bool {
+        self.strokes.contains_key(stroke)
     }
 
     /// Peer strokes the client has heard of.

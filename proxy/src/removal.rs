@@ -70,7 +70,10 @@ pub fn request(
     } else {
         (None, EventKind::Restored { participant, stroke, by })
     };
-    let event = SessionEvent { session: row.session_id, kind, origin };
+    let event = match origin {
+        Some(connection) => SessionEvent::from_connection(connection, row.session_id, kind),
+        None => SessionEvent::new(row.session_id, kind),
+    };
     (WriteOp::SetRemoved { stroke, removed }, event)
 }
 

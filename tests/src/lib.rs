@@ -361,6 +361,8 @@ pub fn is_session_event(msg: &ServerMessage) -> bool {
             | ServerMessage::PeerRetained(_)
             | ServerMessage::PeerStrokeDone(_)
             | ServerMessage::PeerMesh(_)
+            | ServerMessage::PeerRenamed(_)
+            | ServerMessage::PeerStrokes(_)
             | ServerMessage::Synced(_)
     )
 }

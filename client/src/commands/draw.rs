@@ -340,91 +340,100 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
             _ => continue,
         };
         let msg = decode_server(&bytes, usize::MAX).context("a message from the proxy")?;
-        if let ServerMessage::PeerJoined(j) = &msg
-            && drawing
-            && j.name == args.name
-        {
-            mine.insert(j.participant);
-        }
-        let participant = match &msg {
-            ServerMessage::PeerStrokeBegin(m) => Some(m.participant),
-            ServerMessage::PeerStrokeDone(m) => Some(m.participant),
-            ServerMessage::PeerMesh(m) => Some(m.participant),
-            ServerMessage::StrokeRemoved(m) | ServerMessage::StrokeRestored(m) => {
-                Some(m.participant)
-            }
-            _ => None,
+        // A history's strokes come several to a message: each as its own events would.
+        let msgs = match msg {
+            ServerMessage::PeerStrokes(strokes) => strokes.messages(),
+            msg => vec![msg],
         };
-        if participant.is_some_and(|p| mine.contains(&p)) {
-            continue;
-        }
-        if args.live.json && !matches!(msg, ServerMessage::PeerRetained(_)) {
-            println!("{}", encode_server_json(&msg));
-        }
-        let who = |names: &std::collections::HashMap<uuid::Uuid, String>, id| {
-            names.get(&id).cloned().unwrap_or_else(|| short(id))
-        };
-        let line = match &msg {
-            ServerMessage::PeerJoined(j) => {
-                names.insert(j.participant, j.name.clone());
-                Some(format!("+ {} joined", j.name))
+        for msg in msgs {
+            if let ServerMessage::PeerJoined(j) = &msg
+                && drawing
+                && j.name == args.name
+            {
+                mine.insert(j.participant);
             }
-            ServerMessage::PeerLeft(l) => Some(format!("- {} left", who(&names, l.participant))),
-            ServerMessage::PeerStrokeBegin(b) => {
-                Some(format!("{} draws stroke {}", who(&names, b.participant), short(b.stroke)))
+            let participant = match &msg {
+                ServerMessage::PeerStrokeBegin(m) => Some(m.participant),
+                ServerMessage::PeerStrokeDone(m) => Some(m.participant),
+                ServerMessage::PeerMesh(m) => Some(m.participant),
+                ServerMessage::StrokeRemoved(m) | ServerMessage::StrokeRestored(m) => {
+                    Some(m.participant)
+                }
+                _ => None,
+            };
+            if participant.is_some_and(|p| mine.contains(&p)) {
+                continue;
             }
-            ServerMessage::PeerStrokeDone(d) => Some(format!(
-                "{} finished stroke {}: {} retained samples",
-                who(&names, d.participant),
-                short(d.stroke),
-                d.n_retained
-            )),
-            ServerMessage::PeerMesh(m) => {
-                let glb = http
-                    .get(endpoint.url(&m.url))
-                    .bearer_auth(&endpoint.token)
-                    .send()
-                    .await
-                    .and_then(|r| r.error_for_status())
-                    .with_context(|| format!("fetching {}", m.url))?
-                    .bytes()
-                    .await?;
-                let saved = match &args.out {
-                    Some(dir) => {
-                        let path = dir.join(format!("{}.glb", m.stroke));
-                        fs_err::write(&path, &glb)?;
-                        format!(" -> {}", path.display())
-                    }
-                    None => String::new(),
-                };
-                Some(format!(
-                    "{}'s mesh of stroke {}: {} bytes{saved}",
-                    who(&names, m.participant),
-                    short(m.stroke),
-                    glb.len()
-                ))
+            if args.live.json && !matches!(msg, ServerMessage::PeerRetained(_)) {
+                println!("{}", encode_server_json(&msg));
             }
-            // A stroke taken back (undo, the eraser) stays stored; its mesh file is left as is.
-            ServerMessage::StrokeRemoved(r) => {
-                Some(format!("{} took back stroke {}", who(&names, r.by), short(r.stroke)))
+            let who = |names: &std::collections::HashMap<uuid::Uuid, String>, id| {
+                names.get(&id).cloned().unwrap_or_else(|| short(id))
+            };
+            let line = match &msg {
+                ServerMessage::PeerJoined(j) => {
+                    names.insert(j.participant, j.name.clone());
+                    Some(format!("+ {} joined", j.name))
+                }
+                ServerMessage::PeerLeft(l) => {
+                    Some(format!("- {} left", who(&names, l.participant)))
+                }
+                ServerMessage::PeerStrokeBegin(b) => {
+                    Some(format!("{} draws stroke {}", who(&names, b.participant), short(b.stroke)))
+                }
+                ServerMessage::PeerStrokeDone(d) => Some(format!(
+                    "{} finished stroke {}: {} retained samples",
+                    who(&names, d.participant),
+                    short(d.stroke),
+                    d.n_retained
+                )),
+                ServerMessage::PeerMesh(m) => {
+                    let glb = http
+                        .get(endpoint.url(&m.url))
+                        .bearer_auth(&endpoint.token)
+                        .send()
+                        .await
+                        .and_then(|r| r.error_for_status())
+                        .with_context(|| format!("fetching {}", m.url))?
+                        .bytes()
+                        .await?;
+                    let saved = match &args.out {
+                        Some(dir) => {
+                            let path = dir.join(format!("{}.glb", m.stroke));
+                            fs_err::write(&path, &glb)?;
+                            format!(" -> {}", path.display())
+                        }
+                        None => String::new(),
+                    };
+                    Some(format!(
+                        "{}'s mesh of stroke {}: {} bytes{saved}",
+                        who(&names, m.participant),
+                        short(m.stroke),
+                        glb.len()
+                    ))
+                }
+                // A stroke taken back (undo, the eraser) stays stored; its mesh file is left as is.
+                ServerMessage::StrokeRemoved(r) => {
+                    Some(format!("{} took back stroke {}", who(&names, r.by), short(r.stroke)))
+                }
+                ServerMessage::StrokeRestored(r) => {
+                    Some(format!("{} brought back stroke {}", who(&names, r.by), short(r.stroke)))
+                }
+                ServerMessage::Synced(s) => Some(format!(
+                    "-- up to date: {} strokes by the others; live from here --",
+                    s.n_strokes
+                )),
+                ServerMessage::Error(e) if e.code == ErrorCode::Lagged => {
+                    Some("-- fell behind the session; catching up from storage --".to_string())
+                }
+                ServerMessage::Error(e) => {
+                    anyhow::bail!("the proxy refused: {}: {}", e.code.as_str(), e.message)
+                }
+                _ => None,
+            };
+            if let (Some(line), false) = (line, args.live.json) {
+                println!("{line}");
             }
-            ServerMessage::StrokeRestored(r) => {
-                Some(format!("{} brought back stroke {}", who(&names, r.by), short(r.stroke)))
-            }
-            ServerMessage::Synced(s) => Some(format!(
-                "-- up to date: {} strokes by the others; live from here --",
-                s.n_strokes
-            )),
-            ServerMessage::Error(e) if e.code == ErrorCode::Lagged => {
-                Some("-- fell behind the session; catching up from storage --".to_string())
-            }
-            ServerMessage::Error(e) => {
-                anyhow::bail!("the proxy refused: {}: {}", e.code.as_str(), e.message)
-            }
-            _ => None,
-        };
-        if let (Some(line), false) = (line, args.live.json) {
-            println!("{line}");
         }
     }
     Ok(())

@@ -143,10 +143,23 @@ export class Connection {
       case "error":
         if (m.code === "lagged") this.synced = false;
         break;
+      case "peer_strokes":
+        // A history's strokes, several to a message: each as its own events would say it
+        // (penmesh::protocol::PeerStrokes::messages).
+        for (const s of m.strokes) this.historyStroke(s);
+        return;
       default:
         break;
     }
     this.on(kind, m);
+  }
+
+  historyStroke({ participant, stroke, brush, points, done, mesh }) {
+    this.on("peer_stroke_begin", { participant, stroke, brush });
+    if (points.length) this.on("peer_retained", { participant, stroke, first: 0, points });
+    if (!done) return;
+    this.on("peer_stroke_done", { participant, stroke, n_retained: points.length, url: `/v1/strokes/${stroke}/simplified` });
+    if (mesh) this.on("peer_mesh", { participant, stroke, url: `/v1/strokes/${stroke}/mesh` });
   }
 
   strokeDone(stroke) {

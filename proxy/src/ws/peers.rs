@@ -4,7 +4,10 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, StrokeId, Synced};
+use penmesh::protocol::{
+    ErrorCode, ErrorMessage, HistoryStroke, PeerStrokes, PointBatch, ServerMessage, StrokeId,
+    Synced,
+};
 use tokio::time::Instant;
 
 use super::Frame;
@@ -12,7 +15,7 @@ use super::connection::Connection;
 use super::error::{ConnError, End};
 use super::outgoing::Form;
 use crate::events::{EventKind, SessionEvent};
-use crate::fanout::{Admit, Lag, Published, Subscription};
+use crate::fanout::{Admit, Lag, PeerView, Published, Subscription};
 
 /// A connection that overflows its queue more than `MAX_LAGS` times within `LAG_WINDOW` is
 /// dropped (its client reconnects and resumes) instead of resynced once more.
@@ -146,37 +149,151 @@ impl Connection {
             .await;
         }
         let batch = self.state.config.max_batch_samples.max(1);
-        for event in history.events {
+        let mut whole = WholeStrokes::default();
+        let mut events = history.events.into_iter().peekable();
+        while let Some(event) = events.next() {
             if self.is_own(&event) {
                 continue;
             }
-            let pieces = match event.kind {
-                EventKind::Retained { participant, stroke, first, points } => points
-                    .chunks(batch)
-                    .enumerate()
-                    .map(|(i, chunk)| {
-                        SessionEvent::new(
-                            self.session,
-                            EventKind::Retained {
-                                participant,
-                                stroke,
-                                first: first + (i * batch) as u64,
-                                points: chunk.to_vec(),
-                            },
-                        )
-                    })
-                    .collect(),
-                kind => vec![SessionEvent::new(self.session, kind)],
-            };
-            for piece in pieces {
-                match self.view.admit(&piece) {
-                    Admit::Whole => self.send_wait(piece.message()).await,
-                    Admit::Part(msg) => self.send_wait(msg).await,
-                    Admit::Skip | Admit::Gap => {}
+            // A stroke the client lacks entirely goes, with its events, into a `PeerStrokes`.
+            if let EventKind::StrokeBegin { stroke, .. } = &event.kind
+                && !self.view.has_stroke(stroke)
+            {
+                let stroke = *stroke;
+                let mut parts = vec![event];
+                while let Some(next) = events.next_if(|e| e.stroke() == Some(stroke)) {
+                    parts.push(next);
                 }
+                if let Some(rest) = whole.take(&mut self.view, parts, batch) {
+                    // Too many samples for one message: one event (or batch) at a time.
+                    for event in rest {
+                        self.send_history_event(event, batch).await;
+                    }
+                }
+                if let Some(msg) = whole.flush_if_full(batch) {
+                    self.send_wait(msg).await;
+                }
+                continue;
             }
+            if let Some(msg) = whole.flush() {
+                self.send_wait(msg).await;
+            }
+            self.send_history_event(event, batch).await;
+        }
+        if let Some(msg) = whole.flush() {
+            self.send_wait(msg).await;
         }
         let n_strokes = self.view.n_strokes() as u64;
         self.send_wait(ServerMessage::Synced(Synced { n_strokes })).await;
+    }
+
+    /// One event of a history, through the view, its retained samples in batches of at most
+    /// `batch`.
+    async fn send_history_event(&mut self, event: SessionEvent, batch: usize) {
+        let pieces = match event.kind {
+            EventKind::Retained { participant, stroke, first, points } => points
+                .chunks(batch)
+                .enumerate()
+                .map(|(i, chunk)| {
+                    SessionEvent::new(
+                        self.session,
+                        EventKind::Retained {
+                            participant,
+                            stroke,
+                            first: first + (i * batch) as u64,
+                            points: chunk.to_vec(),
+                        },
+                    )
+                })
+                .collect(),
+            kind => vec![SessionEvent::new(self.session, kind)],
+        };
+        for piece in pieces {
+            match self.view.admit(&piece) {
+                Admit::Whole => self.send_wait(piece.message()).await,
+                Admit::Part(msg) => self.send_wait(msg).await,
+                Admit::Skip | Admit::Gap => {}
+            }
+        }
+    }
+}
+
+/// Most strokes in one `PeerStrokes` (their samples are bounded by the batch size).
+const MAX_WHOLE_STROKES: usize = 256;
+
+/// The strokes of a history the client lacks entirely, gathered into `PeerStrokes` messages of
+/// at most [`MAX_WHOLE_STROKES`] strokes and about `batch` samples (the proxy's
+/// `--max-batch-samples`, 4,096 by default: some 200 KB of JSON): a 1,000-stroke board in a
+/// few messages instead of 4,000.
+#[derive(Debug, Default)]
+struct WholeStrokes {
+    strokes: Vec<HistoryStroke>,
+    samples: usize,
+}
+
+impl WholeStrokes {
+    /// Takes one stroke's history events (its begin first), recording them in `view` as if
+    /// each had been sent. A stroke of more than `batch` samples is not taken: its events are
+    /// given back, to be sent one at a time.
+    fn take(
+        &mut self,
+        view: &mut PeerView,
+        parts: Vec<SessionEvent>,
+        batch: usize,
+    ) -> Option<Vec<SessionEvent>> {
+        let samples: usize = parts
+            .iter()
+            .map(|e| match &e.kind {
+                EventKind::Retained { points, .. } => points.len(),
+                _ => 0,
+            })
+            .sum();
+        if samples > batch {
+            return Some(parts);
+        }
+        let mut whole: Option<HistoryStroke> = None;
+        for part in parts {
+            // A stroke the view does not know: each of its events is admitted whole.
+            let admitted = view.admit(&part) == Admit::Whole;
+            match (part.kind, whole.as_mut()) {
+                (EventKind::StrokeBegin { participant, stroke, brush }, None) if admitted => {
+                    whole = Some(HistoryStroke {
+                        participant,
+                        stroke,
+                        brush,
+                        points: PointBatch::default(),
+                        done: false,
+                        mesh: false,
+                    });
+                }
+                (EventKind::Retained { points, .. }, Some(w)) if admitted => w.points.0 = points,
+                (EventKind::StrokeDone { .. }, Some(w)) if admitted => w.done = true,
+                (EventKind::Mesh { .. }, Some(w)) if admitted => w.mesh = true,
+                (kind, _) => {
+                    tracing::warn!(?kind, "a history event of a new stroke not admitted whole");
+                }
+            }
+        }
+        if let Some(w) = whole {
+            self.samples += w.points.0.len();
+            self.strokes.push(w);
+        }
+        None
+    }
+
+    fn flush_if_full(&mut self, batch: usize) -> Option<ServerMessage> {
+        if self.strokes.len() >= MAX_WHOLE_STROKES || self.samples >= batch {
+            self.flush()
+        } else {
+            None
+        }
+    }
+
+    fn flush(&mut self) -> Option<ServerMessage> {
+        if self.strokes.is_empty() {
+            return None;
+        }
+        self.samples = 0;
+        Some(ServerMessage::PeerStrokes(PeerStrokes { strokes: std::mem::take(&mut self.strokes) }))
     }
 }

@@ -224,6 +224,77 @@ pub enum ServerMessage {
     StrokeRestored(StrokeRemoval),
     /// A participant present chose another display name (`Rename`).
     PeerRenamed(PeerJoined),
+    /// Strokes of the session's history that the client lacks entirely, several in one
+    /// message: each says what its `PeerStrokeBegin`, `PeerRetained {first: 0}`,
+    /// `PeerStrokeDone` and `PeerMesh` would ([`PeerStrokes::messages`]). Only before `Synced`;
+    /// a stroke the client has in part, and every live event, come one message each.
+    PeerStrokes(PeerStrokes),
+}
+
+/// The strokes of a [`ServerMessage::PeerStrokes`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerStrokes {
+    pub strokes: Vec<HistoryStroke>,
+}
+
+/// One stroke of a session's history, whole.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HistoryStroke {
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub brush: Brush,
+    /// Every sample retained so far (of a done stroke: its simplified samples).
+    pub points: PointBatch,
+    pub done: bool,
+    /// It has a mesh, at [`mesh_url`].
+    pub mesh: bool,
+}
+
+impl PeerStrokes {
+    /// The messages this one stands for, in order: per stroke its begin, its retained samples
+    /// (if any), and when done its end and (if any) its mesh.
+    pub fn messages(&self) -> Vec<ServerMessage> {
+        let mut out = Vec::with_capacity(4 * self.strokes.len());
+        for s in &self.strokes {
+            let (participant, stroke) = (s.participant, s.stroke);
+            out.push(ServerMessage::PeerStrokeBegin(PeerStrokeBegin {
+                participant,
+                stroke,
+                brush: s.brush,
+            }));
+            if !s.points.0.is_empty() {
+                out.push(ServerMessage::PeerRetained(PeerRetained {
+                    participant,
+                    stroke,
+                    first: 0,
+                    points: s.points.clone(),
+                }));
+            }
+            if s.done {
+                out.push(ServerMessage::PeerStrokeDone(PeerStrokeDone {
+                    participant,
+                    stroke,
+                    n_retained: s.points.0.len() as u64,
+                    url: simplified_url(stroke),
+                }));
+                if s.mesh {
+                    let url = mesh_url(stroke);
+                    out.push(ServerMessage::PeerMesh(PeerMesh { participant, stroke, url }));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Where a done stroke's simplified samples are: `/v1/strokes/{stroke}/simplified`.
+pub fn simplified_url(stroke: StrokeId) -> String {
+    format!("/v1/strokes/{stroke}/simplified")
+}
+
+/// Where a stroke's mesh is: `/v1/strokes/{stroke}/mesh`.
+pub fn mesh_url(stroke: StrokeId) -> String {
+    format!("/v1/strokes/{stroke}/mesh")
 }
 
 /// The stroke a `RemoveStroke` or `RestoreStroke` is about.

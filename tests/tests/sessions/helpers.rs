@@ -31,6 +31,8 @@ pub struct View {
     pub present: HashMap<Uuid, String>,
     pub n_synced: usize,
     pub n_lagged: usize,
+    /// `PeerStrokes` messages received (a history's strokes, several to a message).
+    pub n_messages_of_strokes: usize,
 }
 
 impl View {
@@ -42,6 +44,13 @@ impl View {
                     self.present.insert(j.participant, j.name.clone()).is_none(),
                     "joined twice"
                 );
+            }
+            // A history's strokes, several to a message: each as its own events would be.
+            ServerMessage::PeerStrokes(strokes) => {
+                self.n_messages_of_strokes += 1;
+                for msg in strokes.messages() {
+                    self.apply(&msg);
+                }
             }
             ServerMessage::PeerRenamed(r) => {
                 let name = self.present.get_mut(&r.participant).expect("renamed while absent");

@@ -9,6 +9,7 @@
 
 mod helpers;
 mod history_cost;
+mod history_messages;
 mod history_pool;
 mod latency;
 mod names;

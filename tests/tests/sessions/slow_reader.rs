@@ -187,6 +187,7 @@ fn is_peer_event(msg: &ServerMessage) -> bool {
         ServerMessage::PeerStrokeBegin(_)
             | ServerMessage::PeerRetained(_)
             | ServerMessage::PeerStrokeDone(_)
+            | ServerMessage::PeerStrokes(_)
     )
 }
 

@@ -92,7 +92,7 @@ impl WriterLoop {
         };
         let trimmed_below = self.trim(&mut tx, &written, move_all).await?;
         if self.store.backend() == Backend::Postgres {
-            notify_committed(&mut tx, requests, &refused).await?;
+            notify_committed(&mut tx, requests, &refused, self.fanout.tag()).await?;
         }
         #[cfg(feature = "fault-injection")]
         if fault == Some(Fault::Fail) {
@@ -272,17 +272,19 @@ impl WriterLoop {
     }
 }
 
-/// PostgreSQL: the events of the requests not refused, as notifications of the transaction.
+/// PostgreSQL: the events of the requests not refused, as notifications of the transaction,
+/// each with its origin on this replica (tagged `replica`).
 async fn notify_committed(
     tx: &mut AnyConnection,
     requests: &[&WriteRequest],
     refused: &[Option<WriteError>],
+    replica: u64,
 ) -> anyhow::Result<()> {
     let events: Vec<SessionEvent> = requests
         .iter()
         .zip(refused)
         .filter(|(_, r)| r.is_none())
-        .flat_map(|(req, _)| req.events.iter().cloned())
+        .flat_map(|(req, _)| req.events.iter().map(|event| event.to_notify(replica)))
         .collect();
     if !events.is_empty() {
         notify(tx, &events).await?;

@@ -80,7 +80,8 @@ use crate::model::Sample;
 /// 3: `Hello` carries the participant's `key`, and `ErrorCode` has `not_owner`.
 /// 4: `Brush` carries a `color`; strokes can be taken back and brought back (`RemoveStroke`,
 /// `RestoreStroke`, `StrokeRemoved`, `StrokeRestored`, `ErrorCode::StrokeOpen`); a participant
-/// can change its name (`Rename`, `PeerRenamed`).
+/// can change its name (`Rename`, `PeerRenamed`); a history's strokes come several to a
+/// message (`PeerStrokes`).
 pub const PROTOCOL_VERSION: u16 = 4;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
