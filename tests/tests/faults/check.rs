@@ -230,6 +230,11 @@ impl Watcher {
                                 Ok(ServerMessage::PeerStrokeDone(done)) => {
                                     out.lock().unwrap().insert(done.stroke);
                                 }
+                                // A history's whole strokes, several to a message.
+                                Ok(ServerMessage::PeerStrokes(strokes)) => {
+                                    let done = strokes.strokes.iter().filter(|s| s.done);
+                                    out.lock().unwrap().extend(done.map(|s| s.stroke));
+                                }
                                 // "could not read the session's history; reconnect".
                                 Ok(ServerMessage::Error(err))
                                     if err.message.contains("reconnect") =>

@@ -250,6 +250,8 @@ async fn an_unreadable_stroke_is_reported_and_does_not_hide_the_others() {
     let synced = loop {
         match peer.recv_any().await {
             ServerMessage::Synced(synced) => break synced,
+            // A history's whole strokes come several to a message.
+            ServerMessage::PeerStrokes(strokes) => before.extend(strokes.messages()),
             other => before.push(other),
         }
     };
