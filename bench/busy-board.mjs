@@ -11,7 +11,7 @@
 // and with --profile the first open's CPU profile until then (DevTools' .cpuprofile; the page
 // is minified: an esbuild build of the same sources with `sourcemap: true` maps it back).
 //
-// Usage (from the repository root, after `cargo build --release --bin penmesh` and
+// Usage (from the repository root, after `cargo build --release --bin penmesh --bin penmesh-proxy` and
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--json OUT.json] [--profile OUT.cpuprofile]

@@ -6,8 +6,10 @@
 //! path builds the direct solid (`penmesh::solid_mesh`), which is exact, closed and far lighter.
 //! The cloud is the paper's (9 copies of `T_c` over `±2 max r`), made dense along the stroke
 //! ([`penmesh::CloudOptions::dense`]) so that no stretch between two outline points is left
-//! without samples. It has no points on its top and bottom (the paper's cloud has none): the
-//! reconstruction closes the surface there as the screened equation pleases.
+//! without samples. The paper's cloud has no points on its top and bottom: the reconstruction
+//! closes that open tube as the screened equation pleases, far above and below the stroke.
+//! `--poisson-cloud closed` ([`PoissonCloud::Closed`]) adds points on the flat top and bottom;
+//! the paper's cloud stays the default until the closed one is measured on table 8's curves.
 //!
 //! Limits, as measured in `docs/results.md`: the surface is no better than its finest cell
 //! ([`PoissonOptions::cell`]); where the stroke is narrower than about two cells, it thins or
@@ -34,6 +36,19 @@ pub const MAX_DEPTH: usize = 12;
 /// to holes between the cloud's layers).
 const DENSITY_LEVELS_UP: usize = 2;
 
+/// Which layered cloud the reconstruction is given (`--poisson-cloud`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PoissonCloud {
+    /// The paper's: the sides only (an open tube); the surface balloons above and below it.
+    #[default]
+    Paper,
+    /// The sides plus the flat top and bottom ([`CloudOptions::closed`]): a closed surface,
+    /// which the reconstruction follows more closely (not yet the default: not measured on the
+    /// four curves yet).
+    Closed,
+}
+
 /// How the reconstruction is run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoissonOptions {
@@ -42,6 +57,7 @@ pub struct PoissonOptions {
     pub cell: f64,
     pub screening: f64,
     pub relaxation_iters: usize,
+    pub cloud: PoissonCloud,
 }
 
 impl Default for PoissonOptions {
@@ -50,6 +66,7 @@ impl Default for PoissonOptions {
             cell: DEFAULT_CELL,
             screening: DEFAULT_SCREENING,
             relaxation_iters: DEFAULT_RELAXATION_ITERS,
+            cloud: PoissonCloud::default(),
         }
     }
 }
@@ -66,10 +83,17 @@ impl PoissonOptions {
     }
 }
 
-/// The stroke's mesh by the paper's path: the dense layered point cloud of `outline`, then
-/// [`reconstruct`]. An empty outline gives an empty mesh.
+/// The cloud the reconstruction of `outline` is given: the dense layered cloud, closed top and
+/// bottom unless `cloud` is the paper's.
+pub fn cloud_options(cloud: PoissonCloud) -> CloudOptions {
+    CloudOptions::default().dense(true).closed(cloud == PoissonCloud::Closed)
+}
+
+/// The stroke's mesh by the paper's path: the dense layered point cloud of `outline` (closed
+/// or the paper's, [`PoissonOptions::cloud`]), then [`reconstruct`]. An empty outline gives an
+/// empty mesh.
 pub fn poisson_mesh(outline: &Outline, options: &PoissonOptions) -> StrokeMesh {
-    reconstruct(&penmesh::point_cloud(outline, &CloudOptions::default().dense(true)), options)
+    reconstruct(&penmesh::point_cloud(outline, &cloud_options(options.cloud)), options)
 }
 
 /// Screened Poisson reconstruction of an oriented point cloud: the isosurface as an indexed
@@ -164,5 +188,31 @@ mod tests {
             let error = PoissonOptions { cell, ..PoissonOptions::default() }.validate();
             assert!(error.unwrap_err().to_string().contains("Poisson cell"));
         }
+    }
+
+    #[test]
+    fn closed_cloud_keeps_the_mesh_within_the_cloud_depth_and_the_paper_cloud_balloons() {
+        // A short straight stroke (60 px, radius 4: the cloud spans z in [-8, 8]), cell 2 px.
+        // From the closed cloud the Poisson mesh stays within three cells of that range; from
+        // the paper's open tube it closes further out (the balloon of docs/results.md).
+        let samples: Vec<penmesh::Sample> = (0..=30)
+            .map(|i| penmesh::Sample::new(f64::from(i) * 2.0, 0.0, f64::from(i), 1.0))
+            .collect();
+        let outline = penmesh::outline(&samples, &Brush::default(), &OutlineOptions::default());
+        let z_range = |cloud: PoissonCloud| {
+            let options = PoissonOptions { cell: 2.0, cloud, ..PoissonOptions::default() };
+            let mesh = poisson_mesh(&outline, &options);
+            assert!(mesh.stats().triangles > 100, "{cloud:?}: {:?}", mesh.stats());
+            mesh.positions
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])))
+        };
+        // Three cells (6 px) over the cloud's ±8 px: measured -13.0..13.6 with this crate.
+        let (lo, hi) = z_range(PoissonCloud::Closed);
+        eprintln!("closed cloud: z {lo}..{hi}");
+        let (paper_lo, paper_hi) = z_range(PoissonCloud::Paper);
+        eprintln!("paper cloud: z {paper_lo}..{paper_hi}");
+        assert!(lo > -8.0 - 6.0 && hi < 8.0 + 6.0, "closed cloud: z {lo}..{hi}");
+        assert!(paper_lo < -8.0 - 6.0 || paper_hi > 8.0 + 6.0, "paper: z {paper_lo}..{paper_hi}");
     }
 }

@@ -423,6 +423,12 @@ pub struct CloudOptions {
     /// across the layers (what surface reconstruction needs: the outline's own points can be
     /// tens of px apart on a straight stretch). Off: the points of `T_c` only, as printed.
     pub dense: bool,
+    /// Closed top and bottom: besides the layers (the solid's sides and end caps), points on
+    /// the flat top `z = D` and bottom `z = -D` of the solid, a grid `d_s` apart over the
+    /// stroke's area with normals `+z` and `-z`, so that the cloud samples a closed surface.
+    /// Off (the paper's cloud): the sides only, an open tube that surface reconstruction closes
+    /// wherever its equation pleases (far above and below the stroke, `docs/results.md`).
+    pub closed: bool,
 }
 
 impl CloudOptions {
@@ -440,6 +446,11 @@ impl CloudOptions {
         self.dense = dense;
         self
     }
+
+    pub fn closed(mut self, closed: bool) -> CloudOptions {
+        self.closed = closed;
+        self
+    }
 }
 
 impl Default for CloudOptions {
@@ -448,6 +459,7 @@ impl Default for CloudOptions {
             depth_factor: DEFAULT_CLOUD_DEPTH_FACTOR,
             divisions: DEFAULT_CLOUD_DIVISIONS,
             dense: false,
+            closed: false,
         }
     }
 }
@@ -500,7 +512,71 @@ pub fn point_cloud(outline: &Outline, options: &CloudOptions) -> PointCloud {
             cloud.normals.push(normal.extend(0.0));
         }
     }
+    if options.closed && divisions > 0 && spacing > 0.0 {
+        for point in interior_grid(outline, spacing) {
+            for (z, nz) in [(depth, 1.0), (-depth, -1.0)] {
+                cloud.points.push(point.extend(z));
+                cloud.normals.push(DVec3::new(0.0, 0.0, nz));
+            }
+        }
+    }
     cloud
+}
+
+/// Points of a square grid `step` apart (wider if the stroke's bounding box would need more
+/// than [`MAX_DENSE_LAYER_POINTS`]) that lie inside the stroke's area, at least `step / 2` in
+/// from its edge (the layers' rim is there already). The area is the union of the tapered
+/// capsules round the centreline's segments (radius interpolated along each), the region `T_c`
+/// bounds (without the miter option), also where the outline crosses itself.
+fn interior_grid(outline: &Outline, step: f64) -> Vec<DVec2> {
+    let (centres, radii) = (&outline.centres, &outline.radii);
+    if centres.is_empty() {
+        return Vec::new();
+    }
+    let max_r = outline.max_radius();
+    let (lo, hi) = centres
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+    let (lo, hi) = (lo - DVec2::splat(max_r), hi + DVec2::splat(max_r));
+    let size = hi - lo;
+    let step = step.max((size.x * size.y / MAX_DENSE_LAYER_POINTS as f64).sqrt());
+    if !step.is_finite() || step <= 0.0 {
+        return Vec::new();
+    }
+    let (nx, ny) = ((size.x / step) as usize + 1, (size.y / step) as usize + 1);
+    let margin = step / 2.0;
+    let mut inside = vec![false; nx * ny];
+    let n_segments = centres.len().saturating_sub(1).max(1);
+    for k in 0..n_segments {
+        let (a, b) = (centres[k], centres[(k + 1).min(centres.len() - 1)]);
+        let (ra, rb) = (radii[k], radii[(k + 1).min(centres.len() - 1)]);
+        let reach = ra.max(rb);
+        let (box_lo, box_hi) = (a.min(b) - DVec2::splat(reach), a.max(b) + DVec2::splat(reach));
+        let (i0, j0) = (
+            ((box_lo.x - lo.x) / step).floor().max(0.0) as usize,
+            ((box_lo.y - lo.y) / step).floor().max(0.0) as usize,
+        );
+        let (i1, j1) = (
+            (((box_hi.x - lo.x) / step).ceil() as usize).min(nx - 1),
+            (((box_hi.y - lo.y) / step).ceil() as usize).min(ny - 1),
+        );
+        let ab = b - a;
+        let len2 = ab.length_squared();
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let p = lo + DVec2::new(i as f64, j as f64) * step;
+                let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                let r = ra + (rb - ra) * t;
+                if p.distance(a + ab * t) <= r - margin {
+                    inside[j * nx + i] = true;
+                }
+            }
+        }
+    }
+    (0..nx * ny)
+        .filter(|&cell| inside[cell])
+        .map(|cell| lo + DVec2::new((cell % nx) as f64, (cell / nx) as f64) * step)
+        .collect()
 }
 
 /// The closed loop `points` with points added evenly along each edge (the last one back to the
@@ -696,5 +772,50 @@ mod tests {
         let min_z = cloud.points.iter().map(|p| p.z).fold(f64::MAX, f64::min);
         assert_eq!((min_z, max_z), (-8.0, 8.0));
         assert!(cloud.normals.iter().all(|n| n.z == 0.0 && (n.length() - 1.0).abs() < 1e-12));
+    }
+
+    #[test]
+    fn closed_cloud_lies_on_the_solid_with_outward_normals_and_covers_top_and_bottom() {
+        // A straight stroke of radius 4 from (0, 0) to (100, 0): the solid is the capsule
+        // round the segment, extruded over z in [-D, D], D = 8, d_s = 2. Every point of the
+        // closed cloud is on that solid's surface (the sides within the caps' chord sag, the
+        // top and bottom inside the capsule) with its outward normal; every spot of the top and
+        // bottom at least d_s inside the edge has a cloud point within d_s.
+        let samples = [Sample::new(0.0, 0.0, 0.0, 1.0), Sample::new(100.0, 0.0, 1.0, 1.0)];
+        let out = outline(&samples, &Brush::default(), &OutlineOptions::default());
+        let options = CloudOptions::default().dense(true);
+        let open = point_cloud(&out, &options);
+        let closed = point_cloud(&out, &options.closed(true));
+        let (depth, radius, spacing) = (8.0, 4.0, 2.0);
+        let to_axis = |p: DVec3| p.truncate().distance(DVec2::new(p.x.clamp(0.0, 100.0), 0.0));
+        let (mut top, mut bottom) = (Vec::new(), Vec::new());
+        for (p, n) in closed.points.iter().zip(&closed.normals) {
+            assert!((n.length() - 1.0).abs() < 1e-12, "normal {n} at {p}");
+            if n.z != 0.0 {
+                // Top or bottom: on the flat face, inside the capsule, normal away from z = 0.
+                assert!(p.z.abs() == depth && n.z == p.z.signum() && n.x == 0.0 && n.y == 0.0);
+                assert!(to_axis(*p) <= radius - spacing / 2.0 + 1e-9, "{p} is off the top");
+                if p.z > 0.0 { top.push(p.truncate()) } else { bottom.push(p.truncate()) }
+            } else {
+                // Side: on the capsule's rim, within the depth, normal away from the axis.
+                let on_side = radius - PIXEL_TOLERANCE - 1e-9..=radius + 1e-9;
+                assert!(on_side.contains(&to_axis(*p)) && p.z.abs() <= depth + 1e-9, "{p}");
+                let axis = DVec2::new(p.x.clamp(0.0, 100.0), 0.0);
+                assert!(n.truncate().dot(p.truncate() - axis) > 0.9 * radius, "{n} at {p}");
+            }
+        }
+        assert_eq!(closed.len() - open.len(), top.len() + bottom.len());
+        assert_eq!(top.len(), bottom.len());
+        let near = |points: &[DVec2], q: DVec2| points.iter().any(|p| p.distance(q) <= spacing);
+        for i in 0..=200 {
+            for j in -8..=8 {
+                let q = DVec2::new(-4.0 + i as f64 * 0.54, j as f64 * 0.5);
+                if to_axis(q.extend(0.0)) <= radius - spacing {
+                    assert!(near(&top, q) && near(&bottom, q), "no top or bottom point near {q}");
+                }
+            }
+        }
+        // The paper's cloud has nothing on top: the same spots have no point at z = D.
+        assert!(open.points.iter().all(|p| p.z.abs() < depth || to_axis(*p) > radius - 0.5));
     }
 }

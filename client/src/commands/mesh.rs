@@ -37,6 +37,10 @@ pub struct MeshArgs {
     /// With --mesher poisson: the width of the reconstruction's finest cell, px.
     #[arg(long, default_value_t = poisson::DEFAULT_CELL)]
     pub poisson_cell: f64,
+    /// With --mesher poisson / --meshes: the cloud reconstructed: the paper's open tube (the
+    /// default; the mesh balloons above and below), or closed top and bottom.
+    #[arg(long, value_enum, default_value_t = poisson::PoissonCloud::default())]
+    pub poisson_cloud: poisson::PoissonCloud,
     /// Brush size E (px): the radius at full pressure with a pressure response of 1.
     #[arg(long, default_value_t = penmesh::Brush::DEFAULT_SIZE)]
     pub brush_size: f64,
@@ -99,7 +103,11 @@ pub fn build_mesh(
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let params = args.acuts.params()?;
-    let poisson_options = PoissonOptions { cell: args.poisson_cell, ..PoissonOptions::default() };
+    let poisson_options = PoissonOptions {
+        cell: args.poisson_cell,
+        cloud: args.poisson_cloud,
+        ..PoissonOptions::default()
+    };
     poisson_options.validate()?;
     let brush = Brush {
         size: args.brush_size,
@@ -203,6 +211,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 "glb": args.glb.to_possible_value().map(|v| v.get_name().to_owned()),
                 "mesher": args.mesher,
                 "poisson_cell": args.poisson_cell,
+                "poisson_cloud": args.poisson_cloud,
             },
         });
         // Written, not printed: a closed pipe is an error to report, not a panic.

@@ -119,6 +119,10 @@ pub struct EvalArgs {
     /// With --meshes: the width of the Poisson reconstruction's finest cell, px.
     #[arg(long, default_value_t = penmesh_client::poisson::DEFAULT_CELL)]
     pub poisson_cell: f64,
+    /// With --mesher poisson / --meshes: the cloud reconstructed: the paper's open tube (the
+    /// default; the mesh balloons above and below), or closed top and bottom.
+    #[arg(long, value_enum, default_value_t = penmesh_client::poisson::PoissonCloud::default())]
+    pub poisson_cloud: penmesh_client::poisson::PoissonCloud,
 }
 
 /// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
@@ -270,8 +274,11 @@ fn split_names(names: &str) -> Vec<String> {
 
 /// `--meshes`: table 8, printed as Markdown; `--markdown` and `--json` write it.
 fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
-    let poisson =
-        penmesh_client::poisson::PoissonOptions { cell: args.poisson_cell, ..Default::default() };
+    let poisson = penmesh_client::poisson::PoissonOptions {
+        cell: args.poisson_cell,
+        cloud: args.poisson_cloud,
+        ..Default::default()
+    };
     poisson.validate()?;
     let names = args.algos.clone().unwrap_or_else(|| split_names(MESH_ALGOS));
     let algos = algos(&names, (args.acuts.resample, params))?;

@@ -44,6 +44,9 @@ pub struct MeshEvalRow {
     pub vertices: usize,
     pub faces: usize,
     pub bytes: usize,
+    /// The same meshes' GLB as plain floats (`GlbEncoding::Plain`, uncompressed as the paper's
+    /// meshes are); `bytes` is the default encoding (quantised and meshopt-compressed).
+    pub plain_bytes: usize,
     pub seconds: f64,
     /// Reductions against the BQS Poisson mesh of the same curve, % (`None` without `bqs`).
     pub eta_vertices: Option<f64>,
@@ -106,6 +109,7 @@ pub(super) fn mesh_rows(
                     vertices: 0,
                     faces: 0,
                     bytes: 0,
+                    plain_bytes: 0,
                     seconds: 0.0,
                     eta_vertices: None,
                     eta_faces: None,
@@ -119,6 +123,7 @@ pub(super) fn mesh_rows(
                     row.vertices += mesh.stats().vertices;
                     row.faces += mesh.stats().triangles;
                     row.bytes += bytes;
+                    row.plain_bytes += plain_glb_bytes(&mesh);
                     row.seconds += seconds;
                     if references.len() < strokes.len() {
                         references.push(mesh);
@@ -172,16 +177,26 @@ fn stroke_mesh(
     Ok((mesh, glb.len(), started.elapsed().as_secs_f64()))
 }
 
+/// The bytes of `mesh`'s GLB written as plain floats (not timed: the table's time is the
+/// default encoding's).
+fn plain_glb_bytes(mesh: &StrokeMesh) -> usize {
+    let meta =
+        GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush: Brush::default() };
+    let options = GlbOptions::default().encoding(penmesh::GlbEncoding::Plain);
+    penmesh::stroke_glb(mesh, &meta, &options).len()
+}
+
 /// Table 8 as Markdown: one table per curve, as the paper's, both meshers; then how much larger
 /// and slower the Poisson mesh is than the direct solid of the same samples.
 pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "Meshes (table 8): Poisson = screened Poisson of the dense layered point cloud (finest \
-         cell {} px), direct = the LRPDP solid; same outline for both; eta against the BQS \
+        "Meshes (table 8): Poisson = screened Poisson of the dense layered point cloud ({:?}, \
+         finest cell {} px), direct = the LRPDP solid; same outline for both; eta against the BQS \
          Poisson mesh of the curve; Hausdorff against the same mesher's mesh of the \
          unsimplified strokes (sampled every {} px).\n",
+        poisson.cloud,
         poisson.cell,
         penmesh_client::mesh_distance::SAMPLE_STEP
     );
@@ -209,6 +224,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
                 "eta T %",
                 "H mesh→ref px",
                 "H ref→mesh px",
+                "S plain MB",
             ],
             2,
         );
@@ -230,6 +246,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
                 percent(r.eta_seconds),
                 to,
                 from,
+                fixed(r.plain_bytes as f64 / 1e6, 3),
             ]);
         }
         table.write(&mut md);
@@ -240,9 +257,9 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
         "Poisson against the direct solid of the same samples (smallest ratio over the methods of \
          each curve, the unsimplified strokes included):\n"
     );
-    let mut table = Table::new(&["curve", "vertices ×", "bytes ×", "time ×"], 1);
+    let mut table = Table::new(&["curve", "vertices ×", "bytes ×", "time ×", "plain bytes ×"], 1);
     for curve in &curves {
-        let mut ratios = [f64::INFINITY; 3];
+        let mut ratios = [f64::INFINITY; 4];
         for direct in rows.iter().filter(|r| r.curve == *curve && r.mesher == Mesher::Direct) {
             let Some(poisson) = rows.iter().find(|r| {
                 r.curve == *curve && r.algo == direct.algo && r.mesher == Mesher::Poisson
@@ -253,6 +270,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
                 (poisson.vertices as f64, direct.vertices as f64),
                 (poisson.bytes as f64, direct.bytes as f64),
                 (poisson.seconds, direct.seconds),
+                (poisson.plain_bytes as f64, direct.plain_bytes as f64),
             ];
             for (ratio, (p, d)) in ratios.iter_mut().zip(pairs) {
                 *ratio = ratio.min(p / d);
