@@ -9,6 +9,7 @@
 mod acuts;
 pub mod baselines;
 pub mod centreline;
+mod cloud;
 pub mod data_sets;
 mod formats;
 mod generator;
@@ -33,6 +34,10 @@ pub use crate::model::{
 };
 
 pub use crate::centreline::{Centreline, SmoothOptions, fit_centreline, smooth_centreline};
+pub use crate::cloud::{
+    CloudOptions, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS, PointCloud, point_cloud,
+    point_cloud_ply,
+};
 pub use crate::formats::{
     FormatError, HWR_PERIOD_MS, SVC2004_GAP_MS, StrokeFormat, TABLET_PRESSURE_LEVELS, read_csv,
     read_hwr, read_json, read_strokes, read_svc2004, write_csv, write_json,
@@ -46,9 +51,7 @@ pub use crate::glb::{
     POSITION_STEP, stroke_glb, strokes_glb,
 };
 pub use crate::lrpdp::{
-    CloudOptions, DEFAULT_CLOUD_DEPTH_FACTOR, DEFAULT_CLOUD_DIVISIONS, KeptError, MIN_CAP_POINTS,
-    Outline, OutlineOptions, PIXEL_TOLERANCE, PointCloud, fitted_outline, outline, point_cloud,
-    point_cloud_ply,
+    KeptError, MIN_CAP_POINTS, Outline, OutlineOptions, PIXEL_TOLERANCE, fitted_outline, outline,
 };
 pub use crate::mesh::{
     DEFAULT_THICKNESS, MAX_MERGED_PIECES, MAX_MERGED_TURN_DEG, MIN_THICKNESS, MeshDefect,
