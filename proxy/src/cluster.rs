@@ -326,6 +326,20 @@ impl StrokeLocks {
         }
     }
 
+    /// Asks the lock connection whether it lives, and opens it again (taking the held locks
+    /// again) if it broke: a broken one holds no lock, the replica's included.
+    pub async fn check(&self) -> anyhow::Result<()> {
+        let mut inner = self.inner.lock().await;
+        if let Some(conn) = inner.conn.as_mut() {
+            let answered = within(self.deadline, sqlx::query("SELECT 1").execute(conn)).await;
+            if let Err(err) = answered {
+                tracing::warn!(error = %err, "the stroke-lock connection does not answer");
+                inner.conn = None;
+            }
+        }
+        self.connection(&mut inner).await.map(|_| ())
+    }
+
     /// The lock connection, reconnected (taking the held locks again) if it broke.
     async fn connection<'a>(
         &self,
@@ -371,6 +385,33 @@ async fn within<T, E: Into<anyhow::Error>>(
 
 /// How often a replica looks for participants of replicas that died.
 pub const REAP_INTERVAL: Duration = Duration::from_secs(2);
+
+/// How often a replica checks its lock connection ([`start_lock_keeper`]): well within
+/// [`REAP_INTERVAL`], as a replica whose lock is free in two reaping rounds in a row is taken
+/// for dead.
+pub const LOCK_CHECK: Duration = Duration::from_millis(500);
+
+/// Every [`LOCK_CHECK`]: checks the lock connection and opens it again if it broke, taking
+/// the replica's lock and the strokes' locks again. Without it the connection would be opened
+/// again only by the next stroke claimed, and a replica whose strokes were all begun would
+/// look dead to the reapers: its participants closed, its strokes marked interrupted and its
+/// append log moved while it draws on.
+pub fn start_lock_keeper(
+    locks: std::sync::Arc<StrokeLocks>,
+    stop: CancellationToken,
+) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        loop {
+            tokio::select! {
+                _ = stop.cancelled() => return,
+                _ = tokio::time::sleep(LOCK_CHECK) => {}
+            }
+            if let Err(err) = locks.check().await {
+                tracing::warn!(error = %err, "the stroke-lock connection cannot be opened again");
+            }
+        }
+    })
+}
 
 /// Every [`REAP_INTERVAL`]: closes the participants whose replica no longer holds its lock,
 /// and notifies their `PeerLeft` in the same transaction (one replica wins each row); and
@@ -501,9 +542,10 @@ fn replica_alive(key: &str) -> String {
 /// its lock was free in two rounds in a row (`suspects` carries the first), so a replica whose
 /// lock connection is only being reopened is left alone. For each of its strokes that nobody
 /// is drawing (this transaction takes the stroke's lock, which conflicts with a drawing
-/// replica's), the samples only the log holds go into `stroke_chunks`; then its records are
-/// deleted, except those holding a stroke that is being drawn again (its new writer moves it;
-/// a later round deletes them). What cannot be moved (a stroke with no row, a record that does
+/// replica's), the samples only the log holds go into `stroke_chunks`; then its records read
+/// are deleted (never one it committed after the read, should it live after all), except
+/// those holding a stroke that is being drawn again (its new writer moves it; a later round
+/// deletes them). What cannot be moved (a stroke with no row, a record that does
 /// not decode) is set aside first (`log::set_aside`). Returns the strokes moved and the
 /// records deleted.
 async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<(u64, u64)> {
@@ -521,6 +563,21 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
     if confirmed.is_empty() {
         return Ok((0, 0));
     }
+    // Writer keys and record ids are integers read from the database: safe to write into the
+    // statements.
+    fn list<'a>(ids: impl IntoIterator<Item = &'a i64>) -> String {
+        ids.into_iter().map(i64::to_string).collect::<Vec<_>>().join(", ")
+    }
+    // Only what is read here may be deleted: a writer taken for dead may live (its lock
+    // connection was down for two rounds), and a record it commits after this read holds
+    // samples it acknowledged that nobody moved. A writer commits one transaction after the
+    // other, so its records read are those up to the last id it had before the read.
+    let read_upto: Vec<(i64, i64)> = sqlx::query_as(&format!(
+        "SELECT writer, MAX(id) FROM stroke_log WHERE writer IN ({}) GROUP BY writer",
+        list(&confirmed)
+    ))
+    .fetch_all(&mut *tx)
+    .await?;
     // The whole log, read once: a dead writer's stroke may continue another writer's entries.
     // What does not decode is set aside, not moved.
     let log = crate::store::log::read_log_to_move(&mut tx, None).await?;
@@ -538,16 +595,18 @@ async fn reap_log(store: &Store, suspects: &mut HashSet<i64>) -> anyhow::Result<
             kept_records.extend(entries.iter().filter(|e| is_dead(e)).map(|(id, _, _)| *id));
         }
     }
-    // Writer keys and record ids are integers read from the database: safe to write into the
-    // statement.
-    fn list<'a>(ids: impl IntoIterator<Item = &'a i64>) -> String {
-        ids.into_iter().map(i64::to_string).collect::<Vec<_>>().join(", ")
+    let mut deleted = 0;
+    if !read_upto.is_empty() {
+        let read: Vec<String> = read_upto
+            .iter()
+            .map(|(writer, upto)| format!("(writer = {writer} AND id <= {upto})"))
+            .collect();
+        let mut sql = format!("DELETE FROM stroke_log WHERE ({})", read.join(" OR "));
+        if !kept_records.is_empty() {
+            sql += &format!(" AND id NOT IN ({})", list(&kept_records));
+        }
+        deleted = sqlx::query(&sql).execute(&mut *tx).await?.rows_affected();
     }
-    let mut sql = format!("DELETE FROM stroke_log WHERE writer IN ({})", list(&confirmed));
-    if !kept_records.is_empty() {
-        sql += &format!(" AND id NOT IN ({})", list(&kept_records));
-    }
-    let deleted = sqlx::query(&sql).execute(&mut *tx).await?.rows_affected();
     tx.commit().await?;
     Ok((moved, deleted))
 }

@@ -27,7 +27,7 @@ mod ws;
 
 // The surface the binaries, the client's in-process demo and the end-to-end tests use; the
 // rest of the crate is private to it.
-pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION};
+pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, REAP_INTERVAL};
 pub use crate::config::{Config, SqliteSync};
 pub use crate::http::READY_DB_DEADLINE;
 pub use crate::identity::participant_id;

@@ -9,6 +9,7 @@
 //! the session-event listener and the stroke-lock connection ([`crate::cluster`]), so any
 //! number of replicas can serve one database.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -24,7 +25,7 @@ use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 
-use crate::cluster::{StrokeLocks, start_listener, start_reaper};
+use crate::cluster::{StrokeLocks, start_listener, start_lock_keeper, start_reaper};
 use crate::config::Config;
 use crate::fanout::Fanout;
 use crate::send_deadline::{DeadlineIo, SendDeadline};
@@ -96,13 +97,14 @@ impl Application {
                     deadline,
                 );
                 let task = listener.await?;
-                let locks = StrokeLocks::connect(direct.expose(), deadline).await?;
+                let locks = Arc::new(StrokeLocks::connect(direct.expose(), deadline).await?);
+                let keeper = start_lock_keeper(locks.clone(), stop.clone());
                 let reaper = start_reaper(store.clone(), stop.clone());
                 tracing::info!(
                     "PostgreSQL: replicas share session events (LISTEN/NOTIFY) and stroke \
                      ownership (advisory locks)"
                 );
-                (Some((vec![task, reaper], stop)), Some(locks))
+                (Some((vec![task, keeper, reaper], stop)), Some(locks))
             }
         };
         let (writer, writer_task) = WriterTask::start(
@@ -112,7 +114,7 @@ impl Application {
             config.writer_queue,
             fanout.clone(),
             faults,
-            locks.as_ref().map(StrokeLocks::replica_key),
+            locks.as_deref().map(StrokeLocks::replica_key),
         )
         .await?;
         let writer = writer.limit_bytes(config.writer_queue_bytes);

@@ -74,7 +74,7 @@ impl AppState {
         shutdown: CancellationToken,
         metrics: PrometheusHandle,
         fanout: Fanout,
-        locks: Option<StrokeLocks>,
+        locks: Option<Arc<StrokeLocks>>,
     ) -> AppState {
         let connections = Arc::new(tokio::sync::Semaphore::new(
             config.max_connections.min(tokio::sync::Semaphore::MAX_PERMITS),
@@ -216,8 +216,8 @@ pub struct Claims {
 const LOCK_RETRY: Duration = Duration::from_millis(50);
 
 impl Claims {
-    pub fn new(locks: Option<StrokeLocks>) -> Claims {
-        Claims { held: Mutex::default(), released: Notify::new(), locks: locks.map(Arc::new) }
+    pub fn new(locks: Option<Arc<StrokeLocks>>) -> Claims {
+        Claims { held: Mutex::default(), released: Notify::new(), locks }
     }
 
     /// Takes `stroke` for connection `conn`, waiting up to `wait` for another holder to let go

@@ -148,6 +148,12 @@ impl Stroke {
                     }
                     StrokeStatus::Open => {
                         let next = state.next_seq;
+                        if next < self.log.acked {
+                            eprintln!(
+                                "LOSS stroke {id}: resumed at {next}, acked {}",
+                                self.log.acked
+                            );
+                        }
                         self.log.lost_on_resume += self.log.acked.saturating_sub(next);
                         // Everything before the resume point is committed: as good as an ack.
                         self.log.acked = self.log.acked.max(next);
@@ -184,8 +190,9 @@ impl Stroke {
                 ended = true;
             }
             let owed = !self.begun || (self.log.acked as usize) < self.next || ended;
-            let can_send =
-                self.begun && self.next < n && self.next - (self.log.acked as usize) < plan.window;
+            let can_send = self.begun
+                && self.next < n
+                && self.next.saturating_sub(self.log.acked as usize) < plan.window;
             tokio::select! {
                 _ = ticker.tick(), if can_send => {
                     let end = (self.next + plan.batch).min(n);

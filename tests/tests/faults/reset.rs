@@ -6,12 +6,12 @@
 use std::time::{Duration, Instant};
 
 use penmesh_e2e::TestDatabase;
-use penmesh_proxy::{LISTENER_APPLICATION, LOCKS_APPLICATION};
+use penmesh_proxy::{LISTENER_APPLICATION, LOCKS_APPLICATION, REAP_INTERVAL};
 
 use crate::check::{Load, Watcher, assert_promises, verify};
 use crate::child::ProxyChild;
 use crate::forwarder::Forwarder;
-use crate::{PENS, RECOVERY, plan, postgres_server};
+use crate::{PENS, RECOVERY, pen, plan, postgres_server};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[cfg_attr(not(penmesh_postgres), ignore = "needs PostgreSQL: set PENMESH_TEST_POSTGRES_URL")]
@@ -47,6 +47,9 @@ async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
     // Assert
     let figures = verify(&proxy, &session, &logs, healed).await;
     println!("{}", figures.line("resets (postgres)"));
+    if figures.lost > 0 {
+        eprintln!("the proxy's log:\n{}", proxy.log_text());
+    }
     assert_promises(&figures, RECOVERY);
     // The listener is back: the watcher has seen every stroke finish (live or by a resync).
     let seen = watcher.wait_all(&logs, Instant::now(), RECOVERY).await;
@@ -57,4 +60,45 @@ async fn postgres_connections_reset_mid_load_lose_nothing_acknowledged() {
     let log = proxy.log_text();
     assert!(log.contains("write connection"), "{log}");
     assert!(log.contains("stroke-lock connection broke"), "{log}");
+}
+
+/// The lock connection reset while nobody claims a stroke (one person in the middle of a long
+/// stroke, the only one): the replica opens it again by itself and takes its locks back, so
+/// no reaper takes it for dead. Without that, two reaping rounds later its participant would
+/// be closed, its stroke marked interrupted while drawn and its append log moved under it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[cfg_attr(not(penmesh_postgres), ignore = "needs PostgreSQL: set PENMESH_TEST_POSTGRES_URL")]
+async fn postgres_lock_connection_reset_between_claims_is_opened_again_at_once() {
+    let db = TestDatabase::fresh().await;
+    assert!(db.is_postgres(), "this scenario needs PostgreSQL");
+    let network = Forwarder::start(postgres_server(&db.url)).await;
+    let proxy = ProxyChild::start(&network.rewrite_url(&db.url), &[]).await;
+    let session = proxy.create_session().await;
+    // One stroke of 2,000 samples at 160 Hz: 12.5 s, begun before the reset and ended after.
+    let plan = pen::Plan { strokes: 1, samples: 2000, ..plan() };
+    let load = Load::start(&proxy, &session, 1, plan).await;
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::AnyPool::connect(&db.url).await.unwrap();
+
+    // Act
+    network.reset_where(|app| app == LOCKS_APPLICATION);
+    // Past two reaping rounds: a replica whose lock is free in both is taken for dead.
+    tokio::time::sleep(REAP_INTERVAL * 2 + Duration::from_millis(1500)).await;
+    let left: i64 =
+        sqlx::query_scalar("SELECT COUNT(*) FROM participants WHERE left_at IS NOT NULL")
+            .fetch_one(&pool)
+            .await
+            .unwrap();
+    let statuses: Vec<String> =
+        sqlx::query_scalar("SELECT status FROM strokes").fetch_all(&pool).await.unwrap();
+    let healed = Instant::now();
+    let (session, logs) = load.finish().await;
+
+    // Assert
+    let log = proxy.log_text();
+    assert!(log.contains("stroke-lock connection broke; relocking"), "{log}");
+    assert_eq!(left, 0, "a participant of the live replica was closed: {log}");
+    assert_eq!(statuses, ["open"], "the stroke being drawn was marked: {log}");
+    let figures = verify(&proxy, &session, &logs, healed).await;
+    assert_promises(&figures, RECOVERY);
 }
