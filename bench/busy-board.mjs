@@ -258,6 +258,7 @@ async function measurePage(context, url, expected) {
     await mouse("mouseMoved", 500 + 200 * Math.sin(step / 20), 350 + 120 * Math.sin(step / 31));
   }
   const orbitFps = ((await frames()) - f0) / ((Date.now() - t0) / 1000);
+  const triangles = await page.evaluate(() => window.penmesh.triangles ?? null);
   await mouse("mouseReleased", 500, 350);
   await page.evaluate(() => (window.__stopTicks = true));
 
@@ -285,6 +286,7 @@ async function measurePage(context, url, expected) {
     http_requests: traffic.requests,
     statuses: traffic.statuses,
     orbit_fps: Number(orbitFps.toFixed(1)),
+    triangles, // drawn in the orbit's last frame
     idle_cores: Number(idleCores.toFixed(3)),
     idle_cores_by_process: Object.fromEntries(Object.entries(idle).map(([k, v]) => [k, Number(v.toFixed(3))])),
     idle_frames: idleFrames0 === null ? null : idleFrames1 - idleFrames0,

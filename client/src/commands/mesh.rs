@@ -14,7 +14,7 @@ use serde_json::json;
 
 use crate::commands::args::GlbArg;
 use crate::io;
-use crate::poisson::{self, PoissonOptions};
+use crate::poisson::{self, PoissonCloud, PoissonOptions};
 
 #[derive(Debug, Args)]
 pub struct MeshArgs {
@@ -27,7 +27,8 @@ pub struct MeshArgs {
     /// MeshoptDecoder), quantised only, or plain floats for tools that decode neither.
     #[arg(long, value_enum, default_value_t = GlbArg::default())]
     pub glb: GlbArg,
-    /// Also write the layered point cloud (the paper's Poisson input) as PLY.
+    /// Also write the layered point cloud (the paper's Poisson input) as PLY: the cloud that
+    /// --poisson-cloud names, at the layers' spacing (the reconstruction makes it denser).
     #[arg(long, value_name = "PATH")]
     pub ply: Option<PathBuf>,
     /// How the mesh is built from the outline: the direct closed solid, or the paper's screened
@@ -159,7 +160,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.ply {
         let mut cloud = penmesh::PointCloud::default();
         for outline in &outlines {
-            let part = penmesh::point_cloud(outline, &CloudOptions::default());
+            let options =
+                CloudOptions::default().closed(args.poisson_cloud == PoissonCloud::Closed);
+            let part = penmesh::point_cloud(outline, &options);
             cloud.points.extend(part.points);
             cloud.normals.extend(part.normals);
         }

@@ -9,5 +9,6 @@ mod draw;
 mod errors;
 mod evdev;
 mod helpers;
+mod mesh;
 mod resume;
 mod watch;

@@ -86,6 +86,7 @@ window.penmesh = {
   get meshes() { return view.meshCount; },
   get frames() { return view.frames; },
   get drawCalls() { return view.renderer.info.render.calls; }, // of the last frame
+  get triangles() { return view.renderer.info.render.triangles; }, // of the last frame
   get shown() { return view.shownMeshes; },
   get removed() { return [...view.strokes].filter(([, s]) => s.removed).map(([id]) => id); },
   get brush() { return brush; },

@@ -3,29 +3,16 @@
 // scripts/test.sh as `node client/web/test/browser.mjs` with PENMESH_BIN set to the built
 // `penmesh` binary. Screenshots go to target/web-test/. Any failure exits non-zero; a missing
 // Chromium is a failure, never a skip.
-import { mkdirSync, writeFileSync } from "node:fs";
+import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { drawStroke, isBackground, launch, log, newSession, pixelsAt, requireTools, root, runPenmesh, startProxy, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, runPenmesh, until } from "./harness.mjs";
 
-const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
 // The page sends JSON (exact values); the native client's binary frames are on this grid.
 const POSITION_STEP = 1 / 16;
 const PRESSURE_STEP = 1 / 1024;
 
-requireTools();
-mkdirSync(ARTIFACTS, { recursive: true });
-const children = [];
-let browser;
-let proxyLog = () => "";
-async function cleanup() {
-  for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
-  if (browser) await browser.close().catch(() => {});
-}
-
-async function main() {
-  const proxy = await startProxy(children);
-  proxyLog = () => proxy.log;
+await browserTest(async ({ proxy, browser, children }) => {
   const { base } = proxy;
   const { session, token } = await newSession(base);
   const auth = { authorization: `Bearer ${token}` };
@@ -39,7 +26,6 @@ async function main() {
   // The token must not be in the page's URL path or query, nor in the WebSocket's URL.
   assert.ok(!new URL(pageUrl).pathname.includes(token) && !new URL(pageUrl).search.includes(token));
 
-  browser = await launch();
   const context = await browser.newContext({ viewport: { width: 1000, height: 700 }, deviceScaleFactor: 1 });
   const wsUrls = [];
   async function openPage(name) {
@@ -176,15 +162,4 @@ async function main() {
   for (const url of wsUrls) assert.ok(!url.includes(token), `the token is in a WebSocket URL: ${url}`);
   assert.ok(wsUrls.length >= 3);
   writeFileSync(join(ARTIFACTS, "result.json"), JSON.stringify({ ok: true }));
-}
-
-try {
-  await main();
-  await cleanup();
-  log(`PASS (screenshots in ${ARTIFACTS})`);
-} catch (err) {
-  console.error("FAIL:", err.stack || err);
-  console.error("--- proxy log (tail) ---\n" + proxyLog().split("\n").slice(-30).join("\n"));
-  await cleanup();
-  process.exit(1);
-}
+});

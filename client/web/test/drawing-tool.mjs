@@ -5,25 +5,15 @@
 // stroke back; Bob's attempt to take one of Ada's strokes back is refused and changes nothing;
 // a reload keeps the removal. Run by scripts/test.sh as `node client/web/test/drawing-tool.mjs`
 // with PENMESH_BIN set. Screenshots go to target/web-test/. Any failure exits non-zero.
-import { mkdirSync } from "node:fs";
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { drawStroke, isBackground, launch, log, newSession, pixelsAt, requireTools, root, startProxy, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, until } from "./harness.mjs";
 
-const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
 // A removal or a restore on one page is on the other's screen within this long.
 const LIVE_MS = 1000;
 const ADA_COLOUR = 0x2266dd;
 
-requireTools();
-mkdirSync(ARTIFACTS, { recursive: true });
-const children = [];
-let browser;
-let proxyLog = () => "";
-
-async function main() {
-  const proxy = await startProxy(children);
-  proxyLog = () => proxy.log;
+await browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
   const { session, token } = await newSession(base);
   const auth = { authorization: `Bearer ${token}` };
@@ -34,7 +24,6 @@ async function main() {
   };
   const pageUrl = `${base}/s/${session}#token=${token}`;
 
-  browser = await launch();
   // Two people: a browser context each (their own storage, as on two machines).
   async function openPage(name) {
     const context = await browser.newContext({ viewport: { width: 1000, height: 700 }, deviceScaleFactor: 1 });
@@ -160,17 +149,4 @@ async function main() {
 
   const errors = await ada.evaluate(() => window.penmesh.errors);
   assert.deepEqual(errors, [], "Ada's page reported errors");
-}
-
-try {
-  await main();
-  for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
-  await browser.close();
-  log(`PASS (screenshots in ${ARTIFACTS})`);
-} catch (err) {
-  console.error("FAIL:", err.stack || err);
-  console.error("--- proxy log (tail) ---\n" + proxyLog().split("\n").slice(-30).join("\n"));
-  for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
-  if (browser) await browser.close().catch(() => {});
-  process.exit(1);
-}
+});

@@ -2,7 +2,7 @@
 // fresh SQLite file), Debian's Chromium through playwright-core, and a pen through CDP.
 import { chromium } from "playwright-core";
 import { spawn } from "node:child_process";
-import { existsSync, mkdtempSync } from "node:fs";
+import { existsSync, mkdirSync, mkdtempSync } from "node:fs";
 import { createServer } from "node:net";
 import { tmpdir } from "node:os";
 import { dirname, join, resolve } from "node:path";
@@ -13,6 +13,9 @@ export const CHROMIUM = process.env.PENMESH_CHROMIUM || "/usr/bin/chromium";
 export const BIN = process.env.PENMESH_BIN || join(root, "target/debug/penmesh");
 // The proxy's own binary: $PENMESH_PROXY_BIN, or the one built beside `penmesh`.
 export const PROXY_BIN = process.env.PENMESH_PROXY_BIN || join(dirname(BIN), "penmesh-proxy");
+
+// Where the browser tests write their screenshots.
+export const ARTIFACTS = process.env.PENMESH_WEB_ARTIFACTS || join(root, "target/web-test");
 
 const started = Date.now();
 export const log = (...a) => console.log(`[${((Date.now() - started) / 1000).toFixed(1)}s]`, ...a);
@@ -157,4 +160,31 @@ export async function pixelsAt(page, points, file) {
     },
     { data: png.toString("base64"), points },
   );
+}
+
+/// Runs one browser test: `main({ proxy, browser, children })` with a proxy on a fresh database
+/// and a launched Chromium (`children` collects the processes it starts). Every process and
+/// the browser are stopped at the end; a failure prints the proxy's log and exits 1.
+export async function browserTest(main) {
+  requireTools();
+  mkdirSync(ARTIFACTS, { recursive: true });
+  const children = [];
+  let proxy;
+  let browser;
+  const cleanup = async () => {
+    for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
+    if (browser) await browser.close().catch(() => {});
+  };
+  try {
+    proxy = await startProxy(children);
+    browser = await launch();
+    await main({ proxy, browser, children });
+    await cleanup();
+    log(`PASS (screenshots in ${ARTIFACTS})`);
+  } catch (err) {
+    console.error("FAIL:", err.stack || err);
+    console.error("--- proxy log (tail) ---\n" + (proxy ? proxy.log : "").split("\n").slice(-30).join("\n"));
+    await cleanup();
+    process.exit(1);
+  }
 }
