@@ -7,7 +7,10 @@
 use penmesh::protocol::{
     ClientMessage, ErrorCode, ServerMessage, StrokeId, StrokeRef, decode_mesh_bundle,
 };
-use penmesh_e2e::{TestProxy, TestSession, count_rows, minimal_glb};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
+use penmesh_e2e::{
+    TestDatabase, TestProxy, TestSession, count_rows, minimal_glb, spawn_faulty_proxy_on,
+};
 use uuid::Uuid;
 
 use crate::helpers::{Participant, one_or_two_replicas, put_mesh, samples_for};
@@ -242,4 +245,50 @@ async fn a_stroke_still_being_drawn_cannot_be_taken_back() {
     assert!(bundled(proxy, &session).await.0.is_empty());
     assert_eq!(http_removal(proxy, &as_drawer, stroke, false).await, 204);
     assert_eq!(bundled(proxy, &session).await.0, vec![stroke]);
+}
+
+/// A removal whose commit fails changes nothing: its drawer is told to try again, nobody else
+/// hears of it and the stroke stays listed; trying again takes it back, and everyone hears of
+/// it once. A commit that took effect but was reported failed (the reply lost) is answered on
+/// the next try, which changes nothing more; the others hear of it once, with the commit
+/// (PostgreSQL: its notification) or with the next try (SQLite).
+#[tokio::test]
+async fn a_removal_whose_commit_fails_changes_nothing_until_it_is_tried_again() {
+    let faults = CommitFaults::new();
+    let proxy =
+        spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
+    let session = proxy.create_session().await;
+    let mut drawer = Participant::join(&proxy, &session, "drawer").await;
+    let mut watcher = Participant::join(&proxy, &session, "watcher").await;
+    let strokes = [Uuid::new_v4(), Uuid::new_v4()];
+    for (k, stroke) in strokes.into_iter().enumerate() {
+        drawer.draw(stroke, &samples_for(k, 30), 10).await;
+    }
+    watcher.wait_for(|v| v.n_done() == 2).await;
+    let removed = |listed: Vec<(StrokeId, Option<String>)>| {
+        listed.into_iter().filter(|(_, by)| by.is_some()).map(|(id, _)| id).collect::<Vec<_>>()
+    };
+
+    for (stroke, fault) in strokes.into_iter().zip([Fault::Fail, Fault::FailAfterCommit]) {
+        faults.fail_removal(stroke, fault, 1);
+        drawer.ws.send(&removal(stroke, true)).await;
+        assert_eq!(answer(&mut drawer, stroke).await, Err(ErrorCode::Internal), "{fault:?}");
+        let stored = removed(listed(&proxy, &session, true).await);
+        match fault {
+            Fault::Fail => assert!(!stored.contains(&stroke), "a failed removal was stored"),
+            Fault::FailAfterCommit => assert!(stored.contains(&stroke), "the commit took effect"),
+        }
+        if fault == Fault::Fail {
+            // Nobody else has heard of it.
+            let quiet = tokio::time::timeout(std::time::Duration::from_millis(300), watcher.recv());
+            assert!(quiet.await.is_err(), "the watcher heard of a removal that was not stored");
+        }
+
+        drawer.ws.send(&removal(stroke, true)).await;
+        assert_eq!(answer(&mut drawer, stroke).await, Ok(true), "{fault:?}: tried again");
+        // The view refuses a second `StrokeRemoved`: the watcher hears of it exactly once.
+        watcher.wait_for(|v| v.strokes[&stroke].removed).await;
+        assert!(removed(listed(&proxy, &session, true).await).contains(&stroke));
+    }
+    assert!(listed(&proxy, &session, false).await.is_empty());
 }

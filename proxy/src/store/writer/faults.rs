@@ -46,6 +46,8 @@ enum FaultTarget {
     Append { stroke: Uuid, seq: u64 },
     /// Any transaction holding the begin of `stroke`.
     Begin { stroke: Uuid },
+    /// Any transaction taking back or bringing back `stroke`.
+    Removal { stroke: Uuid },
 }
 
 impl CommitFaults {
@@ -73,6 +75,12 @@ impl CommitFaults {
         self.state.lock().expect("faults lock").rules.push(rule);
     }
 
+    /// The next `times` transactions that take back or bring back `stroke` get `fault`.
+    pub fn fail_removal(&self, stroke: Uuid, fault: Fault, times: u32) {
+        let rule = FaultRule { target: FaultTarget::Removal { stroke }, fault, remaining: times };
+        self.state.lock().expect("faults lock").rules.push(rule);
+    }
+
     /// Removes every fault not yet spent.
     pub fn clear(&self) {
         self.state.lock().expect("faults lock").rules.clear();
@@ -94,12 +102,19 @@ impl CommitFaults {
                 .flat_map(|r| &r.ops)
                 .any(|op| matches!(op, WriteOp::BeginStroke { stroke: s, .. } if s == stroke))
         };
+        let removes = |stroke: &Uuid| {
+            requests
+                .iter()
+                .flat_map(|r| &r.ops)
+                .any(|op| matches!(op, WriteOp::SetRemoved { stroke: s, .. } if s == stroke))
+        };
         let rule = state.rules.iter_mut().find(|r| {
             r.remaining > 0
                 && match &r.target {
                     FaultTarget::Transaction(n) => *n == k,
                     FaultTarget::Append { stroke, seq } => holds(stroke, seq),
                     FaultTarget::Begin { stroke } => begins(stroke),
+                    FaultTarget::Removal { stroke } => removes(stroke),
                 }
         })?;
         rule.remaining -= 1;
