@@ -112,15 +112,27 @@ function showStatus() {
   if (conn.synced) $("status").textContent = `${view.shownStrokes} strokes, ${view.shownMeshes} meshes`;
 }
 
+// Each person's colour in the list: their brush's, as their latest stroke drew it (ours as
+// chosen); a person who has not drawn shows the participant's own colour.
+const brushColours = new Map(); // participant -> "#rrggbb"
+
 function showPeople() {
   const list = $("people");
   list.replaceChildren();
   for (const [id, name] of people) {
     const li = document.createElement("li");
     li.textContent = id === conn.me ? `${name} (you)` : name;
-    li.style.setProperty("--c", `#${colourOf(id).getHexString()}`);
+    li.style.setProperty("--c", brushColours.get(id) ?? `#${colourOf(id).getHexString()}`);
     list.append(li);
   }
+}
+
+/// Notes `participant`'s brush colour, and redraws the list when it changed.
+function brushUsed(participant, brushOfStroke) {
+  const colour = `#${strokeColour(participant, brushOfStroke).getHexString()}`;
+  if (brushColours.get(participant) === colour) return;
+  brushColours.set(participant, colour);
+  showPeople();
 }
 
 function meshShown(id) {
@@ -221,6 +233,7 @@ function onMessage(kind, m) {
       break;
     case "peer_stroke_begin":
       view.stroke(m.stroke, m.participant, m.brush);
+      brushUsed(m.participant, m.brush);
       break;
     case "peer_retained":
       view.addRetained(m.stroke, m.participant, m.first, m.points);
@@ -322,11 +335,13 @@ function showBrush() {
   $("colour").value = `#${colour.getHexString()}`;
   $("size").value = String(brush.size);
   ink.setColour(`#${colour.getHexString()}`);
+  if (conn.me && brush.color !== null) brushUsed(conn.me, brush);
 }
 $("colour").oninput = (e) => {
   brush.color = colourNumber(e.target.value);
   saveBrush(brush);
   ink.setColour(hexOf(brush.color));
+  if (conn.me) brushUsed(conn.me, brush);
 };
 $("size").oninput = (e) => {
   brush.size = Number(e.target.value);

@@ -61,6 +61,9 @@ await browserTest(async ({ proxy, browser }) => {
     await until(`Ada's mesh ${want}`, () => ada.evaluate((w) => window.penmesh.shown >= w && !window.penmesh.pending, want));
   }
   await until("Bob to show Ada's three strokes", () => bob.evaluate(() => window.penmesh.shown === 3));
+  // Bob's list of people shows Ada in the colour she draws with.
+  const adaInList = await bob.evaluate(() => [...document.querySelectorAll("#people li")].find((li) => li.textContent === "Ada")?.style.getPropertyValue("--c"));
+  assert.equal(adaInList, `#${ADA_COLOUR.toString(16)}`, "Ada's colour in Bob's list of people");
   const ids = (await strokes()).map((s) => s.id);
   assert.equal(ids.length, 3);
   for (const s of await strokes()) {
