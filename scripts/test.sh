@@ -26,6 +26,8 @@ cargo build --bin penmesh --bin penmesh-proxy --bin penmesh-lab
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
 # The drawing tool: undo, redo, the eraser, brushes and names, with two people (issue 29).
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/drawing-tool.mjs
+# A stroke whose end was lost with the connection while the next was drawn: resumed and ended.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/lost-end.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

@@ -81,6 +81,7 @@ window.penmesh = {
   get me() { return conn.me; },
   get synced() { return conn.synced; },
   get pending() { return conn.pending; },
+  get unfinished() { return conn.unfinished.length; }, // our strokes not yet done
   get wsBytes() { return conn.wsBytes; },
   get strokes() { return view.strokes; },
   get meshes() { return view.meshCount; },

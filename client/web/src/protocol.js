@@ -1,11 +1,11 @@
 // The session's WebSocket, in the protocol's JSON encoding (docs/protocol.md): connect (the
 // token as a subprotocol, never in the URL), Hello, Points every FLUSH_MS while the pen moves,
-// acks, and the resume of our own stroke in progress after a dropped connection or a reload
-// (every sample of it is kept in sessionStorage as it is drawn). Reconnects with backoff.
+// acks, and the resume of our own strokes not yet done after a dropped connection or a reload
+// (every sample of them is kept in sessionStorage as it is drawn). Reconnects with backoff.
 //
 // Every message from the proxy goes to `on(kind, message)` after this module has taken what it
-// needs from it; `retained` only for our own stroke in progress, `stroke_done` also when a
-// resume finds our stroke already done.
+// needs from it; `retained` only for our own strokes not yet done, `stroke_done` also when a
+// resume finds one of them already done.
 
 // Samples are sent at most this often while the pen moves (ms); pen-up flushes at once.
 const FLUSH_MS = 16;
@@ -13,6 +13,10 @@ const FLUSH_MS = 16;
 // proxy closes a connection that sends nothing for --idle-timeout-secs (60 s by default), and
 // the page would reconnect and receive the whole history again. The native client's interval.
 const KEEPALIVE_MS = 20000;
+// Most of our strokes not yet done at once (ended, waiting for `stroke_done`): a pen that comes
+// down again while this many wait draws nothing until one is done. Well under the proxy's
+// --max-open-strokes (16 by default).
+const MAX_UNFINISHED = 8;
 const snap = (value, step) => Math.round(value / step) * step;
 
 export class Connection {
@@ -29,7 +33,10 @@ export class Connection {
     this.ws = null;
     this.me = null; // our participant id, from Welcome
     this.synced = false; // the history has arrived
-    this.pending = null; // our stroke in progress or not yet done: {stroke, brush, device, samples, sent, acked, ended}
+    // Our strokes not yet done, oldest first, each {stroke, brush, device, samples, sent, acked,
+    // ended}: every one is resumed after a reconnect, so a stroke whose end was lost with the
+    // connection while the next was begun is ended all the same. The last is `pending`.
+    this.unfinished = [];
     this.drawing = false; // the pen is down on `pending` in this page
     this.wsBytes = 0; // received (docs/performance.md)
     this.retry = 500;
@@ -44,10 +51,19 @@ export class Connection {
     return `penmesh:${this.session}:pending`;
   }
 
+  /// Our latest stroke not yet done (the one being drawn, if the pen is down), or null.
+  get pending() {
+    return this.unfinished.length ? this.unfinished[this.unfinished.length - 1] : null;
+  }
+
+  /// Our stroke `stroke` if it is not done yet.
+  unfinishedStroke(stroke) {
+    return this.unfinished.find((p) => p.stroke === stroke);
+  }
+
   /// This tab's participant key (hello.key, and the x-penmesh-key header of the mesh build):
-  /// 128 random bits, kept in sessionStorage beside the pending stroke, so a reconnect or a
-  /// reload is the same participant and may resume that stroke; another tab is another
-  /// participant.
+  /// 128 random bits, kept in sessionStorage beside the strokes not yet done, so a reconnect or
+  /// a reload is the same participant and may resume them; another tab is another participant.
   participantKey() {
     const name = `penmesh:${this.session}:key`;
     let key = sessionStorage.getItem(name);
@@ -60,8 +76,14 @@ export class Connection {
   }
 
   savePending() {
-    if (this.pending) sessionStorage.setItem(this.storageKey(), JSON.stringify(this.pending));
+    if (this.unfinished.length) sessionStorage.setItem(this.storageKey(), JSON.stringify(this.unfinished));
     else sessionStorage.removeItem(this.storageKey());
+  }
+
+  /// The strokes not yet done that this tab kept (a list; an older page kept one stroke alone).
+  loadPending() {
+    const kept = JSON.parse(sessionStorage.getItem(this.storageKey()) || "[]");
+    return Array.isArray(kept) ? kept : [kept];
   }
 
   connect() {
@@ -74,14 +96,13 @@ export class Connection {
     this.ws = ws;
     ws.onopen = () => {
       this.retry = 500;
-      const pending = JSON.parse(sessionStorage.getItem(this.storageKey()) || "null");
-      this.pending = pending;
+      this.unfinished = this.loadPending();
       this.send({
         hello: {
           protocol: this.protocol,
           client: "penmesh-web",
           name: this.name,
-          resume: pending ? [pending.stroke] : [],
+          resume: this.unfinished.map((p) => p.stroke),
           key: this.participantKey(),
         },
       });
@@ -127,16 +148,18 @@ export class Connection {
       case "welcome":
         this.me = m.participant;
         this.on(kind, m);
-        if (this.pending) this.resumeOwn(this.pending, m.resume.find((r) => r.stroke === this.pending.stroke));
+        for (const p of [...this.unfinished]) this.resumeOwn(p, m.resume.find((r) => r.stroke === p.stroke));
         return;
       case "synced":
         this.synced = true;
         break;
-      case "ack":
-        if (this.pending && this.pending.stroke === m.stroke) this.pending.acked = m.upto_seq;
+      case "ack": {
+        const p = this.unfinishedStroke(m.stroke);
+        if (p) p.acked = m.upto_seq;
         break;
+      }
       case "retained":
-        if (!this.pending || this.pending.stroke !== m.stroke) return;
+        if (!this.unfinishedStroke(m.stroke)) return;
         break;
       case "stroke_done":
         return this.strokeDone(m.stroke);
@@ -163,16 +186,15 @@ export class Connection {
   }
 
   strokeDone(stroke) {
-    if (this.pending && this.pending.stroke === stroke) {
-      this.pending = null;
-      this.savePending();
-    }
+    const before = this.unfinished.length;
+    this.unfinished = this.unfinished.filter((p) => p.stroke !== stroke);
+    if (this.unfinished.length !== before) this.savePending();
     this.on("stroke_done", { stroke });
   }
 
-  // After a reconnect (or a reload) the proxy says how far it has our stroke: send the rest
-  // from there, then end it if the pen had lifted (or the page went away: the pen cannot come
-  // back).
+  // After a reconnect (or a reload) the proxy says how far it has one of our strokes: send the
+  // rest from there, then end it unless the pen is still down on it (a reload lifts it: the pen
+  // cannot come back to a page that went away).
   resumeOwn(p, r) {
     if (!r || r.status === "unknown") {
       // Never reached the proxy: begin it again with everything.
@@ -180,29 +202,32 @@ export class Connection {
       r = { next_seq: 0, status: "open" };
     }
     if (r.status === "done") return this.strokeDone(p.stroke);
-    if (!this.drawing && p.held) {
+    const penDown = this.drawing && p === this.pending;
+    if (!penDown && p.held) {
       p.samples.push(p.held); // the pen lifted (or the page went away) on a rest
       p.held = null;
     }
     const rest = p.samples.slice(r.next_seq);
     if (rest.length) this.send({ points: { stroke: p.stroke, seq: r.next_seq, points: rest } });
     p.sent = p.samples.length;
-    if (!this.drawing) {
+    if (!penDown) {
       p.ended = true;
       this.savePending();
       this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
     }
   }
 
-  /// Whether a new stroke may begin: we are in the session and our last stroke has ended.
+  /// Whether a new stroke may begin: we are in the session, our last stroke has ended and
+  /// fewer than MAX_UNFINISHED of ours wait to be done.
   canBegin() {
-    return Boolean(this.me) && !this.drawing && !(this.pending && !this.pending.ended);
+    const last = this.pending;
+    return Boolean(this.me) && !this.drawing && !(last && !last.ended) && this.unfinished.length < MAX_UNFINISHED;
   }
 
   /// Begins our stroke; returns its id.
   begin(brush, device) {
     const stroke = crypto.randomUUID();
-    this.pending = { stroke, brush, device, samples: [], sent: 0, acked: 0, ended: false };
+    this.unfinished.push({ stroke, brush, device, samples: [], sent: 0, acked: 0, ended: false });
     this.drawing = true;
     this.send({ stroke_begin: { stroke, brush, device } });
     return stroke;
