@@ -17,6 +17,11 @@ const KEEPALIVE_MS = 20000;
 // down again while this many wait draws nothing until one is done. Well under the proxy's
 // --max-open-strokes (16 by default).
 const MAX_UNFINISHED = 8;
+// A resume the proxy refused because an old connection of ours still holds the stroke (a
+// network gone without a close, until the proxy's heartbeat lets it go) is tried again on this
+// connection after this long (ms), as often as it is refused. Each try costs the proxy one
+// wait of --claim-wait-ms (2 s by default).
+const RETAKE_MS = 2000;
 const snap = (value, step) => Math.round(value / step) * step;
 
 export class Connection {
@@ -38,6 +43,8 @@ export class Connection {
     // connection while the next was begun is ended all the same. The last is `pending`.
     this.unfinished = [];
     this.drawing = false; // the pen is down on `pending` in this page
+    this.retakeTimers = new Map(); // stroke -> the timer of its next try to take it over
+    this.retakeSent = new Set(); // strokes whose take-over (a StrokeBegin) awaits its answer
     this.wsBytes = 0; // received (docs/performance.md)
     this.retry = 500;
     this.lastFlush = 0;
@@ -96,6 +103,9 @@ export class Connection {
     this.ws = ws;
     ws.onopen = () => {
       this.retry = 500;
+      for (const timer of this.retakeTimers.values()) clearTimeout(timer);
+      this.retakeTimers.clear(); // the Hello resumes them all
+      this.retakeSent.clear();
       this.unfinished = this.loadPending();
       this.send({
         hello: {
@@ -156,6 +166,11 @@ export class Connection {
       case "ack": {
         const p = this.unfinishedStroke(m.stroke);
         if (p) p.acked = m.upto_seq;
+        if (p && this.retakeSent.delete(m.stroke)) {
+          // Taken over on this connection: it has everything below upto_seq.
+          this.resumeOwn(p, { status: "open", next_seq: m.upto_seq });
+          return;
+        }
         break;
       }
       case "retained":
@@ -165,6 +180,17 @@ export class Connection {
         return this.strokeDone(m.stroke);
       case "error":
         if (m.code === "lagged") this.synced = false;
+        // Ours, held by an old connection (a resume or take-over refused), or not open here
+        // (points sent for it meanwhile): taken over again later, handled here.
+        if (m.code === "stroke_conflict" && this.unfinishedStroke(m.stroke)) {
+          this.retakeSent.delete(m.stroke);
+          this.retakeLater(m.stroke);
+          return;
+        }
+        if (m.code === "unknown_stroke" && this.unfinishedStroke(m.stroke)) {
+          if (!this.retakeSent.has(m.stroke)) this.retakeLater(m.stroke);
+          return;
+        }
         break;
       case "peer_strokes":
         // A history's strokes, several to a message: each as its own events would say it
@@ -185,7 +211,31 @@ export class Connection {
     if (mesh) this.on("peer_mesh", { participant, stroke, url: `/v1/strokes/${stroke}/mesh` });
   }
 
+  /// Whether our stroke `stroke` waits to be taken over on this connection: its samples and
+  /// end are kept until then (the proxy would refuse them), and sent when it is.
+  awaitingTakeOver(stroke) {
+    return this.retakeTimers.has(stroke) || this.retakeSent.has(stroke);
+  }
+
+  /// Tries again in RETAKE_MS to take over our stroke `stroke` on this connection (a
+  /// StrokeBegin of it: answered by an ack of what the proxy has, or by stroke_done).
+  retakeLater(stroke) {
+    if (this.retakeTimers.has(stroke)) return;
+    const ws = this.ws;
+    this.retakeTimers.set(
+      stroke,
+      setTimeout(() => {
+        this.retakeTimers.delete(stroke);
+        const p = this.unfinishedStroke(stroke);
+        if (!p || this.ws !== ws) return;
+        this.retakeSent.add(stroke);
+        this.send({ stroke_begin: { stroke, brush: p.brush, device: p.device } });
+      }, RETAKE_MS),
+    );
+  }
+
   strokeDone(stroke) {
+    this.retakeSent.delete(stroke);
     const before = this.unfinished.length;
     this.unfinished = this.unfinished.filter((p) => p.stroke !== stroke);
     if (this.unfinished.length !== before) this.savePending();
@@ -206,6 +256,12 @@ export class Connection {
     if (!penDown && p.held) {
       p.samples.push(p.held); // the pen lifted (or the page went away) on a rest
       p.held = null;
+    }
+    if (this.awaitingTakeOver(p.stroke)) {
+      // Refused for now (its error came before this welcome): sent once it is taken over.
+      if (!penDown) p.ended = true;
+      this.savePending();
+      return;
     }
     const rest = p.samples.slice(r.next_seq);
     if (rest.length) this.send({ points: { stroke: p.stroke, seq: r.next_seq, points: rest } });
@@ -263,7 +319,7 @@ export class Connection {
     this.savePending(); // every sample survives a reload, sent or not
     if (!force && now - this.lastFlush < FLUSH_MS) return;
     this.lastFlush = now;
-    if (p.sent < p.samples.length) {
+    if (p.sent < p.samples.length && !this.awaitingTakeOver(p.stroke)) {
       this.send({ points: { stroke: p.stroke, seq: p.sent, points: p.samples.slice(p.sent) } });
       p.sent = p.samples.length;
     }
@@ -279,6 +335,6 @@ export class Connection {
       p.held = null;
     }
     this.flush(true);
-    this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
+    if (!this.awaitingTakeOver(p.stroke)) this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
   }
 }
