@@ -28,6 +28,8 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/drawing-tool.mjs
 # A stroke whose end was lost with the connection while the next was drawn: resumed and ended.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/lost-end.mjs
+# A mesh build that fails: tried again; one that keeps failing is built after a reload.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/mesh-build.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

@@ -14,7 +14,7 @@ export class Api {
   }
 
   /// `fetch` with the token; a non-2xx answer throws an Error naming the call and the
-  /// proxy's message.
+  /// proxy's message, with the HTTP `status` (no answer at all throws fetch's own error).
   async request(path, init = {}) {
     const res = await fetch(path, {
       ...init,
@@ -25,7 +25,9 @@ export class Api {
       try {
         detail = (await res.json()).message;
       } catch {}
-      throw new Error(`${init.method || "GET"} ${path}: HTTP ${res.status} ${detail}`);
+      const err = new Error(`${init.method || "GET"} ${path}: HTTP ${res.status} ${detail}`);
+      err.status = res.status;
+      throw err;
     }
     return res;
   }

@@ -24,6 +24,11 @@ const errors = [];
 const timings = []; // own strokes: ms from pen-up to the mesh on screen
 const penUpAt = new Map(); // own stroke -> performance.now() at pen-up
 const loading = new Set(); // strokes whose mesh is being fetched on its own
+const meshKnown = new Set(); // strokes the proxy has said have a mesh (the history, PeerMesh)
+const building = new Set(); // our strokes whose mesh build was asked for by this page
+// A mesh build that fails for a reason that may pass (no answer, the proxy busy or failing:
+// 429, 5xx) is tried again after each of these waits (ms); any other refusal is reported.
+const MESH_BUILD_WAITS_MS = [1000, 2000, 4000];
 // Meshes announced (PeerMesh) before the session's mesh bundle came: stroke -> participant.
 // Those the bundle did not hold are fetched on their own then.
 let announced = new Map();
@@ -160,6 +165,7 @@ async function loadBundle() {
 }
 
 function meshAnnounced(id, participant) {
+  meshKnown.add(id);
   if (announced) announced.set(id, participant);
   else loadMesh(id, participant);
 }
@@ -177,11 +183,31 @@ async function loadMesh(id, participant) {
   }
 }
 
+/// Asks the proxy to build our stroke's mesh, trying again while the failure may pass.
+async function buildOwnMesh(id) {
+  for (let attempt = 0; ; attempt++) {
+    try {
+      return await api.buildMesh(id, conn.participantKey());
+    } catch (err) {
+      const mayPass = err.status === undefined || err.status === 429 || err.status >= 500;
+      if (!mayPass || attempt >= MESH_BUILD_WAITS_MS.length) throw err;
+      await new Promise((r) => setTimeout(r, MESH_BUILD_WAITS_MS[attempt]));
+    }
+  }
+}
+
 async function ownStrokeDone(id) {
   view.stroke(id, conn.me).done = true;
   takeBack.drawn(id);
+  await ownMesh(id);
+}
+
+/// Builds and shows the mesh of our done stroke `id` (once per page).
+async function ownMesh(id) {
+  if (building.has(id)) return;
+  building.add(id);
   try {
-    await api.buildMesh(id, conn.participantKey());
+    await buildOwnMesh(id);
     await loadMesh(id, conn.me); // our own: not announced to us
     // On screen: the frame after the mesh joined the scene has been drawn.
     if (penUpAt.has(id)) {
@@ -189,6 +215,7 @@ async function ownStrokeDone(id) {
       timings.push(performance.now() - penUpAt.get(id));
     }
   } catch (err) {
+    building.delete(id); // asked again when the history next comes (a reconnect, a reload)
     fail(`cannot build the mesh of stroke ${id}: ${err.message}`);
   }
 }
@@ -212,6 +239,9 @@ function onMessage(kind, m) {
           for (const [id, s] of view.strokes) if (s.participant === conn.me && s.done && !s.removed) takeBack.drawn(id);
         }
       }
+      // Our done strokes the history has without a mesh (a build that failed, or a page that
+      // went away before it asked): built now.
+      for (const [id, s] of view.strokes) if (s.participant === conn.me && s.done && !meshKnown.has(id)) ownMesh(id);
       break;
     case "retained": // our own stroke
       view.addRetained(m.stroke, conn.me, m.first, m.points);
