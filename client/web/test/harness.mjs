@@ -83,6 +83,13 @@ export async function newSession(base) {
   return res.json();
 }
 
+/// The strokes stored in a session (GET /v1/sessions/{id}/strokes): what a test checks storage by.
+export async function storedStrokes(base, { session, token }) {
+  const res = await fetch(`${base}/v1/sessions/${session}/strokes`, { headers: { authorization: `Bearer ${token}` } });
+  if (!res.ok) throw new Error(`GET /v1/sessions/${session}/strokes: HTTP ${res.status}`);
+  return (await res.json()).strokes;
+}
+
 export function launch() {
   return chromium.launch({
     executablePath: CHROMIUM,

@@ -11,16 +11,12 @@
 //    the stroke is taken over.
 // Run by scripts/test.sh.
 import assert from "node:assert/strict";
-import { browserTest, drawStroke, log, newSession, until } from "./harness.mjs";
+import { browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
 
 await browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
   const { session, token } = await newSession(base);
-  const strokes = async () => {
-    const res = await fetch(`${base}/v1/sessions/${session}/strokes`, { headers: { authorization: `Bearer ${token}` } });
-    assert.ok(res.ok, `GET strokes: HTTP ${res.status}`);
-    return (await res.json()).strokes;
-  };
+  const strokes = () => storedStrokes(base, { session, token });
 
   const context = await browser.newContext({ viewport: { width: 1000, height: 700 }, deviceScaleFactor: 1 });
   // Every connection of the page goes through here. While `loseEnd` is set, the next
