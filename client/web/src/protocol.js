@@ -43,8 +43,9 @@ export class Connection {
     // connection while the next was begun is ended all the same. The last is `pending`.
     this.unfinished = [];
     this.drawing = false; // the pen is down on `pending` in this page
-    this.retakeTimers = new Map(); // stroke -> the timer of its next try to take it over
-    this.retakeSent = new Set(); // strokes whose take-over (a StrokeBegin) awaits its answer
+    // Our strokes an old connection still holds: stroke -> the timer of the next try to take it
+    // over here, or null while a try (a StrokeBegin) awaits its answer.
+    this.takeOvers = new Map();
     this.wsBytes = 0; // received (docs/performance.md)
     this.retry = 500;
     this.lastFlush = 0;
@@ -103,9 +104,8 @@ export class Connection {
     this.ws = ws;
     ws.onopen = () => {
       this.retry = 500;
-      for (const timer of this.retakeTimers.values()) clearTimeout(timer);
-      this.retakeTimers.clear(); // the Hello resumes them all
-      this.retakeSent.clear();
+      for (const timer of this.takeOvers.values()) clearTimeout(timer);
+      this.takeOvers.clear(); // the Hello resumes them all
       this.unfinished = this.loadPending();
       this.send({
         hello: {
@@ -166,7 +166,8 @@ export class Connection {
       case "ack": {
         const p = this.unfinishedStroke(m.stroke);
         if (p) p.acked = m.upto_seq;
-        if (p && this.retakeSent.delete(m.stroke)) {
+        if (p && this.takeOvers.get(m.stroke) === null) {
+          this.takeOvers.delete(m.stroke);
           // Taken over on this connection: it has everything below upto_seq.
           this.resumeOwn(p, { status: "open", next_seq: m.upto_seq });
           return;
@@ -183,12 +184,11 @@ export class Connection {
         // Ours, held by an old connection (a resume or take-over refused), or not open here
         // (points sent for it meanwhile): taken over again later, handled here.
         if (m.code === "stroke_conflict" && this.unfinishedStroke(m.stroke)) {
-          this.retakeSent.delete(m.stroke);
           this.retakeLater(m.stroke);
           return;
         }
         if (m.code === "unknown_stroke" && this.unfinishedStroke(m.stroke)) {
-          if (!this.retakeSent.has(m.stroke)) this.retakeLater(m.stroke);
+          if (!this.takeOvers.has(m.stroke)) this.retakeLater(m.stroke);
           return;
         }
         break;
@@ -214,28 +214,32 @@ export class Connection {
   /// Whether our stroke `stroke` waits to be taken over on this connection: its samples and
   /// end are kept until then (the proxy would refuse them), and sent when it is.
   awaitingTakeOver(stroke) {
-    return this.retakeTimers.has(stroke) || this.retakeSent.has(stroke);
+    return this.takeOvers.has(stroke);
   }
 
   /// Tries again in RETAKE_MS to take over our stroke `stroke` on this connection (a
-  /// StrokeBegin of it: answered by an ack of what the proxy has, or by stroke_done).
+  /// StrokeBegin of it: answered by an ack of what the proxy has, or by stroke_done), unless a
+  /// try is already timed.
   retakeLater(stroke) {
-    if (this.retakeTimers.has(stroke)) return;
+    if (this.takeOvers.get(stroke)) return;
     const ws = this.ws;
-    this.retakeTimers.set(
+    this.takeOvers.set(
       stroke,
       setTimeout(() => {
-        this.retakeTimers.delete(stroke);
         const p = this.unfinishedStroke(stroke);
-        if (!p || this.ws !== ws) return;
-        this.retakeSent.add(stroke);
+        if (!p || this.ws !== ws) {
+          this.takeOvers.delete(stroke);
+          return;
+        }
+        this.takeOvers.set(stroke, null);
         this.send({ stroke_begin: { stroke, brush: p.brush, device: p.device } });
       }, RETAKE_MS),
     );
   }
 
   strokeDone(stroke) {
-    this.retakeSent.delete(stroke);
+    clearTimeout(this.takeOvers.get(stroke));
+    this.takeOvers.delete(stroke);
     const before = this.unfinished.length;
     this.unfinished = this.unfinished.filter((p) => p.stroke !== stroke);
     if (this.unfinished.length !== before) this.savePending();
