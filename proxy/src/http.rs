@@ -410,7 +410,8 @@ pub async fn simplified(
     samples_response(&headers, row.into(), Some(simplified.indices), samples, permit).await
 }
 
-/// Every committed raw (resampled) sample of a stroke.
+/// Every committed sample of a stroke as the client sent it (after the client's own
+/// resampling, if it resamples), put on the codec's grid: the input of the simplification.
 #[utoipa::path(get, path = "/v1/strokes/{id}/raw", tag = "strokes",
     params(("id" = Uuid, Path)), security(("bearer" = [])),
     responses((status = 200, body = StrokeSamples), (status = 401, body = ErrorBody), (status = 404, body = ErrorBody),

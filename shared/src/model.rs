@@ -190,7 +190,7 @@ pub fn polyline_length(samples: &[Sample]) -> f64 {
 }
 
 /// How a stroke is drawn: brush size and pressure response (LRPDP formula 6).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Brush {
     /// Conversion constant `E` (px): the radius at full pressure and `chi = 1`.
     pub size: f64,

@@ -39,7 +39,7 @@ pub const PAPER_PRESSURE_VARIANCE: f64 = 0.0015;
 pub const PAPER_RESAMPLE_DISTANCE: f64 = 1.0;
 
 /// What stage 2 asks of the pressure of the samples it removes.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum PressureGate {
     /// The paper's gate (formula 3, `W_s = 3`): the candidate `m` is retained when the
@@ -54,7 +54,7 @@ pub enum PressureGate {
 }
 
 /// Stage-2 parameters.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct AcutsParams {
     /// Chord-height tolerance `d_d`.
     pub tolerance: f64,

@@ -33,13 +33,11 @@ pub struct StrokeInfo {
     pub session: Uuid,
     pub participant: Uuid,
     /// `open`, `done` or `interrupted`.
-    #[schema(value_type = String)]
     pub status: StrokeStatus,
     pub n_points: u64,
     pub n_retained: u64,
-    #[schema(value_type = Object)]
     pub brush: Brush,
-    #[schema(value_type = Object)]
+    /// The ACUTS stage 2 parameters the proxy simplified the stroke with.
     pub params: AcutsParams,
     pub device: Option<String>,
     pub has_mesh: bool,

@@ -11,6 +11,7 @@ mod identity;
 mod limits;
 mod old_database;
 mod postgres;
+mod protocol_doc;
 mod resume;
 mod shutdown;
 mod web;
