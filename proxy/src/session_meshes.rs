@@ -29,8 +29,9 @@ use crate::web::accepts_gzip;
 /// Meshes read from storage at once for a bundle: about this many bytes (a larger mesh alone).
 const PIECE_BYTES: u64 = 1 << 20;
 
-/// How long a bundle waits for a large-body permit before 503 `busy`.
-const PERMIT_WAIT: Duration = Duration::from_secs(5);
+/// How long a bundle waits for a large-body permit before 503 `busy`, at most: a class that
+/// opens one board at once takes turns.
+const PERMIT_WAIT: Duration = Duration::from_secs(10);
 
 /// Every stored mesh of the session with its stroke and drawer, in the order the strokes were
 /// begun, as one `application/vnd.penmesh.mesh-bundle` body: `PMB1`, a u32 count, then per
@@ -68,7 +69,8 @@ pub async fn session_meshes(
         return Ok((StatusCode::NOT_MODIFIED, cache).into_response());
     }
     let size = 8 + entries.iter().map(|e| 36 + e.bytes).sum::<u64>();
-    let permit = state.large_body_within(size, PERMIT_WAIT).await.ok_or_else(|| {
+    let wait = PERMIT_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let permit = state.large_body_within(size, wait).await.ok_or_else(|| {
         AppError::Busy(format!(
             "{} bodies over {LARGE_BODY_BYTES} bytes are being sent or received, the limit; \
              try again shortly",

@@ -28,27 +28,35 @@ impl Store {
     /// history). No mesh is read: `length` of a blob is its size in both SQLite and
     /// PostgreSQL, read from the row's header (SQLite) or the TOAST pointer (PostgreSQL).
     pub async fn session_bundle_entries(&self, session: Uuid) -> anyhow::Result<Vec<BundleEntry>> {
+        // Sorted here, not by `ORDER BY`: SQLite's sorter loads the blob that `length` needs
+        // only the size of (44 ms instead of 0.06 for 52 MB of meshes).
         let rows = sqlx::query(
-            "SELECT m.stroke_id, s.participant, CAST(length(m.glb) AS BIGINT) AS bytes, \
-             m.created_at, m.vertices, m.triangles FROM meshes m \
-             JOIN strokes s ON s.id = m.stroke_id \
-             WHERE s.session_id = $1 AND s.removed_at IS NULL ORDER BY s.created_at, s.id",
+            "SELECT m.stroke_id, s.participant, s.created_at AS begun, \
+             CAST(length(m.glb) AS BIGINT) AS bytes, m.created_at, m.vertices, m.triangles \
+             FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
+             WHERE s.session_id = $1 AND s.removed_at IS NULL",
         )
         .bind(session.to_string())
         .fetch_all(&self.pool)
         .await?;
-        rows.iter()
+        let mut entries = rows
+            .iter()
             .map(|row| {
-                Ok(BundleEntry {
+                let begun: i64 = row.try_get("begun")?;
+                let entry = BundleEntry {
                     stroke: parse_uuid(&row.try_get::<String, _>("stroke_id")?)?,
                     participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
                     bytes: row.try_get::<i64, _>("bytes")? as u64,
                     created_at: row.try_get("created_at")?,
                     vertices: row.try_get("vertices")?,
                     triangles: row.try_get("triangles")?,
-                })
+                };
+                Ok((begun, entry))
             })
-            .collect()
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        // The history's order: when begun, then the id (a UUID orders as its text).
+        entries.sort_by_key(|(begun, e)| (*begun, e.stroke));
+        Ok(entries.into_iter().map(|(_, e)| e).collect())
     }
 
     /// The GLBs of `strokes`, in one query (a few at a time: the caller bounds their bytes).
