@@ -48,27 +48,6 @@ pub fn request_participant(
     participant_of(session, KEY_HEADER, key).map_err(KeyError::Malformed)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_same_key_is_the_same_participant_only_within_a_session() {
-        let (a, b) = (Uuid::new_v4(), Uuid::new_v4());
-        let key = "0123456789abcdef0123456789abcdef";
-        assert_eq!(participant_id(a, key), participant_id(a, key));
-        assert_ne!(participant_id(a, key), participant_id(b, key));
-        assert_ne!(participant_id(a, key), participant_id(a, "0123456789abcdef0123456789abcdeF"));
-        assert_eq!(participant_id(a, key).get_version_num(), 8);
-    }
-
-    #[test]
-    fn a_malformed_key_is_refused_naming_the_field() {
-        let message = participant_of(Uuid::nil(), "hello.key", "short").unwrap_err();
-        assert!(message.starts_with("hello.key is 5 characters"), "{message}");
-    }
-}
-
 /// Most combining marks kept on one character of a display name: enough for every script's
 /// diacritics (Vietnamese stacks two), not for a "Zalgo" flood that covers the lines around it.
 pub const MAX_MARKS_PER_CHAR: usize = 3;
@@ -123,6 +102,22 @@ fn strip_suffix_ignore_case<'a>(text: &'a str, suffix: &str) -> Option<&'a str> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_same_key_is_the_same_participant_only_within_a_session() {
+        let (a, b) = (Uuid::new_v4(), Uuid::new_v4());
+        let key = "0123456789abcdef0123456789abcdef";
+        assert_eq!(participant_id(a, key), participant_id(a, key));
+        assert_ne!(participant_id(a, key), participant_id(b, key));
+        assert_ne!(participant_id(a, key), participant_id(a, "0123456789abcdef0123456789abcdeF"));
+        assert_eq!(participant_id(a, key).get_version_num(), 8);
+    }
+
+    #[test]
+    fn a_malformed_key_is_refused_naming_the_field() {
+        let message = participant_of(Uuid::nil(), "hello.key", "short").unwrap_err();
+        assert!(message.starts_with("hello.key is 5 characters"), "{message}");
+    }
 
     #[test]
     fn a_name_is_cleaned_of_what_it_cannot_carry() {
