@@ -291,6 +291,8 @@ pub enum Admit {
     Skip,
     /// The event is past a gap (something before it was lost): resync.
     Gap,
+    /// A stroke the client lacks entirely was brought back: send it whole, read from storage.
+    Fetch(StrokeId),
 }
 
 impl PeerView {
@@ -329,8 +331,13 @@ impl PeerView {
                 self.strokes.insert(*stroke, StrokeView::default());
                 Admit::Whole
             }
+            // An event of a stroke the client never had is not a gap: within a subscription
+            // events come in commit order after the history, which holds every stroke begun
+            // before it except those taken back at the time. Such a stroke comes whole if it is
+            // brought back (`Fetch`); until then its events (a mesh built in flight, another
+            // upload) are none of the client's business.
             EventKind::Retained { participant, stroke, first, points } => {
-                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Skip };
                 let end = first + points.len() as u64;
                 if end <= view.n_retained {
                     return Admit::Skip;
@@ -351,7 +358,7 @@ impl PeerView {
                 }))
             }
             EventKind::StrokeDone { stroke, n_retained, .. } => {
-                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Skip };
                 if view.done {
                     return Admit::Skip;
                 }
@@ -362,7 +369,7 @@ impl PeerView {
                 Admit::Whole
             }
             EventKind::Mesh { stroke, created_at, .. } => {
-                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Gap };
+                let Some(view) = self.strokes.get_mut(stroke) else { return Admit::Skip };
                 if !view.done {
                     return Admit::Gap;
                 }
@@ -373,8 +380,8 @@ impl PeerView {
                 Admit::Whole
             }
             // A stroke the client never had (it joined while the stroke was taken back) need
-            // not be hidden; brought back, the client lacks all of it: resync (the history
-            // holds it again).
+            // not be hidden; brought back, the client lacks all of it: it is read from storage
+            // and sent whole, like a history's stroke.
             EventKind::Removed { stroke, .. } => match self.strokes.get_mut(stroke) {
                 Some(view) if !view.removed => {
                     view.removed = true;
@@ -388,7 +395,7 @@ impl PeerView {
                     Admit::Whole
                 }
                 Some(_) => Admit::Skip,
-                None => Admit::Gap,
+                None => Admit::Fetch(*stroke),
             },
         }
     }
@@ -441,7 +448,7 @@ mod tests {
     fn the_view_drops_repeats_trims_overlaps_and_spots_gaps() {
         let stroke = Uuid::new_v4();
         let mut view = PeerView::default();
-        assert_eq!(view.admit(&retained(stroke, 0, 3)), Admit::Gap);
+        assert_eq!(view.admit(&retained(stroke, 0, 3)), Admit::Skip, "a stroke never had");
         assert_eq!(view.admit(&begin(stroke)), Admit::Whole);
         assert_eq!(view.admit(&begin(stroke)), Admit::Skip);
         assert_eq!(view.admit(&retained(stroke, 0, 5)), Admit::Whole);
@@ -466,9 +473,9 @@ mod tests {
     }
 
     // A removal and a restore reach the client once each, in turn; a stroke the client never
-    // had is not hidden, and brought back it is a gap (the client lacks all of it).
+    // had is not hidden, its events are not a gap, and brought back it is fetched whole.
     #[test]
-    fn removals_and_restores_are_told_once_and_an_unknown_restore_is_a_gap() {
+    fn removals_and_restores_are_told_once_and_an_unknown_restore_is_fetched() {
         let (known, unknown) = (Uuid::new_v4(), Uuid::new_v4());
         let mut view = PeerView::default();
         assert_eq!(view.admit(&begin(known)), Admit::Whole);
@@ -478,7 +485,9 @@ mod tests {
         assert_eq!(view.admit(&removal(known, false)), Admit::Whole);
         assert_eq!(view.admit(&removal(known, false)), Admit::Skip, "a repeat");
         assert_eq!(view.admit(&removal(unknown, true)), Admit::Skip);
-        assert_eq!(view.admit(&removal(unknown, false)), Admit::Gap);
+        let mesh = EventKind::Mesh { participant: Uuid::nil(), stroke: unknown, created_at: 1 };
+        assert_eq!(view.admit(&SessionEvent::new(Uuid::nil(), mesh)), Admit::Skip);
+        assert_eq!(view.admit(&removal(unknown, false)), Admit::Fetch(unknown));
     }
 
     fn joined(participant: Uuid, connection: Uuid) -> SessionEvent {

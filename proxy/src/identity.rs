@@ -48,6 +48,57 @@ pub fn request_participant(
     participant_of(session, KEY_HEADER, key).map_err(KeyError::Malformed)
 }
 
+/// Most combining marks kept on one character of a display name: enough for every script's
+/// diacritics (Vietnamese stacks two), not for a "Zalgo" flood that covers the lines around it.
+pub const MAX_MARKS_PER_CHAR: usize = 3;
+
+/// A display name as the proxy stores and shows it: everything a name cannot carry removed
+/// (docs/reliability.md, "Names"), trimmed; `None` when nothing is left. Removed are control
+/// characters (C0, C1, DEL: line breaks and escapes), bidirectional controls (embeddings,
+/// overrides, isolates, marks: they reorder what follows on the page), zero-width spaces, line
+/// and paragraph separators, combining marks past [`MAX_MARKS_PER_CHAR`] on one character, and
+/// a trailing `(you)`, which the page writes after one's own name: a peer named "Bob (you)"
+/// would pass for oneself. A NUL byte and a length past the limit are refused before
+/// (`check_text`), as for any text.
+pub fn clean_name(name: &str) -> Option<String> {
+    let mut out = String::with_capacity(name.len());
+    let mut marks = 0;
+    for c in name.chars() {
+        if c.is_control() || is_invisible_format(c) {
+            continue;
+        }
+        if unicode_normalization::char::is_combining_mark(c) {
+            marks += 1;
+            if marks > MAX_MARKS_PER_CHAR {
+                continue;
+            }
+        } else {
+            marks = 0;
+        }
+        out.push(c);
+    }
+    let mut name = out.trim();
+    // "Bob (you)", "Bob(YOU) (you)": each trailing one.
+    while let Some(head) = strip_suffix_ignore_case(name, "(you)") {
+        name = head.trim_end();
+    }
+    (!name.is_empty()).then(|| name.to_string())
+}
+
+/// Bidirectional controls, zero-width spaces and joiners other than ZWJ (which emoji
+/// sequences need), the byte-order mark, line and paragraph separators.
+fn is_invisible_format(c: char) -> bool {
+    matches!(c,
+        '\u{061C}' | '\u{200B}' | '\u{200E}' | '\u{200F}' | '\u{2028}'..='\u{202E}'
+        | '\u{2060}'..='\u{2064}' | '\u{2066}'..='\u{2069}' | '\u{FEFF}')
+}
+
+fn strip_suffix_ignore_case<'a>(text: &'a str, suffix: &str) -> Option<&'a str> {
+    let at = text.len().checked_sub(suffix.len())?;
+    let tail = text.get(at..)?;
+    tail.eq_ignore_ascii_case(suffix).then(|| &text[..at])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -66,5 +117,23 @@ mod tests {
     fn a_malformed_key_is_refused_naming_the_field() {
         let message = participant_of(Uuid::nil(), "hello.key", "short").unwrap_err();
         assert!(message.starts_with("hello.key is 5 characters"), "{message}");
+    }
+
+    #[test]
+    fn a_name_is_cleaned_of_what_it_cannot_carry() {
+        assert_eq!(clean_name("  Ada  ").as_deref(), Some("Ada"));
+        assert_eq!(clean_name("A\nd\u{1b}[31ma\u{7f}").as_deref(), Some("Ad[31ma"));
+        // A right-to-left override would show "Bob" as "boB" and turn what follows around.
+        assert_eq!(clean_name("\u{202E}boB\u{202C} \u{2066}x\u{2069}").as_deref(), Some("boB x"));
+        let zalgo = format!("Z{}a", "\u{0301}".repeat(40));
+        assert_eq!(clean_name(&zalgo), Some(format!("Z{}a", "\u{0301}".repeat(3))));
+        // Real diacritics stay: Vietnamese stacks two marks, decomposed.
+        assert_eq!(clean_name("Vie\u{0323}\u{0302}t").as_deref(), Some("Vie\u{0323}\u{0302}t"));
+        assert_eq!(clean_name("Bob (you)").as_deref(), Some("Bob"));
+        assert_eq!(clean_name("Bob(YOU) (You) ").as_deref(), Some("Bob"));
+        assert_eq!(clean_name("you").as_deref(), Some("you"));
+        assert_eq!(clean_name("👩\u{200D}💻 Ada").as_deref(), Some("👩\u{200D}💻 Ada"));
+        assert_eq!(clean_name("\u{200B}\u{202E} (you)"), None);
+        assert_eq!(clean_name("(you)"), None);
     }
 }

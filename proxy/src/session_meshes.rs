@@ -1,21 +1,37 @@
 //! `GET /v1/sessions/{session}/meshes`: every stored mesh of a session in one response (a mesh
 //! bundle, `penmesh::protocol::encode_mesh_bundle`), so a page opens a session with one
-//! request instead of one per mesh. The ETag is a hash of the body: a client that sends it back
-//! in `If-None-Match` gets 304 while the session's meshes are the same. Gzipped for a client
-//! that accepts it: plain GLBs (float positions and normals) shrink to about half
-//! (`docs/performance.md`).
+//! request instead of one per mesh. Gzipped for a client that accepts it: plain GLBs (float
+//! positions and normals) shrink to about half (`docs/performance.md`).
+//!
+//! What the bundle holds is read first without the meshes ([`BundleEntry`]: stroke, drawer,
+//! size, when stored, counts). The ETag is a hash of that, so a client that sends it back in
+//! `If-None-Match` gets 304 without a mesh read. A 200 takes a large-body permit (waiting up to
+//! [`PERMIT_WAIT`] for one) and streams the meshes, read about [`PIECE_BYTES`] at a time and
+//! gzipped as they go: a request holds a piece, never the whole bundle (`docs/reliability.md`).
 
 use std::io::Write;
+use std::time::Duration;
 
+use axum::body::{Body, Bytes};
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use penmesh::protocol::{MESH_BUNDLE_CONTENT_TYPE, encode_mesh_bundle};
+use flate2::write::GzEncoder;
+use penmesh::protocol::{MESH_BUNDLE_CONTENT_TYPE, mesh_bundle_head, push_bundled_mesh};
 use sha2::Digest;
+use tokio::sync::OwnedSemaphorePermit;
 
 use crate::http::{AppError, ErrorBody, authorize_session};
-use crate::state::AppState;
+use crate::state::{AppState, LARGE_BODY_BYTES};
+use crate::store::BundleEntry;
 use crate::web::accepts_gzip;
+
+/// Meshes read from storage at once for a bundle: about this many bytes (a larger mesh alone).
+const PIECE_BYTES: u64 = 1 << 20;
+
+/// How long a bundle waits for a large-body permit before 503 `busy`, at most: a class that
+/// opens one board at once takes turns.
+const PERMIT_WAIT: Duration = Duration::from_secs(10);
 
 /// Every stored mesh of the session with its stroke and drawer, in the order the strokes were
 /// begun, as one `application/vnd.penmesh.mesh-bundle` body: `PMB1`, a u32 count, then per
@@ -28,20 +44,20 @@ use crate::web::accepts_gzip;
     security(("bearer" = [])),
     responses(
         (status = 200, content_type = "application/vnd.penmesh.mesh-bundle", body = Vec<u8>,
-         headers(("etag" = String, description = "a hash of the body"))),
+         headers(("etag" = String, description = "a hash of what the bundle holds: each mesh's stroke, drawer, size, counts and time stored"))),
         (status = 304, description = "the client's bundle is current"),
-        (status = 401, body = ErrorBody)))]
+        (status = 401, body = ErrorBody),
+        (status = 503, description = "too many large bodies at once (`Retry-After`)", body = ErrorBody)))]
 pub async fn session_meshes(
     State(state): State<AppState>,
     Path(session): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
-    let body = encode_mesh_bundle(&state.store.session_meshes(session).await?);
+    let entries = state.store.session_bundle_entries(session).await?;
     let gzip = accepts_gzip(&headers);
     // Each encoding is its own representation, with its own tag.
-    let hash = hex::encode(&sha2::Sha256::digest(&body)[..16]);
-    let etag = format!("\"{hash}{}\"", if gzip { "-gzip" } else { "" });
+    let etag = format!("\"{}{}\"", bundle_tag(&entries), if gzip { "-gzip" } else { "" });
     let etag = HeaderValue::from_str(&etag).map_err(anyhow::Error::from)?;
     let cache = [
         (header::ETAG, etag.clone()),
@@ -52,21 +68,115 @@ pub async fn session_meshes(
     if matches_any(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, cache).into_response());
     }
+    let size = 8 + entries.iter().map(|e| 36 + e.bytes).sum::<u64>();
+    let wait = PERMIT_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let permit = state.large_body_within(size, wait).await.ok_or_else(|| {
+        AppError::Busy(format!(
+            "{} bodies over {LARGE_BODY_BYTES} bytes are being sent or received, the limit; \
+             try again shortly",
+            state.config.max_large_bodies
+        ))
+    })?;
     let content_type = (header::CONTENT_TYPE, HeaderValue::from_static(MESH_BUNDLE_CONTENT_TYPE));
+    let body = bundle_body(state, entries, gzip, permit);
     if !gzip {
+        // No length: a mesh replaced while it is sent goes at its new size.
         return Ok((cache, [content_type], body).into_response());
     }
-    // The fastest level: most of what gzip saves here, for a fraction of the time of the default.
-    let gzipped = tokio::task::spawn_blocking(move || {
-        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        encoder.write_all(&body)?;
-        encoder.finish()
-    })
-    .await
-    .map_err(anyhow::Error::from)?
-    .map_err(anyhow::Error::from)?;
     let encoding = (header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
-    Ok((cache, [content_type, encoding], gzipped).into_response())
+    Ok((cache, [content_type, encoding], body).into_response())
+}
+
+/// The bundle's tag: a hash of what it holds, mesh by mesh. A mesh replaced changes its time
+/// stored (and most likely its size and counts); a stroke taken back or brought back, or a
+/// mesh added, changes the list.
+fn bundle_tag(entries: &[BundleEntry]) -> String {
+    let mut hash = sha2::Sha256::new();
+    hash.update((entries.len() as u64).to_le_bytes());
+    for e in entries {
+        hash.update(e.stroke.as_bytes());
+        hash.update(e.participant.as_bytes());
+        for n in [e.bytes as i64, e.created_at, e.vertices, e.triangles] {
+            hash.update(n.to_le_bytes());
+        }
+    }
+    hex::encode(&hash.finalize()[..16])
+}
+
+/// The bundle of `entries`, streamed: its head, then the meshes read [`PIECE_BYTES`] at a time
+/// (each with its size as read, should it have been replaced since the entries were read),
+/// gzipped piece by piece on the blocking pool when `gzip`. `permit` is held until the last
+/// piece is taken. A mesh that cannot be read ends the body with an error: the client sees a
+/// broken body, never a short one.
+fn bundle_body(
+    state: AppState,
+    entries: Vec<BundleEntry>,
+    gzip: bool,
+    permit: Option<OwnedSemaphorePermit>,
+) -> Body {
+    struct Sending {
+        state: AppState,
+        head: Option<[u8; 8]>,
+        entries: std::vec::IntoIter<BundleEntry>,
+        gzip: Option<GzEncoder<Vec<u8>>>,
+        done: bool,
+        _permit: Option<OwnedSemaphorePermit>,
+    }
+    let start = Sending {
+        head: Some(mesh_bundle_head(entries.len())),
+        entries: entries.into_iter(),
+        state,
+        gzip: gzip.then(|| GzEncoder::new(Vec::new(), flate2::Compression::fast())),
+        done: false,
+        _permit: permit,
+    };
+    let pieces = futures_util::stream::try_unfold(start, |mut sending| async move {
+        if sending.done {
+            return Ok::<_, std::io::Error>(None);
+        }
+        let mut piece = Vec::new();
+        if let Some(head) = sending.head.take() {
+            piece.extend_from_slice(&head);
+        }
+        let mut group = Vec::new();
+        let mut bytes = 0;
+        while bytes < PIECE_BYTES {
+            let Some(entry) = sending.entries.next() else { break };
+            bytes += entry.bytes;
+            group.push(entry);
+        }
+        let last = group.is_empty() || sending.entries.as_slice().is_empty();
+        let strokes: Vec<_> = group.iter().map(|e| e.stroke).collect();
+        let mut glbs = sending.state.store.mesh_glbs(&strokes).await.map_err(|err| {
+            tracing::error!(error = %err, "reading the meshes of a bundle");
+            std::io::Error::other("the session's meshes cannot be read")
+        })?;
+        for entry in &group {
+            let glb = glbs.remove(&entry.stroke).ok_or_else(|| {
+                std::io::Error::other(format!("the mesh of stroke {} is gone", entry.stroke))
+            })?;
+            push_bundled_mesh(&mut piece, entry.stroke, entry.participant, &glb);
+        }
+        drop(glbs);
+        sending.done = last;
+        let Some(mut encoder) = sending.gzip.take() else {
+            return Ok(Some((Bytes::from(piece), sending)));
+        };
+        // The fastest level: most of what gzip saves here, for a fraction of the default's time.
+        let (encoder, out) = tokio::task::spawn_blocking(move || {
+            encoder.write_all(&piece)?;
+            if last {
+                return Ok::<_, std::io::Error>((None, encoder.finish()?));
+            }
+            let out = std::mem::take(encoder.get_mut());
+            Ok((Some(encoder), out))
+        })
+        .await
+        .map_err(std::io::Error::other)??;
+        sending.gzip = encoder;
+        Ok(Some((Bytes::from(out), sending)))
+    });
+    Body::from_stream(pieces)
 }
 
 /// Whether `If-None-Match` names `etag` (or is `*`), by the weak comparison RFC 9110 asks of it.

@@ -139,6 +139,21 @@ impl AppState {
         self.large_bodies.clone().try_acquire_owned().ok().map(Some)
     }
 
+    /// Like [`AppState::large_body`], but waiting up to `wait` for a permit: for a body many
+    /// clients ask for at once (a session's mesh bundle when a class opens one board), which
+    /// then take turns instead of being refused.
+    pub async fn large_body_within(
+        &self,
+        bytes: u64,
+        wait: Duration,
+    ) -> Option<Option<tokio::sync::OwnedSemaphorePermit>> {
+        if bytes <= LARGE_BODY_BYTES {
+            return Some(None);
+        }
+        let permit = self.large_bodies.clone().acquire_owned();
+        tokio::time::timeout(wait, permit).await.ok()?.ok().map(Some)
+    }
+
     /// Counts a new connection in its session, unless the session is full.
     pub fn join_session(&self, session: Uuid) -> Option<SessionGuard> {
         let mut hubs = self.hubs.lock().expect("hubs lock");

@@ -670,6 +670,15 @@ pub async fn count_rows(db: &TestDatabase, sql: &str) -> i64 {
     n
 }
 
+/// Runs one statement straight on the database, behind the proxy's back (what a replica of
+/// another release, or an operator, may do).
+pub async fn execute_sql(db: &TestDatabase, sql: &str) {
+    sqlx::any::install_default_drivers();
+    let pool = sqlx::any::AnyPoolOptions::new().max_connections(1).connect(&db.url).await.unwrap();
+    sqlx::query(sql).execute(&pool).await.unwrap();
+    pool.close().await;
+}
+
 /// A GLB (binary glTF 2.0, written by `penmesh` as the client writes its meshes) of one
 /// indexed triangle list of `vertices` positions and `indices` indices, all zero: enough for
 /// the proxy's upload checks, which read the counts and check them against the buffers.

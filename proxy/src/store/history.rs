@@ -25,6 +25,9 @@ pub struct SessionHistory {
     /// What the long unfinished strokes it replayed retain, for the caller to keep
     /// ([`WriteOp::KeepRetained`]), so that the next history reads it instead.
     pub keep: Vec<WriteOp>,
+    /// The strokes taken back, left out of `events`, as `Removed` events: a client resynced
+    /// after a gap is told of those it has shown.
+    pub removed: Vec<SessionEvent>,
 }
 
 impl Store {
@@ -71,6 +74,25 @@ impl Store {
         .bind(session.to_string())
         .fetch_all(&mut *conn)
         .await?;
+        let removed = sqlx::query(
+            "SELECT id, participant, removed_by FROM strokes \
+             WHERE session_id = $1 AND removed_at IS NOT NULL ORDER BY removed_at, id",
+        )
+        .bind(session.to_string())
+        .fetch_all(&mut *conn)
+        .await?;
+        for row in removed {
+            let participant = parse_uuid(&row.try_get::<String, _>("participant")?)?;
+            let by = row.try_get::<Option<String>, _>("removed_by")?;
+            history.removed.push(SessionEvent::new(
+                session,
+                EventKind::Removed {
+                    participant,
+                    stroke: parse_uuid(&row.try_get::<String, _>("id")?)?,
+                    by: by.as_deref().map(parse_uuid).transpose()?.unwrap_or(participant),
+                },
+            ));
+        }
         let meshes = sqlx::query(
             "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
              WHERE s.session_id = $1",
@@ -132,6 +154,27 @@ impl Store {
             history.events.extend(stroke_events(session, &row, points, &mesh_at));
         }
         Ok(history)
+    }
+
+    /// The events of one finished stroke as a history has them (begin, retained samples, done,
+    /// mesh): what a client that lacks a stroke brought back is sent. `None` when the stroke is
+    /// not there to send: unknown, taken back (again), or not finished.
+    pub async fn stroke_history(&self, stroke: Uuid) -> anyhow::Result<Option<Vec<SessionEvent>>> {
+        let Some(row) = self.stroke(stroke).await? else { return Ok(None) };
+        if row.removed.is_some() || row.status != StrokeStatus::Done {
+            return Ok(None);
+        }
+        let points = match self.simplified(stroke).await? {
+            Some(simplified) => simplified.samples,
+            None => Vec::new(),
+        };
+        let mesh_at: Option<i64> =
+            sqlx::query_scalar("SELECT created_at FROM meshes WHERE stroke_id = $1")
+                .bind(stroke.to_string())
+                .fetch_optional(&self.pool)
+                .await?;
+        let mesh_at = mesh_at.map(|at| HashMap::from([(stroke, at)])).unwrap_or_default();
+        Ok(Some(stroke_events(row.session_id, &row, points, &mesh_at)))
     }
 
     /// What one stroke of [`Store::session_history`] retains: its simplified samples when it is

@@ -33,6 +33,7 @@ pub use blob::decode_samples;
 pub(crate) use blob::{encode_indices, encode_samples};
 pub use checkpoint::start_checkpointer;
 pub use connect::{Backend, Store};
+pub use meshes::BundleEntry;
 pub use notify::EVENTS_CHANNEL;
 pub(crate) use notify::notify;
 #[cfg(feature = "fault-injection")]

@@ -119,6 +119,10 @@ pub(super) struct Connection {
     pub outgoing: Outgoing,
     pub pending: InFlight,
     pub end: Option<End>,
+    /// When the last new name was stored, and the one that waits for its turn (the latest
+    /// asked for): at most one rename per `RENAME_INTERVAL` (`ws/serve.rs`).
+    pub renamed_at: Option<Instant>,
+    pub pending_name: Option<String>,
 }
 
 impl Connection {
@@ -143,6 +147,8 @@ impl Connection {
             outgoing,
             pending: InFlight::default(),
             end: None,
+            renamed_at: None,
+            pending_name: None,
             state,
         }
     }

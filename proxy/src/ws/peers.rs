@@ -65,6 +65,35 @@ impl Connection {
                 tracing::warn!(connection = self.id, ?event, "peer event past a gap; resyncing");
                 self.resync(Some(Lag::Gap)).await;
             }
+            Admit::Fetch(stroke) => {
+                self.state.counters.fanout_events.increment(1);
+                self.send_brought_back(stroke).await;
+            }
+        }
+    }
+
+    /// A stroke the client never had, brought back: read from storage and sent whole, as a
+    /// history sends it (`PeerStrokes`). Taken back again meanwhile, nothing is sent (its
+    /// events that follow are skipped). A read that fails falls back to a resync.
+    async fn send_brought_back(&mut self, stroke: StrokeId) {
+        metrics::counter!("penmesh_fanout_fetches_total").increment(1);
+        let events = match self.state.store.stroke_history(stroke).await {
+            Ok(Some(events)) => events,
+            Ok(None) => return,
+            Err(err) => {
+                tracing::warn!(connection = self.id, %stroke, error = %err, "reading a stroke brought back; resyncing");
+                return self.resync(Some(Lag::Gap)).await;
+            }
+        };
+        let batch = self.state.config.max_batch_samples.max(1);
+        let mut whole = WholeStrokes::default();
+        if let Some(rest) = whole.take(&mut self.view, events, batch) {
+            for event in rest {
+                self.send_history_event(event, batch).await;
+            }
+        }
+        if let Some(msg) = whole.flush() {
+            self.send_wait(msg).await;
         }
     }
 
@@ -152,6 +181,16 @@ impl Connection {
         let mut whole = WholeStrokes::default();
         let mut events = history.events.into_iter().peekable();
         while let Some(event) = events.next() {
+            // A stroke the client has shown taken back and the history holds again: brought
+            // back while the client was not listening (a gap, `lagged`).
+            if let EventKind::StrokeBegin { participant, stroke, .. } = &event.kind
+                && self.told_removed(*stroke, false)
+            {
+                let (participant, stroke) = (*participant, *stroke);
+                let by = participant; // only its drawer may bring it back
+                let restored = EventKind::Restored { participant, stroke, by };
+                self.send_wait(SessionEvent::new(self.session, restored).message()).await;
+            }
             if self.is_own(&event) {
                 continue;
             }
@@ -183,6 +222,14 @@ impl Connection {
         if let Some(msg) = whole.flush() {
             self.send_wait(msg).await;
         }
+        // The strokes the client has shown that were taken back while it was not listening.
+        for removed in history.removed {
+            if let EventKind::Removed { stroke, .. } = removed.kind
+                && self.told_removed(stroke, true)
+            {
+                self.send_wait(removed.message()).await;
+            }
+        }
         let n_strokes = self.view.n_strokes() as u64;
         self.send_wait(ServerMessage::Synced(Synced { n_strokes })).await;
     }
@@ -212,7 +259,7 @@ impl Connection {
             match self.view.admit(&piece) {
                 Admit::Whole => self.send_wait(piece.message()).await,
                 Admit::Part(msg) => self.send_wait(msg).await,
-                Admit::Skip | Admit::Gap => {}
+                Admit::Skip | Admit::Gap | Admit::Fetch(_) => {}
             }
         }
     }

@@ -16,8 +16,12 @@ use super::error::{ConnError, End, ReadError};
 use super::outgoing::{Form, Outgoing, forward};
 use super::{Frame, close_code};
 use crate::events::{EventKind, SessionEvent};
+use crate::identity::clean_name;
 use crate::state::{AppState, SessionGuard};
 use crate::store::WriteOp;
+
+/// At most one new name is stored per connection in this time (`Connection::on_rename`).
+pub(super) const RENAME_INTERVAL: Duration = Duration::from_secs(1);
 
 /// Runs one connection to its end.
 pub async fn serve<Si, St, E>(
@@ -67,6 +71,7 @@ pub async fn serve<Si, St, E>(
         }
         let can_forward = !behind && conn.events.is_some() && conn.outgoing.has_room_for_events();
         let wait_room = !behind && conn.events.is_some() && !can_forward;
+        let rename_at = conn.pending_name.as_ref().and(conn.rename_due());
         tokio::select! {
             biased;
             _ = &mut shutting_down => conn.fail(ConnError::fatal(
@@ -95,6 +100,9 @@ pub async fn serve<Si, St, E>(
                 Ok(permit) => conn.outgoing.flush_one(permit),
                 Err(_) => conn.end_with(End::Gone),
             },
+            _ = sleep_until_some(rename_at), if rename_at.is_some() => {
+                conn.store_pending_name().await;
+            }
             _ = sleep_until_some(conn.outgoing.slow_reader_deadline(slow_reader)), if behind => {
                 tracing::info!(connection = conn.id, "outgoing queue full: disconnecting a slow reader");
                 conn.end_with(End::SlowReader);
@@ -322,13 +330,12 @@ impl Connection {
         for (stroke, kept) in resent {
             self.send_retained(stroke, 0, &kept);
         }
-        let name: String = hello
+        let name = hello
             .name
             .as_deref()
-            .map(str::trim)
-            .filter(|n| !n.is_empty())
-            .unwrap_or(hello.client.as_str())
-            .to_string();
+            .and_then(clean_name)
+            .or_else(|| clean_name(&hello.client))
+            .unwrap_or_else(|| "guest".into());
         let (participant, session, connection) = (self.participant, self.session, self.presence);
         let joined = self
             .state
@@ -359,16 +366,47 @@ impl Connection {
         Ok(())
     }
 
-    /// A new display name: stored on the participant's presence rows and told to the others.
-    /// Not answered: the client knows its name.
+    /// A new display name ([`clean_name`]): stored on the participant's presence rows and
+    /// told to the others. Not answered: the client knows its name. At most one is stored per
+    /// [`RENAME_INTERVAL`]: one asked for sooner waits for its turn, and a later one replaces
+    /// it (a name typed letter by letter reaches the others as its last form, within a second).
     async fn on_rename(&mut self, name: String) -> Result<(), ConnError> {
         check_text(&name, MAX_NAME_CHARS).map_err(|why| {
             ConnError::refused(ErrorCode::Malformed, format!("rename.name {why}"), None)
         })?;
-        let name = name.trim().to_string();
-        if name.is_empty() {
-            return Err(ConnError::refused(ErrorCode::Malformed, "rename.name is empty", None));
+        let Some(name) = clean_name(&name) else {
+            return Err(ConnError::refused(
+                ErrorCode::Malformed,
+                "rename.name is empty once cleaned (control and bidirectional characters and a \
+                 trailing \"(you)\" removed)",
+                None,
+            ));
+        };
+        if self.rename_due().is_some_and(|due| due > Instant::now()) {
+            metrics::counter!("penmesh_renames_deferred_total").increment(1);
+            self.pending_name = Some(name);
+            return Ok(());
         }
+        self.pending_name = None;
+        self.store_name(name).await
+    }
+
+    /// When the next rename may be stored.
+    pub(super) fn rename_due(&self) -> Option<Instant> {
+        self.renamed_at.map(|at| at + RENAME_INTERVAL)
+    }
+
+    /// Stores the rename that waited for its turn, if any.
+    pub(super) async fn store_pending_name(&mut self) {
+        if let Some(name) = self.pending_name.take()
+            && let Err(err) = self.store_name(name).await
+        {
+            self.fail(err);
+        }
+    }
+
+    async fn store_name(&mut self, name: String) -> Result<(), ConnError> {
+        self.renamed_at = Some(Instant::now());
         let (participant, session) = (self.participant, self.session);
         let event = SessionEvent::from_connection(
             self.id,
@@ -390,6 +428,10 @@ impl Connection {
     /// Waits for every pending commit (sending its ack if the client still listens), then
     /// marks the strokes still open `interrupted` and lets go of them.
     async fn wind_down(&mut self) {
+        // A name asked for is stored, even by a client that leaves before its turn.
+        if self.joined {
+            self.store_pending_name().await;
+        }
         while let Some((result, after)) = self.pending.next().await {
             if matches!(self.end, Some(End::Close(..))) {
                 self.after_commit(result, after);

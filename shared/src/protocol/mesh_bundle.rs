@@ -50,18 +50,41 @@ pub enum MeshBundleError {
 pub fn encode_mesh_bundle(meshes: &[BundledMesh]) -> Vec<u8> {
     let size = 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>();
     let mut out = Vec::with_capacity(size);
-    out.extend_from_slice(&MESH_BUNDLE_MAGIC);
-    out.extend_from_slice(
-        &u32::try_from(meshes.len()).expect("at most u32::MAX meshes").to_le_bytes(),
-    );
+    out.extend_from_slice(&mesh_bundle_head(meshes.len()));
     for mesh in meshes {
-        out.extend_from_slice(mesh.stroke.as_bytes());
-        out.extend_from_slice(mesh.participant.as_bytes());
-        let len = u32::try_from(mesh.glb.len()).expect("a mesh of at most u32::MAX bytes");
-        out.extend_from_slice(&len.to_le_bytes());
-        out.extend_from_slice(&mesh.glb);
+        push_bundled_mesh(&mut out, mesh.stroke, mesh.participant, &mesh.glb);
     }
     out
+}
+
+/// The first 8 bytes of a bundle of `count` meshes (the magic and the count): what a bundle
+/// written piece by piece starts with, each mesh then added by [`push_bundled_mesh`].
+///
+/// # Panics
+/// When `count` is more than `u32::MAX`.
+pub fn mesh_bundle_head(count: usize) -> [u8; 8] {
+    let mut head = [0; 8];
+    head[..4].copy_from_slice(&MESH_BUNDLE_MAGIC);
+    head[4..]
+        .copy_from_slice(&u32::try_from(count).expect("at most u32::MAX meshes").to_le_bytes());
+    head
+}
+
+/// Appends one mesh of a bundle to `out`.
+///
+/// # Panics
+/// When `glb` is larger than `u32::MAX` bytes.
+pub fn push_bundled_mesh(
+    out: &mut Vec<u8>,
+    stroke: StrokeId,
+    participant: ParticipantId,
+    glb: &[u8],
+) {
+    out.extend_from_slice(stroke.as_bytes());
+    out.extend_from_slice(participant.as_bytes());
+    let len = u32::try_from(glb.len()).expect("a mesh of at most u32::MAX bytes");
+    out.extend_from_slice(&len.to_le_bytes());
+    out.extend_from_slice(glb);
 }
 
 /// The meshes of a bundle.

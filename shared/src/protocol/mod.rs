@@ -44,7 +44,7 @@ pub use codec::{
 pub use http::{ErrorBody, MeshInfo, NewSession, Removal, StrokeInfo, StrokeList, StrokeSamples};
 pub use mesh_bundle::{
     BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MeshBundleError, decode_mesh_bundle,
-    encode_mesh_bundle,
+    encode_mesh_bundle, mesh_bundle_head, push_bundled_mesh,
 };
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.

@@ -162,3 +162,116 @@ async fn the_meshes_of_a_session_are_held_to_its_quota() {
     let elsewhere = proxy.put_mesh(&other, other_strokes[0], glb).send().await.unwrap();
     assert_eq!(elsewhere.status(), 200);
 }
+
+/// A GLB of `vertices` positions and normals, not compressed: about 24 bytes a vertex.
+fn plain_glb(vertices: usize) -> Vec<u8> {
+    let mesh = penmesh::StrokeMesh {
+        positions: (0..vertices).map(|i| [i as f32, 1.0, 2.0]).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; vertices],
+        indices: vec![0, 1, 2],
+    };
+    let meta = penmesh::GlbMeta {
+        stroke: Uuid::nil(),
+        author: "penmesh-e2e".into(),
+        brush: penmesh::Brush::default(),
+    };
+    let options = penmesh::GlbOptions::default().encoding(penmesh::GlbEncoding::Plain);
+    penmesh::stroke_glb(&mesh, &meta, &options)
+}
+
+/// The mesh bundle is a large body like the others: a 200 waits for one of the permits (and
+/// takes its turn rather than failing), while a 304 needs neither a permit nor a mesh read:
+/// its ETag is made from what the bundle holds (stroke, drawer, size, counts, time stored),
+/// so that bytes changed behind the proxy's back, at the same size, do not change it. Before,
+/// the bundle took no permit and every request, a 304 too, read and hashed every mesh.
+#[tokio::test]
+async fn a_mesh_bundle_takes_a_large_body_permit_and_a_304_reads_no_mesh() {
+    let proxy = spawn_proxy_with(|c| c.max_large_bodies = 1).await;
+    let session = proxy.create_session().await;
+    let (_ws, strokes) = done_strokes(&proxy, &session, 3, 50).await;
+    // About 1.4 MB of meshes: a large body.
+    let glbs: Vec<Vec<u8>> = (0..3).map(|k| plain_glb(20_000 + k)).collect();
+    for (stroke, glb) in strokes.iter().zip(&glbs) {
+        let response = proxy.put_mesh(&session, *stroke, glb.clone()).send().await.unwrap();
+        assert_eq!(response.status(), 200);
+    }
+    let path = format!("/v1/sessions/{}/meshes", session.session);
+    let get = |etag: Option<String>, gzip: bool| {
+        let mut request = proxy.get(&path, &session);
+        if let Some(etag) = etag {
+            request = request.header("if-none-match", etag);
+        }
+        if gzip {
+            request = request.header("accept-encoding", "gzip");
+        }
+        request.send()
+    };
+    let first = get(None, false).await.unwrap();
+    assert_eq!(first.status(), 200);
+    let etag = first.headers()["etag"].to_str().unwrap().to_string();
+    let bundle = penmesh::protocol::decode_mesh_bundle(&first.bytes().await.unwrap()).unwrap();
+    assert_eq!(bundle.iter().map(|m| m.glb.clone()).collect::<Vec<_>>(), glbs);
+
+    // Every permit taken (another large body being sent).
+    let held = proxy.state.large_body(2 << 20).expect("a permit").expect("a large body's");
+    let started = std::time::Instant::now();
+    let revalidated = get(Some(etag.clone()), false).await.unwrap();
+    assert_eq!(revalidated.status(), 304);
+    assert!(started.elapsed() < Duration::from_secs(2), "a 304 waited for a permit");
+    // A 200 waits for its turn, then comes whole (gzipped here, piece by piece).
+    let waiting = tokio::spawn(get(None, true));
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert!(!waiting.is_finished(), "a bundle was sent without a large-body permit");
+    drop(held);
+    let served = waiting.await.unwrap().unwrap();
+    assert_eq!(served.status(), 200);
+    let mut unzipped = Vec::new();
+    let body = served.bytes().await.unwrap();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(&body[..]), &mut unzipped)
+        .unwrap();
+    assert_eq!(penmesh::protocol::decode_mesh_bundle(&unzipped).unwrap(), bundle);
+
+    // Bytes changed at the same size, behind the proxy's back: the ETag, made without reading
+    // them, is the same.
+    let zeroes = if proxy.db.is_postgres() {
+        "decode(repeat('00', length(glb)), 'hex')"
+    } else {
+        "zeroblob(length(glb))"
+    };
+    penmesh_e2e::execute_sql(&proxy.db, &format!("UPDATE meshes SET glb = {zeroes}")).await;
+    assert_eq!(get(Some(etag.clone()), false).await.unwrap().status(), 304);
+    // A mesh replaced through the proxy changes it.
+    let replaced = proxy.put_mesh(&session, strokes[0], glbs[0].clone()).send().await.unwrap();
+    assert_eq!(replaced.status(), 200);
+    let after = get(Some(etag.clone()), false).await.unwrap();
+    assert_eq!(after.status(), 200);
+    assert_ne!(after.headers()["etag"].to_str().unwrap(), etag);
+}
+
+/// The rule: a stroke taken back keeps its mesh stored (it can be brought back), so the mesh
+/// still counts toward the session's quota; taking strokes back frees nothing, or removing and
+/// uploading in turn would store any amount.
+#[tokio::test]
+async fn a_mesh_of_a_stroke_taken_back_still_counts_toward_the_quota() {
+    let glb = minimal_glb(8, 36);
+    let quota = (glb.len() * 5 / 2) as u64;
+    let proxy = spawn_proxy_with(|c| c.max_session_mesh_bytes = quota).await;
+    let session = proxy.create_session().await;
+    let (_ws, strokes) = done_strokes(&proxy, &session, 3, 50).await;
+    for stroke in &strokes[..2] {
+        let response = proxy.put_mesh(&session, *stroke, glb.clone()).send().await.unwrap();
+        assert_eq!(response.status(), 200);
+    }
+    let removed = proxy.http.delete(proxy.url(&format!("/v1/strokes/{}", strokes[0])));
+    let removed = removed
+        .bearer_auth(&session.token)
+        .header(penmesh::protocol::KEY_HEADER, &session.key)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(removed.status(), 204);
+    let refused = proxy.put_mesh(&session, strokes[2], glb.clone()).send().await.unwrap();
+    assert_eq!(refused.status(), 413);
+    let err: serde_json::Value = refused.json().await.unwrap();
+    assert_eq!(err["error"], "quota_exceeded");
+}

@@ -11,6 +11,7 @@ mod helpers;
 mod history_cost;
 mod history_messages;
 mod history_pool;
+mod late_removals;
 mod latency;
 mod names;
 mod removal;

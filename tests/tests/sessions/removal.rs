@@ -39,7 +39,12 @@ async fn answer(p: &mut Participant, stroke: StrokeId) -> Result<bool, ErrorCode
 }
 
 /// `DELETE /v1/strokes/{stroke}` (`remove`) or `POST …/restore` as `who`; the status.
-async fn http_removal(proxy: &TestProxy, who: &TestSession, stroke: StrokeId, remove: bool) -> u16 {
+pub(crate) async fn http_removal(
+    proxy: &TestProxy,
+    who: &TestSession,
+    stroke: StrokeId,
+    remove: bool,
+) -> u16 {
     let request = if remove {
         proxy.http.delete(proxy.url(&format!("/v1/strokes/{stroke}")))
     } else {
@@ -76,7 +81,7 @@ async fn listed(
 }
 
 /// The strokes of the session's mesh bundle, in order, and its ETag.
-async fn bundled(proxy: &TestProxy, session: &TestSession) -> (Vec<StrokeId>, String) {
+pub(crate) async fn bundled(proxy: &TestProxy, session: &TestSession) -> (Vec<StrokeId>, String) {
     let response =
         proxy.get(&format!("/v1/sessions/{}/meshes", session.session), session).send().await;
     let response = response.unwrap();

@@ -21,7 +21,7 @@ const QUEUE: usize = 64;
 /// A participant that says hello and then reads nothing: its socket side is a channel that
 /// nobody reads (the real connection loop, with no TCP buffers to hide the backlog). Returns
 /// what the client sends on, what it would read, and the connection's task.
-async fn join_slow_reader(
+pub(crate) async fn join_slow_reader(
     proxy: &TestProxy,
     session: &TestSession,
 ) -> (mpsc::Sender<Frame>, mpsc::Receiver<Frame>, JoinHandle<()>) {
@@ -191,7 +191,7 @@ fn is_peer_event(msg: &ServerMessage) -> bool {
     )
 }
 
-async fn next_message(rx: &mut mpsc::Receiver<Frame>) -> ServerMessage {
+pub(crate) async fn next_message(rx: &mut mpsc::Receiver<Frame>) -> ServerMessage {
     next_sized(rx).await.1
 }
 
