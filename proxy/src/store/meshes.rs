@@ -11,8 +11,8 @@ impl Store {
     /// were begun (the order of the session's history).
     pub async fn session_meshes(&self, session: Uuid) -> anyhow::Result<Vec<BundledMesh>> {
         let rows = sqlx::query(
-            "SELECT m.stroke_id, s.participant, m.glb FROM meshes m \
-             JOIN strokes s ON s.id = m.stroke_id \
+            "SELECT s.id AS stroke_id, s.participant, m.glb FROM strokes s \
+             JOIN meshes m ON m.stroke_id = COALESCE(s.mesh_of, s.id) \
              WHERE s.session_id = $1 AND s.removed_at IS NULL ORDER BY s.created_at, s.id",
         )
         .bind(session.to_string())

@@ -13,6 +13,7 @@ mod history_messages;
 mod history_pool;
 mod latency;
 mod names;
+mod placement;
 mod removal;
 mod replicas;
 mod sessions;
