@@ -14,6 +14,7 @@ mod history_pool;
 mod latency;
 mod names;
 mod placement;
+mod placement_latency;
 mod removal;
 mod replicas;
 mod sessions;
