@@ -7,10 +7,10 @@
 
 use std::io::Write;
 
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use penmesh::protocol::{MESH_BUNDLE_CONTENT_TYPE, encode_mesh_bundle};
+use penmesh::protocol::{MESH_BUNDLE_CONTENT_TYPE, encode_mesh_bundle, encode_placed_mesh_bundle};
 use sha2::Digest;
 
 use crate::http::{AppError, ErrorBody, authorize_session};
@@ -22,8 +22,12 @@ use crate::web::accepts_gzip;
 /// mesh the stroke id and the participant id (16 bytes each), a u32 length and the GLB (u32
 /// little-endian). Cacheable: `ETag`, and 304 on a matching `If-None-Match`. Gzipped
 /// (`Content-Encoding: gzip`) when `Accept-Encoding` names gzip.
+///
+/// With `?placements=true` (protocol 5), the `PMB2` layout: each mesh's header also holds its
+/// stroke's current placement, 16 `f64` (`penmesh::protocol::encode_placed_mesh_bundle`).
 #[utoipa::path(get, path = "/v1/sessions/{session}/meshes", tag = "meshes",
     params(("session" = Uuid, Path),
+        ("placements" = Option<bool>, Query, description = "true: the PMB2 layout, each mesh with its stroke's placement"),
         ("if-none-match" = Option<String>, Header, description = "the ETag of a bundle the client holds")),
     security(("bearer" = [])),
     responses(
@@ -34,10 +38,15 @@ use crate::web::accepts_gzip;
 pub async fn session_meshes(
     State(state): State<AppState>,
     Path(session): Path<String>,
+    Query(layout): Query<BundleLayout>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
-    let body = encode_mesh_bundle(&state.store.session_meshes(session).await?);
+    let body = if layout.placements {
+        encode_placed_mesh_bundle(&state.store.session_placed_meshes(session).await?)
+    } else {
+        encode_mesh_bundle(&state.store.session_meshes(session).await?)
+    };
     let gzip = accepts_gzip(&headers);
     // Each encoding is its own representation, with its own tag.
     let hash = hex::encode(&sha2::Sha256::digest(&body)[..16]);
@@ -67,6 +76,13 @@ pub async fn session_meshes(
     .map_err(anyhow::Error::from)?;
     let encoding = (header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
     Ok((cache, [content_type, encoding], gzipped).into_response())
+}
+
+/// `?placements=true`: the `PMB2` layout.
+#[derive(Debug, Default, serde::Deserialize)]
+pub struct BundleLayout {
+    #[serde(default)]
+    placements: bool,
 }
 
 /// Whether `If-None-Match` names `etag` (or is `*`), by the weak comparison RFC 9110 asks of it.

@@ -13,10 +13,85 @@
 //! ```
 //!
 //! Nothing follows the last mesh. The page (`client/web/src/api.js`) reads the same layout.
+//!
+//! **With placements** (protocol 5, `GET …/meshes?placements=true`): layout `"PMB2"`, the same
+//! but each mesh's header holds its stroke's current placement after the participant id:
+//!
+//! ```text
+//!   stroke id, participant id  16 + 16 bytes
+//!   placement                  128 bytes: glTF node.matrix, 16 f64 little-endian, column-major
+//!   glb length, glb            u32 little-endian, that many bytes
+//! ```
+//!
+//! A page reads `PMB2` as `PMB1` with the 128 bytes after the two ids as a `Float64Array`
+//! (copy them out first: they are not 8-byte aligned in the body), the stroke's node matrix
+//! (`Matrix4.fromArray`, with the mesh's winding flipped when its determinant is negative). The
+//! default stays `PMB1`, so a page that does not ask keeps working. A duplicate's mesh is its
+//! source's bytes, under the duplicate's stroke id and placement.
 
 use uuid::Uuid;
 
 use super::{ParticipantId, StrokeId};
+use crate::placement::Placement;
+
+/// The first four bytes of a bundle with placements ([`encode_placed_mesh_bundle`]).
+pub const MESH_BUNDLE_PLACED_MAGIC: [u8; 4] = *b"PMB2";
+
+/// A mesh of a bundle with its stroke's placement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacedMesh {
+    pub mesh: BundledMesh,
+    pub placement: Placement,
+}
+
+/// The `PMB2` bundle of `meshes`, in their order.
+///
+/// # Panics
+/// As [`encode_mesh_bundle`].
+pub fn encode_placed_mesh_bundle(meshes: &[PlacedMesh]) -> Vec<u8> {
+    let size = 8 + meshes.iter().map(|m| 164 + m.mesh.glb.len()).sum::<usize>();
+    let mut out = Vec::with_capacity(size);
+    out.extend_from_slice(&MESH_BUNDLE_PLACED_MAGIC);
+    out.extend_from_slice(
+        &u32::try_from(meshes.len()).expect("at most u32::MAX meshes").to_le_bytes(),
+    );
+    for PlacedMesh { mesh, placement } in meshes {
+        out.extend_from_slice(mesh.stroke.as_bytes());
+        out.extend_from_slice(mesh.participant.as_bytes());
+        out.extend_from_slice(&placement.to_bytes());
+        let len = u32::try_from(mesh.glb.len()).expect("a mesh of at most u32::MAX bytes");
+        out.extend_from_slice(&len.to_le_bytes());
+        out.extend_from_slice(&mesh.glb);
+    }
+    out
+}
+
+/// The meshes of a `PMB2` bundle.
+pub fn decode_placed_mesh_bundle(bytes: &[u8]) -> Result<Vec<PlacedMesh>, MeshBundleError> {
+    if bytes.get(..4) != Some(&MESH_BUNDLE_PLACED_MAGIC[..]) {
+        return Err(MeshBundleError::Magic);
+    }
+    let mut at = 4;
+    let count =
+        read_u32(bytes, &mut at).ok_or(MeshBundleError::Truncated { index: 0, at })? as usize;
+    let mut meshes = Vec::with_capacity(count.min(bytes.len() / 164));
+    for index in 0..count {
+        let truncated = MeshBundleError::Truncated { index, at };
+        let stroke = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let participant = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let matrix = bytes.get(at..at + 128).ok_or(truncated.clone())?;
+        let placement = Placement::from_bytes(matrix).map_err(|_| truncated.clone())?;
+        at += 128;
+        let len = read_u32(bytes, &mut at).ok_or(truncated.clone())? as usize;
+        let glb = bytes.get(at..at.saturating_add(len)).ok_or(truncated)?.to_vec();
+        at += len;
+        meshes.push(PlacedMesh { mesh: BundledMesh { stroke, participant, glb }, placement });
+    }
+    if at != bytes.len() {
+        return Err(MeshBundleError::Trailing { count, extra: bytes.len() - at });
+    }
+    Ok(meshes)
+}
 
 /// The media type of a mesh bundle.
 pub const MESH_BUNDLE_CONTENT_TYPE: &str = "application/vnd.penmesh.mesh-bundle";
@@ -119,6 +194,22 @@ mod tests {
             assert_eq!(bytes.len(), 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>());
             assert_eq!(decode_mesh_bundle(&bytes), Ok(meshes));
         }
+    }
+
+    // A bundle with placements reads back as written, placements bit for bit.
+    #[test]
+    fn a_placed_bundle_reads_back_as_written() {
+        let mut matrix = *Placement::IDENTITY.matrix();
+        matrix[0] = -1.0;
+        matrix[13] = 0.1;
+        let placed = |n, len, placement| PlacedMesh { mesh: mesh(n, len), placement };
+        let meshes =
+            vec![placed(1, 7, Placement::IDENTITY), placed(2, 30, Placement::new(matrix).unwrap())];
+        let bytes = encode_placed_mesh_bundle(&meshes);
+        assert_eq!(&bytes[..4], b"PMB2");
+        assert_eq!(decode_placed_mesh_bundle(&bytes), Ok(meshes));
+        assert_eq!(decode_mesh_bundle(&bytes), Err(MeshBundleError::Magic));
+        assert!(decode_placed_mesh_bundle(&bytes[..bytes.len() - 1]).is_err());
     }
 
     #[test]

@@ -49,8 +49,9 @@ pub use http::{
     PlacementHistory, Removal, StrokeInfo, StrokeList, StrokeSamples,
 };
 pub use mesh_bundle::{
-    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MeshBundleError, decode_mesh_bundle,
-    encode_mesh_bundle,
+    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MESH_BUNDLE_PLACED_MAGIC,
+    MeshBundleError, PlacedMesh, decode_mesh_bundle, decode_placed_mesh_bundle, encode_mesh_bundle,
+    encode_placed_mesh_bundle,
 };
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.

@@ -286,9 +286,24 @@ async fn strokes_placed_moved_duplicated_mirrored_and_undone_are_seen_identicall
     let late = Participant::join(b, &session, "late").await;
     assert_eq!(seen(&late), seen(&watcher));
     let expected = vec![(chair_back, bits(&standing())), (copy, bits(&mirrored()))];
-    assert_eq!(seen(&late), expected);
+    let mut by_id = expected.clone();
+    by_id.sort();
+    assert_eq!(seen(&late), by_id, "the views are keyed by stroke id");
     assert_eq!(listed(a, &session).await, expected);
     assert_eq!(listed(b, &session).await, expected);
+    // And the mesh bundle with placements (PMB2): the duplicate with its source's mesh bytes.
+    let response = a
+        .get(&format!("/v1/sessions/{}/meshes?placements=true", session.session), &session)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let bundle =
+        penmesh::protocol::decode_placed_mesh_bundle(&response.bytes().await.unwrap()).unwrap();
+    let placed: Vec<(StrokeId, Vec<u8>)> =
+        bundle.iter().map(|m| (m.mesh.stroke, bits(&m.placement))).collect();
+    assert_eq!(placed, expected);
+    assert_eq!(bundle[0].mesh.glb, bundle[1].mesh.glb);
 }
 
 /// A version-4 client: its hello, frames and strokes as version 4 has them.
