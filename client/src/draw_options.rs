@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use indicatif::ProgressBar;
-use penmesh::{Brush, GlbEncoding};
+use penmesh::{Brush, GlbEncoding, Placement};
 
 /// Default time between two batches, ms.
 pub const DEFAULT_BATCH_MS: u64 = 16;
@@ -22,6 +22,8 @@ pub struct DrawOptions {
     /// so that a reconnect resumes this person's strokes and only this person may.
     pub key: String,
     pub brush: Brush,
+    /// The work plane each stroke is drawn on (`StrokeBegin.placement`); `None`: the board.
+    pub placement: Option<Placement>,
     /// Stage-1 resampling distance `l_eps`.
     pub resample: f64,
     /// Stage 1's repeat rule (`penmesh::Resampler::drop_repeats`): exact repeats of the last
@@ -55,6 +57,7 @@ impl DrawOptions {
             name: name.into(),
             key: crate::wire::new_participant_key(),
             brush: Brush::default(),
+            placement: None,
             resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
             drop_repeats: true,
             batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),

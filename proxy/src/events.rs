@@ -3,9 +3,10 @@
 //! history of a late joiner is made of. The data model only: delivering them is
 //! [`crate::fanout`]'s job.
 
+use penmesh::Placement;
 use penmesh::protocol::{
-    ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerRetained, PeerStrokeBegin, PeerStrokeDone,
-    PointBatch, ServerMessage, StrokeId, StrokeRemoval, mesh_url, simplified_url,
+    ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerPlacement, PeerRetained, PeerStrokeBegin,
+    PeerStrokeDone, PointBatch, ServerMessage, StrokeId, StrokeRemoval, mesh_url, simplified_url,
 };
 use penmesh::{Brush, Sample};
 use serde::{Deserialize, Serialize};
@@ -15,7 +16,8 @@ use uuid::Uuid;
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
 /// 4: strokes taken back and brought back (`removed`, `restored`), names changed (`renamed`),
 /// brushes with a colour, and the replica and connection that caused an event (`from`).
-pub const NOTIFY_VERSION: u16 = 4;
+/// 5: placements (`placed`).
+pub const NOTIFY_VERSION: u16 = 5;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -92,6 +94,13 @@ pub enum EventKind {
         participant: ParticipantId,
         stroke: StrokeId,
         by: ParticipantId,
+    },
+    /// The stroke's placement is now `placement` (set by its drawer `participant`, or the
+    /// work plane it was begun on).
+    Placed {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        placement: Placement,
     },
 }
 
@@ -249,6 +258,13 @@ impl SessionEvent {
                     by: *by,
                 })
             }
+            EventKind::Placed { participant, stroke, placement } => {
+                ServerMessage::PeerPlacement(PeerPlacement {
+                    participant: *participant,
+                    stroke: *stroke,
+                    placement: *placement,
+                })
+            }
         }
     }
 
@@ -270,7 +286,8 @@ impl SessionEvent {
             | EventKind::StrokeDone { stroke, .. }
             | EventKind::Mesh { stroke, .. }
             | EventKind::Removed { stroke, .. }
-            | EventKind::Restored { stroke, .. } => Some(*stroke),
+            | EventKind::Restored { stroke, .. }
+            | EventKind::Placed { stroke, .. } => Some(*stroke),
         }
     }
 }

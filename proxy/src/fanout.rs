@@ -397,6 +397,15 @@ impl PeerView {
                 Some(_) => Admit::Skip,
                 None => Admit::Fetch(*stroke),
             },
+            // Of a stroke the client has: placements are whole states, so a repeat is
+            // harmless. Of one it lacks: its history (or its begin, to come) carries it.
+            EventKind::Placed { stroke, .. } => {
+                if self.strokes.contains_key(stroke) {
+                    Admit::Whole
+                } else {
+                    Admit::Skip
+                }
+            }
         }
     }
 

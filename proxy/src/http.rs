@@ -220,6 +220,8 @@ impl From<StrokeRow> for StrokeInfo {
             created_at: row.created_at,
             updated_at: row.updated_at,
             removed: row.removed,
+            placement: row.placement,
+            duplicate_of: row.duplicate_of,
         }
     }
 }
@@ -614,6 +616,8 @@ mod tests {
             created_at: 1,
             updated_at: 2,
             removed: None,
+            placement: penmesh::Placement::IDENTITY,
+            duplicate_of: None,
         };
         for indices in [None, Some(vec![0, 5, 9])] {
             let whole = StrokeSamples {

@@ -15,6 +15,7 @@ mod ingest;
 mod mesh_build;
 mod metrics;
 mod openapi;
+mod placement;
 mod rate;
 mod removal;
 mod send_deadline;

@@ -3,7 +3,7 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{http, mesh_build, removal, session_meshes};
+use crate::{http, mesh_build, placement, removal, session_meshes};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
@@ -11,7 +11,7 @@ use crate::{http, mesh_build, removal, session_meshes};
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
         The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, or for browsers the `penmesh.token.TOKEN` \
         WebSocket subprotocol). Reads need the session's token; storing or building a stroke's mesh, and taking \
-        a stroke back or bringing it back, also need its drawer's participant key (the `key` of its WebSocket \
+        a stroke back or bringing it back, or placing it (PUT /v1/strokes/{id}/placement), also need its drawer's participant key (the `key` of its WebSocket \
         `Hello`) in the `x-penmesh-key` header."),
     paths(
         http::create_session,
@@ -24,6 +24,9 @@ use crate::{http, mesh_build, removal, session_meshes};
         mesh_build::build_mesh,
         removal::remove_stroke,
         removal::restore_stroke,
+        placement::put_placement,
+        placement::placements,
+        placement::duplicate,
         http::healthz,
         http::readyz,
         http::metrics,
@@ -35,7 +38,12 @@ use crate::{http, mesh_build, removal, session_meshes};
         http::StrokeList,
         http::StrokeSamples,
         http::MeshInfo,
-        http::ErrorBody
+        http::ErrorBody,
+        penmesh::Placement,
+        penmesh::protocol::PlacementChange,
+        penmesh::protocol::PlacementHistory,
+        penmesh::protocol::DuplicateRequest,
+        penmesh::protocol::Duplicated
     )),
     modifiers(&BearerAuth)
 )]

@@ -13,7 +13,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use axum::body::{Body, Bytes};
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use flate2::write::GzEncoder;
@@ -38,8 +38,12 @@ const PERMIT_WAIT: Duration = Duration::from_secs(10);
 /// mesh the stroke id and the participant id (16 bytes each), a u32 length and the GLB (u32
 /// little-endian). Cacheable: `ETag`, and 304 on a matching `If-None-Match`. Gzipped
 /// (`Content-Encoding: gzip`) when `Accept-Encoding` names gzip.
+///
+/// With `?placements=true` (protocol 5), the `PMB2` layout: each mesh's header also holds its
+/// stroke's current placement, 16 `f64` (`penmesh::protocol::encode_placed_mesh_bundle`).
 #[utoipa::path(get, path = "/v1/sessions/{session}/meshes", tag = "meshes",
     params(("session" = Uuid, Path),
+        ("placements" = Option<bool>, Query, description = "true: the PMB2 layout, each mesh with its stroke's placement"),
         ("if-none-match" = Option<String>, Header, description = "the ETag of a bundle the client holds")),
     security(("bearer" = [])),
     responses(
@@ -51,13 +55,20 @@ const PERMIT_WAIT: Duration = Duration::from_secs(10);
 pub async fn session_meshes(
     State(state): State<AppState>,
     Path(session): Path<String>,
+    Query(layout): Query<BundleLayout>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
     let entries = state.store.session_bundle_entries(session).await?;
     let gzip = accepts_gzip(&headers);
     // Each encoding is its own representation, with its own tag.
-    let etag = format!("\"{}{}\"", bundle_tag(&entries), if gzip { "-gzip" } else { "" });
+    let placed = layout.placements;
+    let etag = format!(
+        "\"{}{}{}\"",
+        bundle_tag(&entries, placed),
+        if placed { "-pmb2" } else { "" },
+        if gzip { "-gzip" } else { "" }
+    );
     let etag = HeaderValue::from_str(&etag).map_err(anyhow::Error::from)?;
     let cache = [
         (header::ETAG, etag.clone()),
@@ -68,7 +79,8 @@ pub async fn session_meshes(
     if matches_any(&headers, &etag) {
         return Ok((StatusCode::NOT_MODIFIED, cache).into_response());
     }
-    let size = 8 + entries.iter().map(|e| 36 + e.bytes).sum::<u64>();
+    let per_mesh = if placed { 164 } else { 36 };
+    let size = 8 + entries.iter().map(|e| per_mesh + e.bytes).sum::<u64>();
     let wait = PERMIT_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
     let permit = state.large_body_within(size, wait).await.ok_or_else(|| {
         AppError::Busy(format!(
@@ -78,7 +90,7 @@ pub async fn session_meshes(
         ))
     })?;
     let content_type = (header::CONTENT_TYPE, HeaderValue::from_static(MESH_BUNDLE_CONTENT_TYPE));
-    let body = bundle_body(state, entries, gzip, permit);
+    let body = bundle_body(state, entries, placed, gzip, permit);
     if !gzip {
         // No length: a mesh replaced while it is sent goes at its new size.
         return Ok((cache, [content_type], body).into_response());
@@ -89,8 +101,8 @@ pub async fn session_meshes(
 
 /// The bundle's tag: a hash of what it holds, mesh by mesh. A mesh replaced changes its time
 /// stored (and most likely its size and counts); a stroke taken back or brought back, or a
-/// mesh added, changes the list.
-fn bundle_tag(entries: &[BundleEntry]) -> String {
+/// mesh added, changes the list; with `placed`, a stroke moved changes its placement.
+fn bundle_tag(entries: &[BundleEntry], placed: bool) -> String {
     let mut hash = sha2::Sha256::new();
     hash.update((entries.len() as u64).to_le_bytes());
     for e in entries {
@@ -98,6 +110,9 @@ fn bundle_tag(entries: &[BundleEntry]) -> String {
         hash.update(e.participant.as_bytes());
         for n in [e.bytes as i64, e.created_at, e.vertices, e.triangles] {
             hash.update(n.to_le_bytes());
+        }
+        if placed {
+            hash.update(e.placement.to_bytes());
         }
     }
     hex::encode(&hash.finalize()[..16])
@@ -111,19 +126,22 @@ fn bundle_tag(entries: &[BundleEntry]) -> String {
 fn bundle_body(
     state: AppState,
     entries: Vec<BundleEntry>,
+    placed: bool,
     gzip: bool,
     permit: Option<OwnedSemaphorePermit>,
 ) -> Body {
     struct Sending {
         state: AppState,
         head: Option<[u8; 8]>,
+        placed: bool,
         entries: std::vec::IntoIter<BundleEntry>,
         gzip: Option<GzEncoder<Vec<u8>>>,
         done: bool,
         _permit: Option<OwnedSemaphorePermit>,
     }
     let start = Sending {
-        head: Some(mesh_bundle_head(entries.len())),
+        head: Some(mesh_bundle_head(entries.len(), placed)),
+        placed,
         entries: entries.into_iter(),
         state,
         gzip: gzip.then(|| GzEncoder::new(Vec::new(), flate2::Compression::fast())),
@@ -146,16 +164,20 @@ fn bundle_body(
             group.push(entry);
         }
         let last = group.is_empty() || sending.entries.as_slice().is_empty();
-        let strokes: Vec<_> = group.iter().map(|e| e.stroke).collect();
-        let mut glbs = sending.state.store.mesh_glbs(&strokes).await.map_err(|err| {
+        // A duplicate shows its source's mesh: each mesh row is read once.
+        let mut strokes: Vec<_> = group.iter().map(|e| e.mesh_stroke).collect();
+        strokes.sort_unstable();
+        strokes.dedup();
+        let glbs = sending.state.store.mesh_glbs(&strokes).await.map_err(|err| {
             tracing::error!(error = %err, "reading the meshes of a bundle");
             std::io::Error::other("the session's meshes cannot be read")
         })?;
         for entry in &group {
-            let glb = glbs.remove(&entry.stroke).ok_or_else(|| {
+            let glb = glbs.get(&entry.mesh_stroke).ok_or_else(|| {
                 std::io::Error::other(format!("the mesh of stroke {} is gone", entry.stroke))
             })?;
-            push_bundled_mesh(&mut piece, entry.stroke, entry.participant, &glb);
+            let placement = sending.placed.then_some(&entry.placement);
+            push_bundled_mesh(&mut piece, entry.stroke, entry.participant, placement, glb);
         }
         drop(glbs);
         sending.done = last;
@@ -177,6 +199,13 @@ fn bundle_body(
         Ok(Some((Bytes::from(out), sending)))
     });
     Body::from_stream(pieces)
+}
+
+/// `?placements=true`: the `PMB2` layout.
+#[derive(Debug, Default, serde::Deserialize)]
+pub struct BundleLayout {
+    #[serde(default)]
+    placements: bool,
 }
 
 /// Whether `If-None-Match` names `etag` (or is `*`), by the weak comparison RFC 9110 asks of it.

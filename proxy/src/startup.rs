@@ -31,7 +31,9 @@ use crate::fanout::Fanout;
 use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
-use crate::{http, mesh_build, metrics, removal, send_deadline, session_meshes, web, ws};
+use crate::{
+    http, mesh_build, metrics, placement, removal, send_deadline, session_meshes, web, ws,
+};
 
 /// A bound, ready-to-run proxy.
 #[derive(Debug)]
@@ -319,6 +321,9 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/strokes/{id}/mesh/build", post(mesh_build::build_mesh))
         .route("/v1/strokes/{id}", delete(removal::remove_stroke))
         .route("/v1/strokes/{id}/restore", post(removal::restore_stroke))
+        .route("/v1/strokes/{id}/placement", put(placement::put_placement))
+        .route("/v1/strokes/{id}/placements", get(placement::placements))
+        .route("/v1/strokes/{id}/duplicate", post(placement::duplicate))
         .route("/v1/openapi.json", get(openapi_json))
         .merge(web::routes())
         .route("/healthz", get(http::healthz))

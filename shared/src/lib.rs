@@ -19,6 +19,7 @@ mod mesh;
 mod mesh_path;
 mod metrics;
 mod model;
+mod placement;
 pub mod protocol;
 mod svg;
 
@@ -62,5 +63,8 @@ pub use crate::mesh_path::{MeshedStroke, mesh_drawn_stroke, mesh_retained_stroke
 pub use crate::metrics::{
     MetricsError, SimplificationMetrics, cdf_error_area, e_max, p_max, pressure_error,
     simplification_metrics,
+};
+pub use crate::placement::{
+    IDENTITY_MATRIX, MAX_SCALE, MIN_SCALE, Placement, PlacementError, SIMILARITY_TOLERANCE,
 };
 pub use crate::svg::{SvgStroke, simplification_svg, strokes_svg};

@@ -50,6 +50,7 @@ fn client_messages() -> Vec<ClientMessage> {
             brush: Brush::default(),
             device: Some("wacom ctl-671".into()),
             params: Some(AcutsParams::default()),
+            placement: None,
         }),
         ClientMessage::StrokeBegin(StrokeBegin {
             stroke: id(3),
@@ -61,6 +62,7 @@ fn client_messages() -> Vec<ClientMessage> {
             },
             device: None,
             params: None,
+            placement: Some(standing()),
         }),
         ClientMessage::Points(Points { stroke: id(3), seq: 0, points: PointBatch(samples(1)) }),
         ClientMessage::Points(Points { stroke: id(3), seq: 77, points: PointBatch(samples(32)) }),
@@ -70,11 +72,25 @@ fn client_messages() -> Vec<ClientMessage> {
         ClientMessage::RemoveStroke(StrokeRef { stroke: id(3) }),
         ClientMessage::RestoreStroke(StrokeRef { stroke: id(3) }),
         ClientMessage::Rename(Rename { name: "Ada Lovelace".into() }),
+        ClientMessage::SetPlacement(SetPlacement { stroke: id(3), placement: standing() }),
     ]
+}
+
+/// The front plane standing on the board, moved and mirrored: a placement off the identity.
+fn standing() -> penmesh::Placement {
+    penmesh::Placement::new([
+        -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.1, 2.5, -3.0, 1.0,
+    ])
+    .unwrap()
 }
 
 fn server_messages() -> Vec<ServerMessage> {
     vec![
+        ServerMessage::PeerPlacement(PeerPlacement {
+            participant: id(11),
+            stroke: id(3),
+            placement: standing(),
+        }),
         ServerMessage::Welcome(Welcome {
             protocol: PROTOCOL_VERSION,
             session: id(10),
@@ -201,7 +217,7 @@ fn hello_carries_the_participant_key_in_both_encodings() {
     let with = encode_client(&ClientMessage::Hello(hello.clone()));
     let without = encode_client(&ClientMessage::Hello(Hello { key: None, ..hello }));
     assert_eq!(with.len(), without.len() + 1 + key.len());
-    assert_eq!(PROTOCOL_VERSION, 4);
+    assert_eq!(PROTOCOL_VERSION, 5);
 
     assert_eq!(check_participant_key(key), Ok(()));
     assert_eq!(check_participant_key(&"a".repeat(KEY_MIN_CHARS)), Ok(()));
@@ -273,15 +289,15 @@ fn binary_refuses_empty_oversized_bad_version_trailing_and_unknown_frames() {
     assert!(
         matches!(decode_client(&trailing, LIMIT), Err(CodecError::Malformed(m)) if m.contains("trailing"))
     );
-    // Variant indices 8 and 200 are no client message.
-    for index in [8, 200] {
+    // Variant indices 9 and 200 are no client message.
+    for index in [9, 200] {
         assert!(matches!(
             decode_client(&[PROTOCOL_VERSION as u8, index], LIMIT),
             Err(CodecError::UnknownMessage(_))
         ));
     }
     // A server message is not a client message.
-    let welcome = encode_server(&server_messages()[0]);
+    let welcome = encode_server(&server_messages()[1]);
     assert!(decode_client(&welcome, LIMIT).is_err());
     // A string claiming 2^40 bytes inside a tiny frame.
     let mut forged = vec![PROTOCOL_VERSION as u8, 0, 1];

@@ -363,6 +363,7 @@ pub fn is_session_event(msg: &ServerMessage) -> bool {
             | ServerMessage::PeerMesh(_)
             | ServerMessage::PeerRenamed(_)
             | ServerMessage::PeerStrokes(_)
+            | ServerMessage::PeerPlacement(_)
             | ServerMessage::Synced(_)
     )
 }
@@ -553,6 +554,7 @@ impl WsClient {
             brush: Default::default(),
             device: Some("synth:e2e".into()),
             params: None,
+            placement: None,
         }))
         .await;
     }

@@ -112,8 +112,18 @@ pub struct DrawArgs {
     /// Without --input, --synth or --device: watch only, until Ctrl-C.
     #[arg(long)]
     pub watch: bool,
+    /// Draw onto this work plane: its placement in the session's 3D space, 16 numbers
+    /// m0,m1,…,m15 (glTF node.matrix, column-major; a similarity with scale in [1/1000, 1000]).
+    /// Default: the board (the identity). E.g. the front plane standing on the board:
+    /// 1,0,0,0,0,0,1,0,0,-1,0,0,0,0,0,1.
+    #[arg(long, value_name = "M0,…,M15", value_parser = parse_placement, allow_hyphen_values = true)]
+    pub placement: Option<Box<penmesh::Placement>>,
     #[command(flatten)]
     pub live: LiveArgs,
+}
+
+fn parse_placement(text: &str) -> Result<Box<penmesh::Placement>, String> {
+    penmesh::Placement::parse_list(text).map(Box::new)
 }
 
 pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
@@ -123,6 +133,7 @@ pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
         return watch_only(args, &endpoint);
     }
     let mut options = draw_options(&args.live, &args.name)?;
+    options.placement = args.placement.as_deref().copied();
     // Bad input fails here, before anything touches the network.
     let source = source(args)?;
     if let Some(dir) = &args.out {
@@ -359,6 +370,7 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                 ServerMessage::StrokeRemoved(m) | ServerMessage::StrokeRestored(m) => {
                     Some(m.participant)
                 }
+                ServerMessage::PeerPlacement(m) => Some(m.participant),
                 _ => None,
             };
             if participant.is_some_and(|p| mine.contains(&p)) {
@@ -418,6 +430,17 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                 }
                 ServerMessage::StrokeRestored(r) => {
                     Some(format!("{} brought back stroke {}", who(&names, r.by), short(r.stroke)))
+                }
+                ServerMessage::PeerPlacement(p) => {
+                    let matrix: Vec<String> =
+                        p.placement.matrix().iter().map(|v| format!("{v:?}")).collect();
+                    Some(format!(
+                        "{} placed stroke {} at {}{}",
+                        who(&names, p.participant),
+                        short(p.stroke),
+                        matrix.join(","),
+                        if p.placement.is_mirror() { " (mirrored)" } else { "" }
+                    ))
                 }
                 ServerMessage::Synced(s) => Some(format!(
                     "-- up to date: {} strokes by the others; live from here --",

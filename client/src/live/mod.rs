@@ -345,6 +345,7 @@ impl Live {
                     brush: self.options.brush,
                     device: Some(s.device.clone()),
                     params: None,
+                    placement: self.options.placement,
                 };
                 send(link, &ClientMessage::StrokeBegin(begin)).await?;
                 s.on_link = true;

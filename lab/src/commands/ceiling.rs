@@ -24,7 +24,7 @@ use clap::Args;
 use futures_util::StreamExt;
 use penmesh::protocol::{
     Ack, ClientMessage, ErrorCode, ErrorMessage, MAX_FRAME_BYTES_DEFAULT, PROTOCOL_VERSION,
-    ServerMessage, StrokeDone, Welcome, decode_client, encode_server,
+    ServerMessage, SetPlacement, StrokeDone, StrokeRef, Welcome, decode_client, encode_server,
 };
 use penmesh_proxy::Frame;
 use uuid::Uuid;
@@ -142,11 +142,13 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
         }),
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
         // The load tool never takes a stroke back nor renames; a no-op answer all the same.
-        ClientMessage::RemoveStroke(r) | ClientMessage::RestoreStroke(r) => {
+        ClientMessage::SetPlacement(SetPlacement { stroke, .. })
+        | ClientMessage::RemoveStroke(StrokeRef { stroke })
+        | ClientMessage::RestoreStroke(StrokeRef { stroke }) => {
             ServerMessage::Error(ErrorMessage {
                 code: ErrorCode::UnknownStroke,
-                message: format!("the ceiling keeps no strokes ({})", r.stroke),
-                stroke: Some(r.stroke),
+                message: format!("the ceiling keeps no strokes ({stroke})"),
+                stroke: Some(stroke),
             })
         }
         ClientMessage::Rename(_) => ServerMessage::Error(ErrorMessage {

@@ -94,8 +94,8 @@ impl Store {
             ));
         }
         let meshes = sqlx::query(
-            "SELECT m.stroke_id, m.created_at FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
-             WHERE s.session_id = $1",
+            "SELECT s.id AS stroke_id, m.created_at FROM strokes s \
+             JOIN meshes m ON m.stroke_id = COALESCE(s.mesh_of, s.id) WHERE s.session_id = $1",
         )
         .bind(session.to_string())
         .fetch_all(&mut *conn)
@@ -133,7 +133,21 @@ impl Store {
             }
         }
         drop(conn);
+        // The placements of the strokes off the board come after every stroke: each reaches
+        // the client as one `PeerPlacement`, after the stroke it places (`PeerStrokes` is the
+        // same in both protocol versions; a version-4 client is not sent them).
+        let mut placed = Vec::new();
         for (row, points) in parts {
+            if !row.placement.is_identity() {
+                placed.push(SessionEvent::new(
+                    session,
+                    EventKind::Placed {
+                        participant: row.participant,
+                        stroke: row.id,
+                        placement: row.placement,
+                    },
+                ));
+            }
             let points = match points {
                 Some(points) => points,
                 None => match self.replay(row.id, row.params, row.n_points).await {
@@ -153,6 +167,7 @@ impl Store {
             };
             history.events.extend(stroke_events(session, &row, points, &mesh_at));
         }
+        history.events.extend(placed);
         Ok(history)
     }
 

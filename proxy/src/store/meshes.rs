@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 
+use penmesh::Placement;
 use penmesh::protocol::{ParticipantId, StrokeId};
 use sqlx::Row;
 use uuid::Uuid;
@@ -10,10 +11,15 @@ use uuid::Uuid;
 use super::{Store, parse_uuid};
 
 /// One mesh of a session's bundle, without its bytes.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BundleEntry {
     pub stroke: StrokeId,
     pub participant: ParticipantId,
+    /// The stroke whose mesh it shows: its own, or for a duplicate its source's (a mesh is
+    /// shared, never copied).
+    pub mesh_stroke: StrokeId,
+    /// The stroke's current placement.
+    pub placement: Placement,
     /// The GLB's size in bytes.
     pub bytes: u64,
     /// When the mesh was stored (ms): a replacement has a later one.
@@ -31,9 +37,11 @@ impl Store {
         // Sorted here, not by `ORDER BY`: SQLite's sorter loads the blob that `length` needs
         // only the size of (44 ms instead of 0.06 for 52 MB of meshes).
         let rows = sqlx::query(
-            "SELECT m.stroke_id, s.participant, s.created_at AS begun, \
-             CAST(length(m.glb) AS BIGINT) AS bytes, m.created_at, m.vertices, m.triangles \
-             FROM meshes m JOIN strokes s ON s.id = m.stroke_id \
+            "SELECT s.id AS stroke_id, s.participant, s.created_at AS begun, \
+             m.stroke_id AS mesh_stroke, CAST(length(m.glb) AS BIGINT) AS bytes, m.created_at, \
+             m.vertices, m.triangles, (SELECT p.matrix FROM stroke_placements p \
+             WHERE p.stroke_id = s.id ORDER BY p.id DESC LIMIT 1) AS matrix \
+             FROM strokes s JOIN meshes m ON m.stroke_id = COALESCE(s.mesh_of, s.id) \
              WHERE s.session_id = $1 AND s.removed_at IS NULL",
         )
         .bind(session.to_string())
@@ -43,9 +51,15 @@ impl Store {
             .iter()
             .map(|row| {
                 let begun: i64 = row.try_get("begun")?;
+                let placement = match row.try_get::<Option<Vec<u8>>, _>("matrix")? {
+                    Some(bytes) => Placement::from_bytes(&bytes)?,
+                    None => Placement::IDENTITY,
+                };
                 let entry = BundleEntry {
                     stroke: parse_uuid(&row.try_get::<String, _>("stroke_id")?)?,
                     participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
+                    mesh_stroke: parse_uuid(&row.try_get::<String, _>("mesh_stroke")?)?,
+                    placement,
                     bytes: row.try_get::<i64, _>("bytes")? as u64,
                     created_at: row.try_get("created_at")?,
                     vertices: row.try_get("vertices")?,

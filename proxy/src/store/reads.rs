@@ -76,10 +76,11 @@ impl Store {
         Ok(Some(Simplified { indices: decode_indices(&indices), samples }))
     }
 
-    /// The size in bytes of a stroke's mesh, without reading it.
+    /// The size in bytes of a stroke's mesh (a duplicate's: its source's), without reading it.
     pub async fn mesh_bytes(&self, stroke: Uuid) -> anyhow::Result<Option<u64>> {
         let bytes: Option<i64> = sqlx::query_scalar(
-            "SELECT CAST(length(glb) AS BIGINT) FROM meshes WHERE stroke_id = $1",
+            "SELECT CAST(length(glb) AS BIGINT) FROM meshes WHERE stroke_id = \
+             COALESCE((SELECT mesh_of FROM strokes WHERE id = $1), $1)",
         )
         .bind(stroke.to_string())
         .fetch_optional(&self.pool)
@@ -87,9 +88,11 @@ impl Store {
         Ok(bytes.map(|b| b as u64))
     }
 
+    /// A stroke's mesh: a duplicate's is its source's (`mesh_of`), shared, never copied.
     pub async fn mesh(&self, stroke: Uuid) -> anyhow::Result<Option<MeshRow>> {
         let row = sqlx::query(
-            "SELECT glb, vertices, triangles, uploader, created_at FROM meshes WHERE stroke_id = $1",
+            "SELECT glb, vertices, triangles, uploader, created_at FROM meshes WHERE stroke_id = \
+             COALESCE((SELECT mesh_of FROM strokes WHERE id = $1), $1)",
         )
         .bind(stroke.to_string())
         .fetch_optional(&self.pool)

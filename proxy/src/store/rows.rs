@@ -24,6 +24,10 @@ pub struct StrokeRow {
     pub has_mesh: bool,
     /// Set while the stroke is taken back (`WriteOp::SetRemoved`): who and when.
     pub removed: Option<penmesh::protocol::Removal>,
+    /// Its current placement (the latest of `stroke_placements`; the identity when none).
+    pub placement: penmesh::Placement,
+    /// The stroke it is a duplicate of, if any.
+    pub duplicate_of: Option<Uuid>,
 }
 
 /// The simplified stroke: indices into the raw samples and the samples themselves.
@@ -60,9 +64,11 @@ pub(super) fn parse_uuid(s: &str) -> anyhow::Result<Uuid> {
 /// pages as it can.
 pub(super) const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant, s.brush, s.params, s.device, \
      s.status, s.n_retained, s.created_at, s.updated_at, s.removed_at, s.removed_by, \
+     s.duplicate_of, (SELECT p.matrix FROM stroke_placements p WHERE p.stroke_id = s.id \
+     ORDER BY p.id DESC LIMIT 1) AS placement, \
      COALESCE((SELECT c.seq + c.n FROM stroke_chunks c WHERE c.stroke_id = s.id \
      ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
-     (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = s.id) AS n_meshes FROM strokes s";
+     (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = COALESCE(s.mesh_of, s.id)) AS n_meshes FROM strokes s";
 
 /// A stroke's stored ACUTS parameters: the current JSON form, or the form written before the
 /// pressure gate was a choice, `{"tolerance", "angle_deg", "pressure_variance"}`, which meant the
@@ -112,6 +118,14 @@ pub(super) fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeR
             (Some(at), Some(by)) => Some(penmesh::protocol::Removal { by: parse_uuid(&by)?, at }),
             _ => None,
         },
+        placement: match row.try_get::<Option<Vec<u8>>, _>("placement")? {
+            Some(bytes) => penmesh::Placement::from_bytes(&bytes).context("stored placement")?,
+            None => penmesh::Placement::IDENTITY,
+        },
+        duplicate_of: row
+            .try_get::<Option<String>, _>("duplicate_of")?
+            .map(|id| parse_uuid(&id))
+            .transpose()?,
     })
 }
 

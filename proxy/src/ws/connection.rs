@@ -160,7 +160,7 @@ impl Connection {
     }
 
     pub fn send(&mut self, msg: ServerMessage) {
-        let frame = self.outgoing.encode(&msg);
+        let Some(frame) = self.outgoing.encode(&msg) else { return };
         self.send_frame(frame);
     }
 
@@ -178,7 +178,7 @@ impl Connection {
         if self.end.is_some() {
             return;
         }
-        let frame = self.outgoing.encode(&msg);
+        let Some(frame) = self.outgoing.encode(&msg) else { return };
         let patience = Duration::from_millis(self.state.config.heartbeat_ms) * Heartbeat::MISSED;
         if let Err(end) = self.outgoing.send_wait(frame, patience).await {
             self.end_with(end);

@@ -51,6 +51,7 @@ mod connection;
 mod error;
 mod outgoing;
 mod peers;
+mod placements;
 mod removals;
 mod serve;
 mod strokes;

@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use futures_util::{Sink, SinkExt};
-use penmesh::protocol::{ServerMessage, encode_server, encode_server_json};
+use penmesh::protocol::{ServerMessage, encode_server_as, encode_server_json_as};
 use tokio::sync::{Notify, mpsc};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -50,6 +50,9 @@ pub(super) struct Outgoing {
     overflow_since: Option<Instant>,
     /// The form of the client's latest frame, which answers take.
     pub form: Form,
+    /// The protocol version of the client's `Hello` (the current one until then): a
+    /// version-4 client's frames carry its version byte and no message it lacks.
+    pub version: u16,
     /// Frames sent, binary and text.
     sent: (metrics::Counter, metrics::Counter),
 }
@@ -134,15 +137,17 @@ impl Outgoing {
             overflow: VecDeque::new(),
             overflow_since: None,
             form: Form::Binary,
+            version: penmesh::protocol::PROTOCOL_VERSION,
             sent,
         };
         (outgoing, rx)
     }
 
-    pub fn encode(&self, msg: &ServerMessage) -> Frame {
+    /// The frame of `msg` for this client; none when its protocol version lacks the message.
+    pub fn encode(&self, msg: &ServerMessage) -> Option<Frame> {
         match self.form {
-            Form::Binary => Frame::Binary(encode_server(msg)),
-            Form::Json => Frame::Text(encode_server_json(msg)),
+            Form::Binary => encode_server_as(msg, self.version).map(Frame::Binary),
+            Form::Json => encode_server_json_as(msg, self.version).map(Frame::Text),
         }
     }
 

@@ -10,10 +10,8 @@ use penmesh::protocol::{
 };
 use tokio::time::Instant;
 
-use super::Frame;
 use super::connection::Connection;
 use super::error::{ConnError, End};
-use super::outgoing::Form;
 use crate::events::{EventKind, SessionEvent};
 use crate::fanout::{Admit, Lag, PeerView, Published, Subscription};
 
@@ -43,6 +41,8 @@ impl Connection {
                 let removed = matches!(event.kind, EventKind::Removed { .. });
                 if self.told_removed(*stroke, removed) { Admit::Whole } else { Admit::Skip }
             }
+            // Likewise a placement of its own stroke set elsewhere.
+            EventKind::Placed { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
             _ if self.is_own(event) => return,
             _ => self.view.admit(event),
         };
@@ -50,11 +50,9 @@ impl Connection {
             Admit::Whole => {
                 self.state.counters.fanout_events.increment(1);
                 // Encoded once for every participant of the session.
-                let frame = match self.outgoing.form {
-                    Form::Binary => Frame::Binary(published.binary().to_vec()),
-                    Form::Json => Frame::Text(published.json().to_string()),
-                };
-                self.send_frame(frame);
+                if let Some(frame) = self.published_frame(published) {
+                    self.send_frame(frame);
+                }
             }
             Admit::Part(msg) => {
                 self.state.counters.fanout_events.increment(1);

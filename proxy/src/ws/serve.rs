@@ -5,8 +5,9 @@ use std::time::Duration;
 use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
-    ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, PROTOCOL_VERSION, ServerMessage,
-    StrokeId, Welcome, check_text, decode_client_json_limited, decode_client_limited,
+    ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, OLDEST_PROTOCOL_VERSION,
+    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, check_text, decode_client_json_limited,
+    decode_client_limited, is_supported_version,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -273,6 +274,7 @@ impl Connection {
             ClientMessage::RemoveStroke(stroke) => self.on_set_removed(stroke, true).await,
             ClientMessage::RestoreStroke(stroke) => self.on_set_removed(stroke, false).await,
             ClientMessage::Rename(rename) => self.on_rename(rename.name).await,
+            ClientMessage::SetPlacement(set) => self.on_set_placement(set).await,
             ClientMessage::Ping(ping) => {
                 self.send(ServerMessage::Pong(ping));
                 Ok(())
@@ -281,11 +283,12 @@ impl Connection {
     }
 
     async fn on_hello(&mut self, hello: Hello) -> Result<(), ConnError> {
-        if hello.protocol != PROTOCOL_VERSION {
+        if !is_supported_version(hello.protocol) {
             return Err(ConnError::fatal(
                 ErrorCode::Protocol,
                 format!(
-                    "protocol version {} is not supported; this proxy speaks {PROTOCOL_VERSION}",
+                    "protocol version {} is not supported; this proxy speaks \
+                     {OLDEST_PROTOCOL_VERSION} to {PROTOCOL_VERSION}",
                     hello.protocol
                 ),
                 End::Close(close_code::PROTOCOL, "unsupported protocol".into()),
@@ -319,10 +322,11 @@ impl Connection {
                 .map_err(|why| ConnError::refused(ErrorCode::Malformed, why, None))?;
         }
         self.hello = true;
+        self.outgoing.version = hello.protocol;
         tracing::debug!(connection = self.id, client = %hello.client, "hello");
         let (resume, resent) = self.resume_strokes(hello.resume).await;
         self.send(ServerMessage::Welcome(Welcome {
-            protocol: PROTOCOL_VERSION,
+            protocol: hello.protocol,
             session: self.session,
             participant: self.participant,
             resume,
@@ -589,6 +593,7 @@ mod tests {
             brush: Default::default(),
             device: None,
             params: None,
+            placement: None,
         })))
     }
 

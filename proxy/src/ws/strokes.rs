@@ -234,21 +234,28 @@ impl Connection {
                     session,
                     EventKind::StrokeBegin { participant, stroke, brush: begin.brush },
                 );
-                let pending = self
-                    .state
-                    .writer
-                    .submit_with(
-                        vec![WriteOp::BeginStroke {
-                            stroke,
-                            session,
-                            participant,
-                            brush: begin.brush,
-                            params,
-                            device: begin.device,
-                        }],
-                        vec![event],
-                    )
-                    .await;
+                let mut ops = vec![WriteOp::BeginStroke {
+                    stroke,
+                    session,
+                    participant,
+                    brush: begin.brush,
+                    params,
+                    device: begin.device,
+                }];
+                let mut events = vec![event];
+                // The work plane it is drawn on (version 5): stored with its begin, and told
+                // to the others right after it.
+                if let Some(placement) = begin.placement {
+                    let (op, event) = crate::placement::request(
+                        (session, participant, stroke),
+                        placement,
+                        "begin",
+                        Some(self.id),
+                    );
+                    ops.push(op);
+                    events.push(event);
+                }
+                let pending = self.state.writer.submit_with(ops, events).await;
                 self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
                 self.strokes.insert(stroke, StrokeState::new(params));

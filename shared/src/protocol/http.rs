@@ -8,6 +8,7 @@ use uuid::Uuid;
 use super::StrokeStatus;
 use crate::acuts::AcutsParams;
 use crate::model::{Brush, Sample};
+use crate::placement::Placement;
 
 /// The JSON body of every error.
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
@@ -48,6 +49,53 @@ pub struct StrokeInfo {
     /// Only listed with `?include=removed`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub removed: Option<Removal>,
+    /// Where the stroke's plane stands in the session's 3D space: its current placement
+    /// (the latest of `GET /v1/strokes/{id}/placements`); the identity by default.
+    #[serde(default)]
+    pub placement: Placement,
+    /// The stroke this one is a duplicate of (`POST /v1/strokes/{id}/duplicate`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duplicate_of: Option<Uuid>,
+}
+
+/// One placement a stroke had: which, who set it and when.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlacementChange {
+    pub placement: Placement,
+    /// The participant who set it: the stroke's drawer.
+    pub by: Uuid,
+    /// Milliseconds since the Unix epoch.
+    pub at: i64,
+    /// `begin` (the work plane the stroke was drawn on, the identity when none was given),
+    /// `set` (moved, turned, scaled, mirrored, or an undo) or `duplicate` (the placement a
+    /// duplicate was made with).
+    pub cause: String,
+}
+
+/// Every placement a stroke had, oldest first: the last is its current one. Nothing is
+/// overwritten, so undo restores the one before exactly.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PlacementHistory {
+    pub stroke: Uuid,
+    pub placements: Vec<PlacementChange>,
+}
+
+/// The body of `POST /v1/strokes/{id}/duplicate`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DuplicateRequest {
+    /// The id of the new stroke (UUID v4, chosen by the client, so that a retried request is
+    /// recognised); a fresh one when absent.
+    #[serde(default)]
+    pub stroke: Option<Uuid>,
+    /// The new stroke's placement.
+    pub placement: Placement,
+}
+
+/// A duplicate made: the new stroke and its source.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Duplicated {
+    pub stroke: Uuid,
+    pub source: Uuid,
 }
 
 /// Who took a stroke back, and when.

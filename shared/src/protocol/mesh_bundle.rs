@@ -13,10 +13,77 @@
 //! ```
 //!
 //! Nothing follows the last mesh. The page (`client/web/src/api.js`) reads the same layout.
+//!
+//! **With placements** (protocol 5, `GET …/meshes?placements=true`): layout `"PMB2"`, the same
+//! but each mesh's header holds its stroke's current placement after the participant id:
+//!
+//! ```text
+//!   stroke id, participant id  16 + 16 bytes
+//!   placement                  128 bytes: glTF node.matrix, 16 f64 little-endian, column-major
+//!   glb length, glb            u32 little-endian, that many bytes
+//! ```
+//!
+//! A page reads `PMB2` as `PMB1` with the 128 bytes after the two ids as a `Float64Array`
+//! (copy them out first: they are not 8-byte aligned in the body), the stroke's node matrix
+//! (`Matrix4.fromArray`, with the mesh's winding flipped when its determinant is negative). The
+//! default stays `PMB1`, so a page that does not ask keeps working. A duplicate's mesh is its
+//! source's bytes, under the duplicate's stroke id and placement.
 
 use uuid::Uuid;
 
 use super::{ParticipantId, StrokeId};
+use crate::placement::Placement;
+
+/// The first four bytes of a bundle with placements ([`encode_placed_mesh_bundle`]).
+pub const MESH_BUNDLE_PLACED_MAGIC: [u8; 4] = *b"PMB2";
+
+/// A mesh of a bundle with its stroke's placement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacedMesh {
+    pub mesh: BundledMesh,
+    pub placement: Placement,
+}
+
+/// The `PMB2` bundle of `meshes`, in their order.
+///
+/// # Panics
+/// As [`encode_mesh_bundle`].
+pub fn encode_placed_mesh_bundle(meshes: &[PlacedMesh]) -> Vec<u8> {
+    let size = 8 + meshes.iter().map(|m| 164 + m.mesh.glb.len()).sum::<usize>();
+    let mut out = Vec::with_capacity(size);
+    out.extend_from_slice(&mesh_bundle_head(meshes.len(), true));
+    for PlacedMesh { mesh, placement } in meshes {
+        push_bundled_mesh(&mut out, mesh.stroke, mesh.participant, Some(placement), &mesh.glb);
+    }
+    out
+}
+
+/// The meshes of a `PMB2` bundle.
+pub fn decode_placed_mesh_bundle(bytes: &[u8]) -> Result<Vec<PlacedMesh>, MeshBundleError> {
+    if bytes.get(..4) != Some(&MESH_BUNDLE_PLACED_MAGIC[..]) {
+        return Err(MeshBundleError::Magic);
+    }
+    let mut at = 4;
+    let count =
+        read_u32(bytes, &mut at).ok_or(MeshBundleError::Truncated { index: 0, at })? as usize;
+    let mut meshes = Vec::with_capacity(count.min(bytes.len() / 164));
+    for index in 0..count {
+        let truncated = MeshBundleError::Truncated { index, at };
+        let stroke = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let participant = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
+        let matrix = bytes.get(at..at + 128).ok_or(truncated.clone())?;
+        let placement = Placement::from_bytes(matrix).map_err(|_| truncated.clone())?;
+        at += 128;
+        let len = read_u32(bytes, &mut at).ok_or(truncated.clone())? as usize;
+        let glb = bytes.get(at..at.saturating_add(len)).ok_or(truncated)?.to_vec();
+        at += len;
+        meshes.push(PlacedMesh { mesh: BundledMesh { stroke, participant, glb }, placement });
+    }
+    if at != bytes.len() {
+        return Err(MeshBundleError::Trailing { count, extra: bytes.len() - at });
+    }
+    Ok(meshes)
+}
 
 /// The media type of a mesh bundle.
 pub const MESH_BUNDLE_CONTENT_TYPE: &str = "application/vnd.penmesh.mesh-bundle";
@@ -50,27 +117,30 @@ pub enum MeshBundleError {
 pub fn encode_mesh_bundle(meshes: &[BundledMesh]) -> Vec<u8> {
     let size = 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>();
     let mut out = Vec::with_capacity(size);
-    out.extend_from_slice(&mesh_bundle_head(meshes.len()));
+    out.extend_from_slice(&mesh_bundle_head(meshes.len(), false));
     for mesh in meshes {
-        push_bundled_mesh(&mut out, mesh.stroke, mesh.participant, &mesh.glb);
+        push_bundled_mesh(&mut out, mesh.stroke, mesh.participant, None, &mesh.glb);
     }
     out
 }
 
 /// The first 8 bytes of a bundle of `count` meshes (the magic and the count): what a bundle
-/// written piece by piece starts with, each mesh then added by [`push_bundled_mesh`].
+/// written piece by piece starts with, each mesh then added by [`push_bundled_mesh`]. `placed`:
+/// the `PMB2` layout, each mesh with its placement.
 ///
 /// # Panics
 /// When `count` is more than `u32::MAX`.
-pub fn mesh_bundle_head(count: usize) -> [u8; 8] {
+pub fn mesh_bundle_head(count: usize, placed: bool) -> [u8; 8] {
     let mut head = [0; 8];
-    head[..4].copy_from_slice(&MESH_BUNDLE_MAGIC);
+    let magic = if placed { MESH_BUNDLE_PLACED_MAGIC } else { MESH_BUNDLE_MAGIC };
+    head[..4].copy_from_slice(&magic);
     head[4..]
         .copy_from_slice(&u32::try_from(count).expect("at most u32::MAX meshes").to_le_bytes());
     head
 }
 
-/// Appends one mesh of a bundle to `out`.
+/// Appends one mesh of a bundle to `out`: with its placement in a `PMB2` bundle, without in a
+/// `PMB1` one (as its head says).
 ///
 /// # Panics
 /// When `glb` is larger than `u32::MAX` bytes.
@@ -78,10 +148,14 @@ pub fn push_bundled_mesh(
     out: &mut Vec<u8>,
     stroke: StrokeId,
     participant: ParticipantId,
+    placement: Option<&Placement>,
     glb: &[u8],
 ) {
     out.extend_from_slice(stroke.as_bytes());
     out.extend_from_slice(participant.as_bytes());
+    if let Some(placement) = placement {
+        out.extend_from_slice(&placement.to_bytes());
+    }
     let len = u32::try_from(glb.len()).expect("a mesh of at most u32::MAX bytes");
     out.extend_from_slice(&len.to_le_bytes());
     out.extend_from_slice(glb);
@@ -142,6 +216,22 @@ mod tests {
             assert_eq!(bytes.len(), 8 + meshes.iter().map(|m| 36 + m.glb.len()).sum::<usize>());
             assert_eq!(decode_mesh_bundle(&bytes), Ok(meshes));
         }
+    }
+
+    // A bundle with placements reads back as written, placements bit for bit.
+    #[test]
+    fn a_placed_bundle_reads_back_as_written() {
+        let mut matrix = *Placement::IDENTITY.matrix();
+        matrix[0] = -1.0;
+        matrix[13] = 0.1;
+        let placed = |n, len, placement| PlacedMesh { mesh: mesh(n, len), placement };
+        let meshes =
+            vec![placed(1, 7, Placement::IDENTITY), placed(2, 30, Placement::new(matrix).unwrap())];
+        let bytes = encode_placed_mesh_bundle(&meshes);
+        assert_eq!(&bytes[..4], b"PMB2");
+        assert_eq!(decode_placed_mesh_bundle(&bytes), Ok(meshes));
+        assert_eq!(decode_mesh_bundle(&bytes), Err(MeshBundleError::Magic));
+        assert!(decode_placed_mesh_bundle(&bytes[..bytes.len() - 1]).is_err());
     }
 
     #[test]

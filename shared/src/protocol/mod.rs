@@ -27,24 +27,31 @@
 mod codec;
 mod http;
 mod mesh_bundle;
+mod v4;
 
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
 
 use crate::acuts::AcutsParams;
 use crate::model::{Brush, Sample};
+use crate::placement::Placement;
 
 pub use codec::{
-    CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, POSITION_STEP,
-    PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json,
+    CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, OLDEST_PROTOCOL_VERSION,
+    POSITION_STEP, PRESSURE_STEP, PROTOCOL_VERSION, TIME_STEP, decode_client, decode_client_json,
     decode_client_json_limited, decode_client_limited, decode_point_batch, decode_server,
     decode_server_json, encode_client, encode_client_json, encode_point_batch, encode_server,
     encode_server_json, quantize_sample,
 };
-pub use http::{ErrorBody, MeshInfo, NewSession, Removal, StrokeInfo, StrokeList, StrokeSamples};
+pub use codec::{encode_client_as, encode_server_as, encode_server_json_as, is_supported_version};
+pub use http::{
+    DuplicateRequest, Duplicated, ErrorBody, MeshInfo, NewSession, PlacementChange,
+    PlacementHistory, Removal, StrokeInfo, StrokeList, StrokeSamples,
+};
 pub use mesh_bundle::{
-    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MeshBundleError, decode_mesh_bundle,
-    encode_mesh_bundle, mesh_bundle_head, push_bundled_mesh,
+    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MESH_BUNDLE_PLACED_MAGIC,
+    MeshBundleError, PlacedMesh, decode_mesh_bundle, decode_placed_mesh_bundle, encode_mesh_bundle,
+    encode_placed_mesh_bundle, mesh_bundle_head, push_bundled_mesh,
 };
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.
@@ -127,6 +134,13 @@ pub enum ClientMessage {
     /// The participant's new display name ([`check_text`], [`MAX_NAME_CHARS`]): the session's
     /// other connections hear `PeerRenamed`, and newcomers see it in their history.
     Rename(Rename),
+    /// Version 5. Places a done stroke of this participant's anew (move, turn, scale, mirror;
+    /// undo sends the previous placement back): answered with `PeerPlacement` once the change
+    /// is stored, and told to every other connection of the session. Only the stroke's drawer
+    /// may (`not_owner`); a stroke not of this session is `unknown_stroke`; one still being
+    /// drawn is `stroke_open`. A matrix that is not a placement does not decode (`malformed`
+    /// or `bad_json`, naming what is wrong).
+    SetPlacement(SetPlacement),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -167,6 +181,17 @@ pub struct StrokeBegin {
     /// ACUTS stage 2 parameters; the proxy's defaults when absent.
     #[serde(default)]
     pub params: Option<AcutsParams>,
+    /// Version 5: the placement of the work plane the stroke is drawn on; absent: the
+    /// identity (the board). Not in a version-4 frame ([`OLDEST_PROTOCOL_VERSION`]).
+    #[serde(default)]
+    pub placement: Option<Placement>,
+}
+
+/// A stroke's new placement ([`ClientMessage::SetPlacement`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SetPlacement {
+    pub stroke: StrokeId,
+    pub placement: Placement,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -229,6 +254,21 @@ pub enum ServerMessage {
     /// `PeerStrokeDone` and `PeerMesh` would ([`PeerStrokes::messages`]). Only before `Synced`;
     /// a stroke the client has in part, and every live event, come one message each.
     PeerStrokes(PeerStrokes),
+    /// Version 5. A stroke's placement: set by its drawer (`SetPlacement`, `PUT
+    /// /v1/strokes/{id}/placement`), or, in a history and after a `PeerStrokeBegin` (or a
+    /// `PeerStrokes`) of a stroke drawn on a work plane, its current one. Only for a stroke
+    /// that is not at the identity or whose placement changed; a client applies it as the
+    /// stroke's node transform. Never sent to a version-4 connection.
+    PeerPlacement(PeerPlacement),
+}
+
+/// A stroke's placement ([`ServerMessage::PeerPlacement`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PeerPlacement {
+    /// The stroke's drawer (who set it).
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub placement: Placement,
 }
 
 /// The strokes of a [`ServerMessage::PeerStrokes`].

@@ -178,6 +178,7 @@ impl Stroke {
                 brush: Default::default(),
                 device: Some("synth:faults".into()),
                 params: None,
+                placement: None,
             });
             send(ws, &begin, plan.stall).await?;
         }

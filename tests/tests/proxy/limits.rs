@@ -322,6 +322,7 @@ async fn fields_over_their_limits_are_refused_naming_them() {
             brush: Default::default(),
             device: Some(device.into()),
             params: None,
+            placement: None,
         })
     };
     let points = |stroke, seq: usize, samples: &[Sample]| {

@@ -255,9 +255,11 @@ fn the_index_tables_match_the_enums() {
 /// `stroke_done`) and pings (`pong`); a take-back and a bring-back are answered too.
 fn expected_answers(sent: &str) -> Vec<&'static str> {
     let mut expected = vec!["welcome", "ack", "stroke_done", "pong"];
-    for (asks, answer) in
-        [("remove_stroke", "stroke_removed"), ("restore_stroke", "stroke_restored")]
-    {
+    for (asks, answer) in [
+        ("remove_stroke", "stroke_removed"),
+        ("restore_stroke", "stroke_restored"),
+        ("set_placement", "peer_placement"),
+    ] {
         if sent.contains(asks) {
             expected.push(answer);
         }
@@ -265,36 +267,62 @@ fn expected_answers(sent: &str) -> Vec<&'static str> {
     expected
 }
 
-/// Sends each frame of a live block on a fresh session and reads the answers until every one
-/// of `expected` came (pongs are answered at once, the rest after their commits). Fails on any
-/// `error`, a close, or an answer missing after 20 s.
+/// Is `frame` a message about a finished stroke (take back, bring back, place), which a client
+/// sends once it has that stroke's `stroke_done`?
+fn needs_done(frame: &tokio_tungstenite::tungstenite::Message) -> bool {
+    use tokio_tungstenite::tungstenite::Message;
+    let msg = match frame {
+        Message::Text(text) => decode_client_json(text, LIMIT).ok(),
+        Message::Binary(bytes) => decode_client(bytes, LIMIT).ok(),
+        _ => None,
+    };
+    matches!(
+        msg,
+        Some(
+            ClientMessage::RemoveStroke(_)
+                | ClientMessage::RestoreStroke(_)
+                | ClientMessage::SetPlacement(_)
+        )
+    )
+}
+
+/// Sends each frame of a live block on a fresh session, as a client would (without waiting
+/// for answers, except that a message about a finished stroke waits for its `stroke_done`),
+/// and reads the answers until every one of `expected` came. Fails on any `error`, a close,
+/// or an answer missing after 20 s.
 async fn run_conversation(
     proxy: &TestProxy,
+    session: &penmesh_e2e::TestSession,
     frames: Vec<tokio_tungstenite::tungstenite::Message>,
     expected: &[&str],
 ) -> BTreeSet<String> {
     use futures_util::SinkExt;
-    let session = proxy.create_session().await;
-    let mut ws = proxy.connect(&session).await;
-    for frame in frames {
-        ws.ws.send(frame).await.expect("send");
-    }
+    let mut ws = proxy.connect(session).await;
     let mut got = BTreeSet::new();
-    let read = async {
-        while !expected.iter().all(|e| got.contains(*e)) {
-            match ws.next_any().await {
-                Incoming::Message(ServerMessage::Error(e)) => panic!("the proxy refused: {e:?}"),
-                Incoming::Message(msg) => {
-                    got.insert(kind(&msg));
-                }
-                Incoming::Closed(close) => panic!("closed: {close:?}"),
+    let talk = async {
+        for frame in frames {
+            while needs_done(&frame) && !got.contains("stroke_done") {
+                got.insert(read_one(&mut ws).await);
             }
+            ws.ws.send(frame).await.expect("send");
+        }
+        while !expected.iter().all(|e| got.contains(*e)) {
+            got.insert(read_one(&mut ws).await);
         }
     };
-    if tokio::time::timeout(Duration::from_secs(20), read).await.is_err() {
+    if tokio::time::timeout(Duration::from_secs(20), talk).await.is_err() {
         panic!("expected answers {expected:?}, got only {got:?}");
     }
     got
+}
+
+/// The name of the next message; fails on an `error` or a close.
+async fn read_one(ws: &mut penmesh_e2e::WsClient) -> String {
+    match ws.next_any().await {
+        Incoming::Message(ServerMessage::Error(e)) => panic!("the proxy refused: {e:?}"),
+        Incoming::Message(msg) => kind(&msg),
+        Incoming::Closed(close) => panic!("closed: {close:?}"),
+    }
 }
 
 fn kind(msg: &ServerMessage) -> String {
@@ -318,7 +346,7 @@ async fn the_live_conversations_draw_on_a_running_proxy() {
             }
         };
         let expected = expected_answers(&block.lines.join("\n"));
-        run_conversation(&proxy, frames, &expected).await;
+        run_conversation(&proxy, &proxy.create_session().await, frames, &expected).await;
         n_live += 1;
     }
     assert!(n_live >= 2, "protocol.md has {n_live} live conversations, not one of each encoding");
@@ -364,21 +392,14 @@ async fn the_http_answers_have_the_documented_shapes() {
         .find(|b| b.live && b.kind == "json" && b.side == "client")
         .expect("a live JSON conversation");
     let session = proxy.create_session().await;
-    let mut ws = proxy.connect(&session).await;
-    let mut stroke = None;
-    use futures_util::SinkExt;
-    for (_, line) in json_lines(conversation) {
-        // The doc's own participant key, so that the mesh build below is the drawer's.
-        if let Ok(ClientMessage::StrokeBegin(b)) = decode_client_json(&line, LIMIT) {
-            stroke = Some(b.stroke);
-        }
-        ws.ws.send(Message::Text(line.into())).await.unwrap();
-    }
-    loop {
-        if let Incoming::Message(ServerMessage::Pong(_)) = ws.next_any().await {
-            break;
-        }
-    }
+    let lines = json_lines(conversation);
+    let stroke = lines.iter().find_map(|(_, l)| match decode_client_json(l, LIMIT) {
+        Ok(ClientMessage::StrokeBegin(b)) => Some(b.stroke),
+        _ => None,
+    });
+    let frames = lines.iter().map(|(_, l)| Message::Text(l.clone().into())).collect();
+    let expected = expected_answers(&conversation.lines.join("\n"));
+    run_conversation(&proxy, &session, frames, &expected).await;
     let stroke = stroke.expect("the conversation begins a stroke");
     let key = json_lines(conversation)
         .iter()
@@ -423,7 +444,6 @@ async fn the_http_answers_have_the_documented_shapes() {
         n_checked += 1;
     }
     assert!(n_checked >= 5, "protocol.md shows {n_checked} HTTP answers");
-    drop(ws);
 }
 
 /// Finds every schema in `value` (an OpenAPI document's part) that says nothing of its content:

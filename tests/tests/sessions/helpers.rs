@@ -22,6 +22,8 @@ pub struct PeerStroke {
     pub meshes: u32,
     /// Taken back (`StrokeRemoved`), until brought back (`StrokeRestored`).
     pub removed: bool,
+    /// Its latest `PeerPlacement` (protocol version 5); `None`: never told (the identity).
+    pub placement: Option<penmesh::Placement>,
 }
 
 /// Everything a participant received of the others, checked as it arrives.
@@ -66,6 +68,7 @@ impl View {
                     done: false,
                     meshes: 0,
                     removed: false,
+                    placement: None,
                 };
                 assert!(self.strokes.insert(b.stroke, fresh).is_none(), "stroke begun twice");
             }
@@ -109,6 +112,13 @@ impl View {
                 if let Some(s) = s {
                     assert!(s.removed, "restored while not removed");
                     s.removed = false;
+                }
+            }
+            // Of a peer stroke this view holds (the answer about an own stroke is not).
+            ServerMessage::PeerPlacement(p) => {
+                if let Some(s) = self.strokes.get_mut(&p.stroke) {
+                    assert_eq!(p.participant, s.participant);
+                    s.placement = Some(p.placement);
                 }
             }
             ServerMessage::Synced(synced) => {

@@ -14,6 +14,8 @@ mod history_pool;
 mod late_removals;
 mod latency;
 mod names;
+mod placement;
+mod placement_latency;
 mod removal;
 mod replicas;
 mod sessions;

@@ -238,6 +238,7 @@ async fn draw(
                         brush: Brush::default(),
                         device: Some("penmesh-load".into()),
                         params: None,
+                        placement: None,
                     }))
                     .await?;
                     unacked.insert(id, Unacked::default());

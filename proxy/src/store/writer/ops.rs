@@ -2,7 +2,7 @@
 //! ([`WriteError`]).
 
 use penmesh::protocol::{Removal, StrokeStatus};
-use penmesh::{AcutsParams, Brush, Kept, Sample};
+use penmesh::{AcutsParams, Brush, Kept, Placement, Sample};
 use uuid::Uuid;
 
 use crate::store::MeshRow;
@@ -43,6 +43,11 @@ pub enum WriteOp {
     /// Takes a stroke back (`Some`: who and when; a stroke already taken back keeps its first
     /// mark) or brings it back (`None`). Nothing of the stroke is deleted.
     SetRemoved { stroke: Uuid, removed: Option<Removal> },
+    /// A stroke's new placement, set by `by` at `at` (`cause`: `begin`, `set` or `duplicate`):
+    /// a row of its own, never an overwrite (`stroke_placements`).
+    Place { stroke: Uuid, placement: Placement, by: Uuid, at: i64, cause: &'static str },
+    /// Records that `stroke` is a duplicate of `source`, showing the mesh of `mesh_of`.
+    MarkDuplicate { stroke: Uuid, source: Uuid, mesh_of: Uuid },
 }
 
 impl WriteOp {

@@ -262,6 +262,27 @@ pub(super) async fn apply(
             .execute(&mut *conn)
             .await?;
         }
+        WriteOp::Place { stroke, placement, by, at, cause } => {
+            sqlx::query(
+                "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
+                 VALUES ($1, $2, $3, $4, $5)",
+            )
+            .bind(stroke.to_string())
+            .bind(placement.to_bytes())
+            .bind(by.to_string())
+            .bind(*at)
+            .bind(*cause)
+            .execute(&mut *conn)
+            .await?;
+        }
+        WriteOp::MarkDuplicate { stroke, source, mesh_of } => {
+            sqlx::query("UPDATE strokes SET duplicate_of = $1, mesh_of = $2 WHERE id = $3")
+                .bind(source.to_string())
+                .bind(mesh_of.to_string())
+                .bind(stroke.to_string())
+                .execute(&mut *conn)
+                .await?;
+        }
         WriteOp::SetRemoved { stroke, removed: None } => {
             sqlx::query("UPDATE strokes SET removed_at = NULL, removed_by = NULL WHERE id = $1")
                 .bind(stroke.to_string())

@@ -1,15 +1,20 @@
 //! Frames: the version byte and bincode of a message, or its JSON text.
 
 use super::*;
+use crate::protocol::v4;
 
 fn config() -> impl bincode::config::Config {
     bincode::config::standard().with_limit::<BINCODE_LIMIT>()
 }
 
 fn encode<T: Serialize>(msg: &T) -> Vec<u8> {
+    encode_version(msg, PROTOCOL_VERSION)
+}
+
+fn encode_version<T: Serialize>(msg: &T, version: u16) -> Vec<u8> {
     let body = bincode::serde::encode_to_vec(msg, config()).expect("messages always encode");
     let mut out = Vec::with_capacity(body.len() + 1);
-    out.push(PROTOCOL_VERSION as u8); // lossless: asserted where the constant is declared
+    out.push(version as u8); // lossless: versions are asserted below 256 where declared
     out.extend_from_slice(&body);
     out
 }
@@ -29,26 +34,62 @@ impl MessageKind for ServerMessage {
     const NAMES: &'static [&'static str] = <ServerMessage as strum::VariantNames>::VARIANTS;
 }
 
-fn decode<T: DeserializeOwned + MessageKind>(
-    bytes: &[u8],
-    limit: usize,
-    max_batch: usize,
-) -> Result<T, CodecError> {
+impl MessageKind for v4::ClientMessageV4 {
+    const NAMES: &'static [&'static str] = <v4::ClientMessageV4 as strum::VariantNames>::VARIANTS;
+}
+
+/// Whether the proxy and this codec speak `version`: the current one and the one before.
+pub fn is_supported_version(version: u16) -> bool {
+    (OLDEST_PROTOCOL_VERSION..=PROTOCOL_VERSION).contains(&version)
+}
+
+/// The version byte and body of a binary frame, checked against the limit and the versions
+/// this codec reads.
+fn split_frame(bytes: &[u8], limit: usize) -> Result<(u16, &[u8]), CodecError> {
     let limit = limit.min(BINCODE_LIMIT);
     if bytes.len() > limit {
         return Err(CodecError::TooLarge { size: bytes.len(), limit });
     }
     let (&version, body) = bytes.split_first().ok_or(CodecError::Empty)?;
-    if u16::from(version) != PROTOCOL_VERSION {
+    if !is_supported_version(u16::from(version)) {
         return Err(CodecError::Version(version));
     }
+    Ok((u16::from(version), body))
+}
+
+/// A client frame of either version, as the current message.
+fn decode_client_frame(
+    bytes: &[u8],
+    limit: usize,
+    max_batch: usize,
+) -> Result<ClientMessage, CodecError> {
+    let (version, body) = split_frame(bytes, limit)?;
+    if version == v4::VERSION {
+        let names = <v4::ClientMessageV4 as MessageKind>::NAMES.len();
+        return decode_body::<v4::ClientMessageV4>(body, names, max_batch).map(Into::into);
+    }
+    decode_body(body, ClientMessage::NAMES.len(), max_batch)
+}
+
+/// A server frame of either version (a version-4 frame has no `PeerPlacement`).
+fn decode_server_frame(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
+    let (version, body) = split_frame(bytes, limit)?;
+    let names =
+        if version == v4::VERSION { v4::N_SERVER_MESSAGES } else { ServerMessage::NAMES.len() };
+    decode_body(body, names, MAX_BATCH_SAMPLES)
+}
+
+fn decode_body<T: DeserializeOwned>(
+    body: &[u8],
+    n_names: usize,
+    max_batch: usize,
+) -> Result<T, CodecError> {
     // The enum's variant index is bincode's first varint; one byte below 251.
     if let Some(&index) = body.first()
-        && usize::from(index) >= T::NAMES.len()
+        && usize::from(index) >= n_names
     {
         return Err(CodecError::UnknownMessage(format!(
-            "variant index {index}; this version has {} messages",
-            T::NAMES.len()
+            "variant index {index}; this version has {n_names} messages"
         )));
     }
     let batch_limit = BatchLimit::set(max_batch);
@@ -115,9 +156,37 @@ pub fn encode_client(msg: &ClientMessage) -> Vec<u8> {
 pub fn encode_server(msg: &ServerMessage) -> Vec<u8> {
     encode(msg)
 }
-/// Decodes a binary frame of at most `limit` bytes.
+/// A binary frame of `msg` as a client of protocol `version` sends it; `None` when that
+/// version cannot say it (a placement in version 4) or is not spoken.
+pub fn encode_client_as(msg: &ClientMessage, version: u16) -> Option<Vec<u8>> {
+    match version {
+        PROTOCOL_VERSION => Some(encode(msg)),
+        v4::VERSION => v4::ClientMessageV4::from_current(msg).map(|m| encode_version(&m, version)),
+        _ => None,
+    }
+}
+/// A binary frame of `msg` for a client of protocol `version`; `None` when that version has
+/// no such message (`PeerPlacement` for version 4: the connection is not sent it).
+pub fn encode_server_as(msg: &ServerMessage, version: u16) -> Option<Vec<u8>> {
+    match version {
+        PROTOCOL_VERSION => Some(encode(msg)),
+        v4::VERSION if v4::server_message_exists(msg) => Some(encode_version(msg, version)),
+        _ => None,
+    }
+}
+/// A JSON text frame of `msg` for a client of protocol `version`; `None` as for
+/// [`encode_server_as`].
+pub fn encode_server_json_as(msg: &ServerMessage, version: u16) -> Option<String> {
+    match version {
+        PROTOCOL_VERSION => Some(encode_server_json(msg)),
+        v4::VERSION if v4::server_message_exists(msg) => Some(encode_server_json(msg)),
+        _ => None,
+    }
+}
+/// Decodes a binary frame of at most `limit` bytes, of the current version or the one before
+/// (read as the current message: a version-4 `StrokeBegin` has no placement).
 pub fn decode_client(bytes: &[u8], limit: usize) -> Result<ClientMessage, CodecError> {
-    decode(bytes, limit, MAX_BATCH_SAMPLES)
+    decode_client_frame(bytes, limit, MAX_BATCH_SAMPLES)
 }
 /// Decodes a binary frame of at most `limit` bytes whose point batch (if any) holds at most
 /// `max_batch` samples: a larger count is refused with [`CodecError::BatchTooLarge`] before
@@ -127,11 +196,11 @@ pub fn decode_client_limited(
     limit: usize,
     max_batch: usize,
 ) -> Result<ClientMessage, CodecError> {
-    decode(bytes, limit, max_batch)
+    decode_client_frame(bytes, limit, max_batch)
 }
-/// Decodes a binary frame of at most `limit` bytes.
+/// Decodes a binary frame of at most `limit` bytes, of the current version or the one before.
 pub fn decode_server(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
-    decode(bytes, limit, MAX_BATCH_SAMPLES)
+    decode_server_frame(bytes, limit)
 }
 /// A JSON text frame of a client message.
 pub fn encode_client_json(msg: &ClientMessage) -> String {

@@ -82,7 +82,12 @@ use crate::model::Sample;
 /// `RestoreStroke`, `StrokeRemoved`, `StrokeRestored`, `ErrorCode::StrokeOpen`); a participant
 /// can change its name (`Rename`, `PeerRenamed`); a history's strokes come several to a
 /// message (`PeerStrokes`).
-pub const PROTOCOL_VERSION: u16 = 4;
+/// 5: strokes have a placement in 3D (`StrokeBegin.placement`, `SetPlacement`,
+/// `PeerPlacement`). The proxy serves version 4 beside it ([`OLDEST_PROTOCOL_VERSION`]).
+pub const PROTOCOL_VERSION: u16 = 5;
+/// The oldest version the proxy still serves: its clients draw and watch, and are never told
+/// of placements (every stroke reaches them in its own plane's coordinates).
+pub const OLDEST_PROTOCOL_VERSION: u16 = 4;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
 /// Default largest frame a decoder accepts.
@@ -221,3 +226,4 @@ pub use frames::{
     decode_server, decode_server_json, encode_client, encode_client_json, encode_server,
     encode_server_json,
 };
+pub use frames::{encode_client_as, encode_server_as, encode_server_json_as, is_supported_version};

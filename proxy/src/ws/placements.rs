@@ -1,0 +1,73 @@
+//! `SetPlacement` (protocol version 5): a stroke placed anew by its drawer, under the rule of
+//! [`crate::placement`]; answered with `PeerPlacement` once the change is committed, in order
+//! with the connection's other answers. Also what a version-4 connection is sent of the
+//! session's events: the same frames, with its version byte, and no placements.
+
+use penmesh::protocol::{
+    ErrorCode, PeerPlacement, ServerMessage, SetPlacement, encode_server_as, encode_server_json_as,
+};
+
+use super::Frame;
+use super::connection::{AfterCommit, Connection};
+use super::error::ConnError;
+use super::outgoing::Form;
+use crate::fanout::Published;
+use crate::placement;
+
+impl Connection {
+    /// Places the stroke of `set` anew.
+    pub(super) async fn on_set_placement(&mut self, set: SetPlacement) -> Result<(), ConnError> {
+        let stroke = set.stroke;
+        let row = match self.state.store.stroke(stroke).await {
+            Ok(Some(row)) if row.session_id == self.session => row,
+            Ok(_) => {
+                return Err(ConnError::refused(
+                    ErrorCode::UnknownStroke,
+                    format!("unknown stroke {stroke}: no such stroke in this session"),
+                    Some(stroke),
+                ));
+            }
+            Err(err) => {
+                return Err(ConnError::internal(
+                    "reading a stroke to place",
+                    err,
+                    "could not read the stroke; try again",
+                    Some(stroke),
+                ));
+            }
+        };
+        placement::check(&row, self.participant)
+            .map_err(|refused| ConnError::refused(refused.code, refused.message, Some(stroke)))?;
+        let (op, event) = placement::request(
+            (row.session_id, row.participant, stroke),
+            set.placement,
+            "set",
+            Some(self.id),
+        );
+        let committed = self.state.writer.submit_with(vec![op], vec![event]).await;
+        let answer = ServerMessage::PeerPlacement(PeerPlacement {
+            participant: row.participant,
+            stroke,
+            placement: set.placement,
+        });
+        self.pending.push(committed, AfterCommit::Answer { stroke, answer });
+        Ok(())
+    }
+
+    /// The frame of a published event for this connection: encoded once for the session in
+    /// the current version; for a version-4 connection its frame again with its version byte
+    /// (the layout is the same), or none for a message version 4 lacks (`PeerPlacement`).
+    pub(super) fn published_frame(&self, published: &Published) -> Option<Frame> {
+        if self.outgoing.version == penmesh::protocol::PROTOCOL_VERSION {
+            return Some(match self.outgoing.form {
+                Form::Binary => Frame::Binary(published.binary().to_vec()),
+                Form::Json => Frame::Text(published.json().to_string()),
+            });
+        }
+        let msg = published.event.message();
+        match self.outgoing.form {
+            Form::Binary => encode_server_as(&msg, self.outgoing.version).map(Frame::Binary),
+            Form::Json => encode_server_json_as(&msg, self.outgoing.version).map(Frame::Text),
+        }
+    }
+}
