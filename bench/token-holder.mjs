@@ -221,6 +221,7 @@ async function bundle() {
     const answers = await Promise.all(Array.from({ length: 8 }, () => get({ "accept-encoding": "gzip" })));
     const wall = performance.now() - start;
     clearInterval(sampler);
+    await sleep(5000); // the checkpoint of the uploads' log and the like, before the 304s are timed
     const cpu = cpuSeconds(proxy.pid);
     const times = [];
     for (let i = 0; i < 200; i++) {
@@ -229,11 +230,21 @@ async function bundle() {
       times.push(r.ms);
     }
     const cpu304 = cpuSeconds(proxy.pid) - cpu;
+    // The same for a session without meshes: what a request costs whatever the bundle.
+    const empty = await newSession(proxy);
+    const emptyUrl = `${proxy.base}/v1/sessions/${empty.session}/meshes`;
+    const emptyTag = (await fetch(emptyUrl, { headers: { authorization: `Bearer ${empty.token}` } })).headers.get("etag");
+    const cpuEmpty = cpuSeconds(proxy.pid);
+    for (let i = 0; i < 200; i++) {
+      const r = await fetch(emptyUrl, { headers: { authorization: `Bearer ${empty.token}`, "if-none-match": emptyTag } });
+      await r.arrayBuffer();
+    }
+    const cpuEmpty304 = cpuSeconds(proxy.pid) - cpuEmpty;
     times.sort((a, b) => a - b);
     console.log(JSON.stringify({
       part: "bundle", meshes: strokes.length, bundle_bytes: first.bytes,
       concurrent: { requests: 8, statuses: answers.map((a) => a.status), wall_s: +(wall / 1000).toFixed(2), rss_before_mb: Math.round(rssBefore), rss_peak_mb: Math.round(peak) },
-      revalidation_304: { n: 200, median_ms: +times[100].toFixed(2), p95_ms: +times[190].toFixed(2), proxy_cpu_ms_each: +((cpu304 * 1000) / 200).toFixed(2) },
+      revalidation_304: { n: 200, median_ms: +times[100].toFixed(2), p95_ms: +times[190].toFixed(2), proxy_cpu_ms_each: +((cpu304 * 1000) / 200).toFixed(2), empty_session_proxy_cpu_ms_each: +((cpuEmpty304 * 1000) / 200).toFixed(2) },
     }));
     drawer.ws.close();
   } finally {

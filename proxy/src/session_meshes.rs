@@ -5,7 +5,7 @@
 //!
 //! What the bundle holds is read first without the meshes ([`BundleEntry`]: stroke, drawer,
 //! size, when stored, counts). The ETag is a hash of that, so a client that sends it back in
-//! `If-None-Match` gets 304 without a mesh read. A 200 takes a large-body permit (waiting up to
+//! `If-None-Match` gets 304 with no mesh hashed or held. A 200 takes a large-body permit (waiting up to
 //! [`PERMIT_WAIT`] for one) and streams the meshes, read about [`PIECE_BYTES`] at a time and
 //! gzipped as they go: a request holds a piece, never the whole bundle (`docs/reliability.md`).
 
