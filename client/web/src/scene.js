@@ -14,9 +14,10 @@ import { CameraRig } from "./camera.js";
 import { ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
 
-/// Colours far apart from each other: a person's default is one of them (settings.js picks
-/// one the others do not use).
-export const PALETTE = [0xd62828, 0x1d6fd6, 0x2a9d3a, 0xe07a00, 0x7b3fc4, 0x0fa3a3, 0xc2188c, 0x6b4423, 0x7a8a00, 0x26307a];
+/// Colours far apart from each other (every two at least 84 apart in RGB, over settings.js's
+/// MIN_COLOUR_DISTANCE): a person's default is one of them (session.js picks one the others
+/// who joined before do not use).
+export const PALETTE = [0xd62828, 0x1d6fd6, 0x2a9d3a, 0xe07a00, 0x7b3fc4, 0x12a88a, 0xc2188c, 0x5a3a1a, 0x7a8a00, 0x26307a];
 
 /// A participant's colour before they chose one, the same on every page.
 export function colourOf(participant) {

@@ -119,8 +119,17 @@ export function startSession(session, token) {
   }
 
   // Each person's colour in the list: their brush's, as their latest stroke drew it (ours as
-  // chosen); a person who has not drawn shows the participant's own colour.
+  // chosen); a person who has not drawn shows their default.
   const brushColours = new Map(); // participant -> "#rrggbb"
+  // Each person's default colour, fixed when they are first seen, in the order they joined: the
+  // one their participant id gives, unless someone who joined before has one near it, then the
+  // palette's farthest from theirs. Every page works it out alike (the history lists people in
+  // the order they joined), so a guest's page picks what the others expect of it.
+  const defaults = new Map(); // participant -> 0xRRGGBB
+  const assignDefault = (id) => {
+    if (!defaults.has(id)) defaults.set(id, colourApart(colourOf(id).getHex(), [...defaults.values()], PALETTE));
+  };
+  const hexOfPerson = (id) => brushColours.get(id) ?? `#${(defaults.get(id) ?? colourOf(id).getHex()).toString(16).padStart(6, "0")}`;
 
   function showPeople() {
     const list = $("people");
@@ -128,7 +137,7 @@ export function startSession(session, token) {
     for (const [id, who] of people) {
       const li = document.createElement("li");
       li.textContent = id === conn.me ? `${who} (you)` : who;
-      li.style.setProperty("--c", brushColours.get(id) ?? `#${colourOf(id).getHexString()}`);
+      li.style.setProperty("--c", hexOfPerson(id));
       list.append(li);
     }
   }
@@ -147,15 +156,12 @@ export function startSession(session, token) {
     showPeople();
   };
 
-  /// A person who chose no colour draws in one far from the others' (their brushes' as drawn,
-  /// or their defaults).
+  /// A person who chose no colour draws in their default (`defaults`), said in their strokes'
+  /// brush, so every page shows it whatever it worked out.
   function colourApartFromOthers() {
+    assignDefault(conn.me);
     if (brush.color !== null) return;
-    const taken = [...people.keys()].filter((id) => id !== conn.me).map((id) => parseInt((brushColours.get(id) ?? `#${colourOf(id).getHexString()}`).slice(1), 16));
-    const mine = colourOf(conn.me).getHex();
-    const chosen = colourApart(mine, taken, PALETTE);
-    if (chosen === mine) return;
-    brush.color = chosen;
+    brush.color = defaults.get(conn.me);
     saveBrush(brush);
     controls.showBrush();
   }
@@ -271,6 +277,7 @@ export function startSession(session, token) {
         break;
       case "peer_joined":
       case "peer_renamed":
+        if (kind === "peer_joined" && m.participant !== conn.me) assignDefault(m.participant);
         people.set(m.participant, m.name);
         showPeople();
         break;

@@ -166,6 +166,8 @@ const checks = {
     const home = await openPage(browser, `${base}/`);
     assert.ok(!(await home.locator("#bar").isVisible()), "the landing page shows the drawing toolbar");
     await home.screenshot({ path: join(ARTIFACTS, "first-4-landing.png") });
+    await home.setViewportSize(PHONE);
+    await home.screenshot({ path: join(ARTIFACTS, "first-4-landing-phone.png") });
     await button(home, "Start a new session").click();
     await home.waitForURL(/\/s\/[0-9a-f-]{36}#token=/);
     await synced(home);
@@ -185,7 +187,11 @@ const checks = {
       assert.ok(!(await page.locator("#bar").isVisible()), `${label}: the toolbar is shown`);
       assert.ok(sockets.length <= 1, `${label}: ${sockets.length} WebSocket connections in 3 s`);
       assert.doesNotMatch(await page.locator("body").innerText(), /HTTP 401|reconnecting/, `${label}: the page says HTTP 401 or reconnecting`);
-      if (label === "a wrong token") await page.screenshot({ path: join(ARTIFACTS, "first-4-refused.png") });
+      if (label === "a wrong token") {
+        await page.screenshot({ path: join(ARTIFACTS, "first-4-refused.png") });
+        await page.setViewportSize(PHONE);
+        await page.screenshot({ path: join(ARTIFACTS, "first-4-refused-phone.png") });
+      }
       await page.context().close();
     }
   },
@@ -318,6 +324,9 @@ const checks = {
     assert.ok(await bob.locator("#undo").isEnabled(), "Undo greyed out with a stroke to undo");
     await bob.keyboard.press("Control+z");
     await until("Redo to be offered", () => bob.locator("#redo").isEnabled());
+    await bob.keyboard.press("Control+Shift+z");
+    await until("Bob's stroke back", () => bob.evaluate(() => window.penmesh.shown === 2));
+    await bob.screenshot({ path: join(ARTIFACTS, "first-8-desktop.png") });
   },
 
   // 9. Sharing: "Copy link" copies the session's link; "New session" asks first.

@@ -70,8 +70,28 @@ await browserTest(async ({ proxy, browser }) => {
   let worstPen = 0;
   let worstInk = 0;
   for (const [i, shape] of shapes.entries()) {
+    // The first stroke's mesh build is held back a moment: its ink, then its mesh, on screen.
+    let release = () => {};
+    if (i === 0) {
+      const held = new Promise((r) => (release = r));
+      await page.route("**/mesh/build", async (route) => {
+        await held;
+        await route.continue();
+      });
+    }
     const sent = await straightStroke(cdp, { x0: 100, x1: 900, n: 120, ...shape });
+    const clip = { x: 80, y: shape.y - 20, width: 440, height: 40 };
+    if (i === 0) {
+      await until("the stroke done", () => page.evaluate(() => !window.penmesh.pending));
+      await page.screenshot({ path: join(ARTIFACTS, "width-ink.png"), clip });
+      release();
+      await page.unroute("**/mesh/build");
+    }
     await until(`mesh ${i + 1}`, () => page.evaluate((w) => window.penmesh.meshes >= w && !window.penmesh.pending, i + 1));
+    if (i === 0) {
+      await page.waitForTimeout(200);
+      await page.screenshot({ path: join(ARTIFACTS, "width-mesh.png"), clip });
+    }
     const res = await fetch(`${base}/v1/sessions/${session}/strokes`, { headers: auth });
     const stroke = (await res.json()).strokes.find((st) => !measured.has(st.id));
     measured.add(stroke.id);
@@ -109,5 +129,4 @@ await browserTest(async ({ proxy, browser }) => {
     log(`stroke ${i}: ${rings.length} rings over 780 px`);
   }
   log(`largest width step between neighbouring rings: mesh ${worstMesh.toFixed(2)} px, pen ${worstPen.toFixed(2)} px; largest mesh-ink difference ${worstInk.toFixed(2)} px`);
-  await page.screenshot({ path: join(ARTIFACTS, "width-mesh.png") });
 });

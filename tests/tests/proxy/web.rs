@@ -68,12 +68,9 @@ async fn a_browser_passes_its_token_as_a_subprotocol() {
         (Uuid::new_v4(), format!("penmesh, penmesh.token.{}", session.token)),
     ] {
         let (mut wrong, _) = connect_with_subprotocols(proxy.port, session, &offer).await.unwrap();
-        let close = loop {
-            match wrong.ws.next().await {
-                Some(Ok(Message::Close(frame))) => break frame.expect("a close frame with a code"),
-                Some(Ok(other)) => panic!("before the close: {other:?}"),
-                other => panic!("no close frame: {other:?}"),
-            }
+        let close = match wrong.ws.next().await {
+            Some(Ok(Message::Close(frame))) => frame.expect("a close frame with a code"),
+            other => panic!("not a close frame first: {other:?}"),
         };
         assert_eq!(u16::from(close.code), 4401, "{close:?}");
         assert!(close.reason.contains("unauthorized"), "{close:?}");
