@@ -9,7 +9,10 @@ export class Ink {
   /// points on the page (`toPage`) and says the scale (`pixelsPerUnit`).
   constructor(canvas, brush, view) {
     this.canvas = canvas;
-    this.ctx = canvas.getContext("2d");
+    // Drawn on the CPU: with Chromium's GPU canvas (SwiftShader here) a stroke's ink stayed on
+    // screen after the clear that removed it, in about half the runs of a browser test
+    // (first-minutes.mjs 6), the same calls each time; a few lines a frame cost nothing there.
+    this.ctx = canvas.getContext("2d", { willReadFrequently: true });
     this.paths = new Map(); // stroke -> {colour, points: [[x, y, pressure]]}
     this.colour = "#333";
     this.brush = brush;
