@@ -173,6 +173,15 @@ const checks = {
     await synced(home);
     const s = await newSession(base);
     const other = await newSession(base);
+    // Joining by a pasted link; a pasted text that is not one is said so.
+    const joiner = await openPage(browser, `${base}/`);
+    await joiner.locator("#join-link").fill("not a link");
+    await button(joiner, "Join").click();
+    await until("the pasted text refused in words", () => joiner.getByText("not a session link").isVisible(), 3000);
+    await joiner.locator("#join-link").fill(`${base}/s/${s.session}#token=${s.token}`);
+    await button(joiner, "Join").click();
+    await synced(joiner);
+    await joiner.context().close();
     for (const [label, url] of [
       ["a wrong token", `${base}/s/${s.session}#token=not-the-token`],
       ["an unknown session", `${base}/s/${crypto.randomUUID()}#token=${s.token}`],
