@@ -238,7 +238,7 @@ async function measurePage(context, url, expected) {
 
   // Orbit: a circular drag; frames are those the page rendered (or, for a page that renders
   // every animation frame, its animation frames).
-  await page.click("#orbit");
+  await page.click("#tool-orbit");
   await page.evaluate(() => {
     window.__rafTicks = 0;
     const tick = () => {

@@ -37,6 +37,11 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/lost-end.mjs
 # A mesh build that fails: tried again; one that keeps failing is built after a reload.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/mesh-build.mjs
+# A new user's first minutes, one check per item of issue 36 (tools, the view, ink, a bad link,
+# a phone, live width, names and colours, feedback, sharing).
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/first-minutes.mjs
+# The mesh's width against the ink's along straight strokes (issue 36, item 6).
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/stroke-width.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

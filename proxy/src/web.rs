@@ -4,6 +4,7 @@
 //! the subprotocol `penmesh.token.TOKEN` next to [`SUBPROTOCOL`], which the proxy selects.
 
 use axum::Router;
+use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -39,13 +40,17 @@ pub fn subprotocol_token(headers: &HeaderMap) -> Option<&str> {
         .filter(|t| !t.is_empty())
 }
 
-async fn index() -> Response {
+async fn index(State(state): State<AppState>) -> Response {
     // The page speaks the protocol version and snaps to the grid of this binary: one place for
-    // those facts.
+    // those facts. It also gets this proxy's ACUTS defaults, to ask a tighter pressure
+    // tolerance for a wide brush (docs/web.md, "The mesh and the ink").
     let grid = format!("{POSITION_STEP} {TIME_STEP} {PRESSURE_STEP}");
+    let c = &state.config;
+    let params = format!("{} {} {}", c.tolerance, c.angle_deg, c.pressure_tolerance);
     let html = INDEX_HTML
         .replace("__PENMESH_PROTOCOL__", &PROTOCOL_VERSION.to_string())
-        .replace("__PENMESH_GRID__", &grid);
+        .replace("__PENMESH_GRID__", &grid)
+        .replace("__PENMESH_PARAMS__", &params);
     (
         [
             (header::CONTENT_TYPE, "text/html; charset=utf-8"),

@@ -1,15 +1,22 @@
-// The ink: our strokes drawn at once on a 2D canvas under the pen, in page pixels, never
-// waiting for the network, each until its mesh replaces it.
+// The ink: our strokes drawn at once on a 2D canvas under the pen, never waiting for the
+// network, each until its mesh replaces it (or it is taken back). Its points are kept on the
+// drawing plane (stroke coordinates) and drawn where the camera shows them, so the ink moves
+// with a zoom, a pan or an orbit as its mesh will; its width is the mesh's (ribbon.js).
+import { radiusOf } from "./ribbon.js";
 
 export class Ink {
-  /// `brush`: the brush our strokes are drawn with, for the ink's width.
-  constructor(canvas, brush) {
+  /// `brush`: the brush our strokes are drawn with; `view`: the 3D view, which places plane
+  /// points on the page (`toPage`) and says the scale (`pixelsPerUnit`).
+  constructor(canvas, brush, view) {
     this.canvas = canvas;
-    this.ctx = canvas.getContext("2d");
-    this.paths = new Map(); // stroke -> [[clientX, clientY, pressure]]
+    // Drawn on the CPU: with Chromium's GPU canvas (SwiftShader here) a stroke's ink stayed on
+    // screen after the clear that removed it, in about half the runs of a browser test
+    // (first-minutes.mjs 6), the same calls each time; a few lines a frame cost nothing there.
+    this.ctx = canvas.getContext("2d", { willReadFrequently: true });
+    this.paths = new Map(); // stroke -> {colour, points: [[x, y, pressure]]}
     this.colour = "#333";
     this.brush = brush;
-    this.scale = 1; // CSS pixels per unit of the drawing plane in the front view
+    this.view = view;
   }
 
   resize(width, height) {
@@ -18,26 +25,26 @@ export class Ink {
     this.redraw();
   }
 
-  /// The ink is as wide as the mesh will be at this many CSS pixels per unit.
-  setScale(pixelsPerUnit) {
-    this.scale = pixelsPerUnit;
-    this.redraw();
-  }
-
   setColour(css) {
     this.colour = css;
   }
 
+  /// Strokes on the ink now (the browser tests check that none is left behind).
+  get count() {
+    return this.paths.size;
+  }
+
   begin(stroke) {
-    this.paths.set(stroke, []);
+    this.paths.set(stroke, { colour: this.colour, points: [] });
   }
 
-  add(stroke, clientX, clientY, pressure) {
+  /// A point of `stroke` on the drawing plane.
+  add(stroke, x, y, pressure) {
     const path = this.paths.get(stroke);
-    if (path) path.push([clientX, clientY, pressure]);
+    if (path) path.points.push([x, y, pressure]);
   }
 
-  /// The stroke's mesh is on screen: its ink goes.
+  /// The stroke's mesh is on screen, or it was taken back: its ink goes.
   remove(stroke) {
     if (this.paths.delete(stroke)) this.redraw();
   }
@@ -47,16 +54,18 @@ export class Ink {
     ctx.setTransform(devicePixelRatio, 0, 0, devicePixelRatio, 0, 0);
     ctx.clearRect(0, 0, this.canvas.width, this.canvas.height);
     ctx.lineCap = "round";
-    ctx.strokeStyle = this.colour;
-    for (const path of this.paths.values()) {
-      for (let i = 0; i < path.length; i++) {
-        const [x, y, p] = path[i];
-        const [px, py] = path[Math.max(0, i - 1)];
-        ctx.lineWidth = Math.max(0.5, 2 * this.brush.size * this.brush.pressure_response * p * this.scale);
+    const scale = this.view.pixelsPerUnit();
+    for (const { colour, points } of this.paths.values()) {
+      ctx.strokeStyle = colour;
+      let previous = null;
+      for (const [x, y, p] of points) {
+        const at = this.view.toPage(x, y);
+        ctx.lineWidth = Math.max(1, 2 * radiusOf(this.brush, p) * scale);
         ctx.beginPath();
-        ctx.moveTo(px, py);
-        ctx.lineTo(x, y);
+        ctx.moveTo(...(previous || at));
+        ctx.lineTo(...at);
         ctx.stroke();
+        previous = at;
       }
     }
   }

@@ -23,19 +23,31 @@ const MAX_UNFINISHED = 8;
 // wait of --claim-wait-ms (2 s by default).
 const RETAKE_MS = 2000;
 const snap = (value, step) => Math.round(value / step) * step;
+// The close code of a token that does not open the session (proxy/src/ws/mod.rs).
+const UNAUTHORIZED = 4401;
+// How far (CSS px of width, at one unit per px) the mesh's width may stray from the pen's: the
+// pressure tolerance the page asks for a stroke is this much width for its brush, or the
+// proxy's when that is tighter (docs/web.md, "The mesh and the ink"). The proxy's default
+// (0.2 of pressure) is 1.6 px of width with the default brush, 6.4 px with the widest: the
+// mesh stepped visibly where the ink tapered.
+const WIDTH_TOLERANCE_PX = 0.5;
+const MIN_PRESSURE_TOLERANCE = 0.01;
 
 export class Connection {
   /// `grid`: the protocol's quantisation steps [position px, time ms, pressure]. Samples are
   /// snapped to it before they are sent, as the native client does, so what the proxy stores
   /// (it puts every sample on this grid on arrival) is exactly what was sent.
-  constructor({ session, token, protocol, grid, name, on }) {
+  /// `params`: the proxy's ACUTS defaults [tolerance px, angle degrees, pressure tolerance].
+  constructor({ session, token, protocol, grid, params, name, on }) {
     this.session = session;
+    this.params = params;
     this.token = token;
     this.protocol = protocol;
     this.grid = grid;
     this.name = name;
     this.on = on;
     this.ws = null;
+    this.refused = false; // the proxy said the token does not open the session
     this.me = null; // our participant id, from Welcome
     this.synced = false; // the history has arrived
     // Our strokes not yet done, oldest first, each {stroke, brush, device, samples, sent, acked,
@@ -123,6 +135,13 @@ export class Connection {
     };
     ws.onclose = (e) => {
       this.ws = null;
+      // The proxy's answer to a token that does not open the session: it will not change, so
+      // no retry (a network failure is 1006, and is retried).
+      if (e.code === UNAUTHORIZED) {
+        this.refused = true;
+        this.on("refused", { reason: e.reason });
+        return;
+      }
       this.on("closed", { code: e.code, reason: e.reason });
       setTimeout(() => this.connect(), this.retry);
       this.retry = Math.min(this.retry * 2, 10000);
@@ -232,7 +251,7 @@ export class Connection {
           return;
         }
         this.takeOvers.set(stroke, null);
-        this.send({ stroke_begin: { stroke, brush: p.brush, device: p.device } });
+        this.send({ stroke_begin: { stroke, brush: p.brush, device: p.device, params: p.params } });
       }, RETAKE_MS),
     );
   }
@@ -252,7 +271,7 @@ export class Connection {
   resumeOwn(p, r) {
     if (!r || r.status === "unknown") {
       // Never reached the proxy: begin it again with everything.
-      this.send({ stroke_begin: { stroke: p.stroke, brush: p.brush, device: p.device } });
+      this.send({ stroke_begin: { stroke: p.stroke, brush: p.brush, device: p.device, params: p.params } });
       r = { next_seq: 0, status: "open" };
     }
     if (r.status === "done") return this.strokeDone(p.stroke);
@@ -287,10 +306,20 @@ export class Connection {
   /// Begins our stroke; returns its id.
   begin(brush, device) {
     const stroke = crypto.randomUUID();
-    this.unfinished.push({ stroke, brush, device, samples: [], sent: 0, acked: 0, ended: false });
+    const params = this.paramsFor(brush);
+    this.unfinished.push({ stroke, brush, device, params, samples: [], sent: 0, acked: 0, ended: false });
     this.drawing = true;
-    this.send({ stroke_begin: { stroke, brush, device } });
+    this.send({ stroke_begin: { stroke, brush, device, params } });
     return stroke;
+  }
+
+  /// The ACUTS parameters of a stroke drawn with `brush`: the proxy's, with a pressure
+  /// tolerance of WIDTH_TOLERANCE_PX of width (2 E chi delta_p) when that is tighter.
+  paramsFor(brush) {
+    const [tolerance, angle, pressure] = this.params;
+    const perPressure = 2 * brush.size * brush.pressure_response;
+    const tight = perPressure > 0 ? Math.max(MIN_PRESSURE_TOLERANCE, WIDTH_TOLERANCE_PX / perPressure) : pressure;
+    return { tolerance, angle_deg: angle, angle_near_anchor: false, pressure: { interpolation: Math.min(pressure, tight) } };
   }
 
   /// One sample of our stroke: `t` in ms since pen-down. Snapped to the grid; time never goes

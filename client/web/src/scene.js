@@ -1,22 +1,29 @@
-// The 3D view: the three.js renderer, camera and orbit controls, and the session's strokes in
-// it: a live stroke as a polyline of its retained points, finished ones as meshes merged per
-// person (one draw call each, batch.js), each in its brush's colour or else its person's. A
+// The 3D view: the three.js renderer, the camera (camera.js) and the session's strokes in it:
+// a live stroke as a ribbon of its retained points at its brush's width (ribbon.js), finished
+// ones as meshes merged per person (one draw call each, batch.js), each in its brush's colour
+// or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
 // stroke taken back is hidden until it is brought back. It renders only when something
 // changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
 // coordinates are screen-like (y down); the scene flips y.
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
-import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { MergedMeshes, flatten } from "./batch.js";
+import { CameraRig } from "./camera.js";
+import { ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
 
-/// A participant's colour, the same on every page.
+/// Colours far apart from each other (every two at least 84 apart in RGB, over settings.js's
+/// MIN_COLOUR_DISTANCE): a person's default is one of them (session.js picks one the others
+/// who joined before do not use).
+export const PALETTE = [0xd62828, 0x1d6fd6, 0x2a9d3a, 0xe07a00, 0x7b3fc4, 0x12a88a, 0xc2188c, 0x5a3a1a, 0x7a8a00, 0x26307a];
+
+/// A participant's colour before they chose one, the same on every page.
 export function colourOf(participant) {
   let h = 0;
   for (const c of participant) h = (h * 31 + c.charCodeAt(0)) >>> 0;
-  return new THREE.Color().setHSL((h % 360) / 360, 0.65, 0.45);
+  return new THREE.Color(PALETTE[h % PALETTE.length]);
 }
 
 /// A stroke's colour: its brush's (`color`, 0xRRGGBB) when it has one, else its drawer's.
@@ -32,16 +39,31 @@ function segmentDistance(p, a, b) {
   return Math.hypot(p.x - (a.x + t * dx), p.y - (a.y + t * dy));
 }
 
+// A stroke narrower than this on screen (device pixels) is drawn this wide: a thinner one
+// falls between pixel centres and shows as a dashed line.
+const MIN_WIDTH_PX = 1.5;
 // Cheap to shade: the light is worked out once per vertex (a light over the viewer's shoulder
-// and an ambient part), and a pixel only takes the colour its vertices give it.
+// and an ambient part), and a pixel only takes the colour its vertices give it. A stroke's rim
+// vertex stands at z = ±thickness·r (shared/src/mesh.rs, thickness 0.5) and its normal points
+// out of the outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it.
 const VERTEX_SHADER = `
 attribute vec3 colour;
+uniform float viewportHeight;
 varying vec3 vColour;
 void main() {
   vec3 n = normalize(normalMatrix * normal);
   float light = max(dot(n, vec3(0.29, 0.48, 0.83)), 0.0);
   vColour = colour * (0.55 + 0.6 * light);
-  gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+  vec3 p = position;
+  vec4 clip = projectionMatrix * modelViewMatrix * vec4(p, 1.0);
+  float pxPerUnit = 0.5 * viewportHeight * projectionMatrix[1][1] / clip.w;
+  float halfWidth = ${(MIN_WIDTH_PX / 2).toFixed(2)} / pxPerUnit;
+  float r = 2.0 * abs(p.z);
+  if (r < halfWidth && dot(normal.xy, normal.xy) > 1e-8) {
+    p.xy += normalize(normal.xy) * (halfWidth - r);
+    clip = projectionMatrix * modelViewMatrix * vec4(p, 1.0);
+  }
+  gl_Position = clip;
 }`;
 const FRAGMENT_SHADER = `
 varying vec3 vColour;
@@ -85,27 +107,25 @@ export class SceneView {
     this.world.scale.set(1, -1, 1);
     this.scene.add(this.world);
     this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
-    this.controls = new OrbitControls(this.camera, this.canvas);
-    this.controls.enabled = false;
-    this.controls.addEventListener("change", () => this.requestRender());
-    this.strokes = new Map(); // stroke -> {participant, colour, done, removed, points: [Vector3], line, mesh: its range in its person's merged meshes}
+    this.rig = new CameraRig(this.camera, innerWidth, innerHeight);
+    // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
+    // line: its live ribbon, mesh: its range in its person's merged meshes}
+    this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
     this.hiddenMeshCount = 0; // meshes of strokes taken back
     this.people = new Map(); // participant -> MergedMeshes
-    this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER });
-    this.lineMaterials = new Map(); // colour as hex -> LineBasicMaterial
+    this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { viewportHeight: { value: 1 } } });
+    // A live ribbon is one face: seen from either side.
+    this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
     this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
-    this.front = null; // the front view fitted to the drawing, {x, y, distance}; null: one to one
     this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
     this.frameQueued = false;
     // For GLBs the page's own reader leaves alone (parse). The meshes may be meshopt-compressed
     // (EXT_meshopt_compression); plain ones load as well.
     this.loader = new GLTFLoader();
     this.loader.setMeshoptDecoder(MeshoptDecoder);
-    this.ray = new THREE.Raycaster();
-    this.plane = new THREE.Plane(new THREE.Vector3(0, 0, 1), 0);
-    this.frontView();
+    this.resize();
   }
 
   /// Draws one frame at the next animation frame (several requests, one frame).
@@ -121,52 +141,31 @@ export class SceneView {
     });
   }
 
-  /// The front view: the camera faces the drawing plane, at the fitted view, or with the
-  /// page's pixels one to one on the z = 0 plane (a stroke drawn at (x, y) CSS pixels lands at
-  /// stroke coordinates (x, y)). Also fits the renderer to the page.
-  frontView() {
-    const w = innerWidth;
-    const h = innerHeight;
-    this.renderer.setSize(w, h, false);
-    this.camera.aspect = w / h;
-    const { x, y, distance } = this.front || { x: w / 2, y: h / 2, distance: this.oneToOne() };
-    this.camera.position.set(x, -y, distance);
-    this.controls.target.set(x, -y, 0);
-    this.camera.updateProjectionMatrix();
-    this.controls.update();
+  /// Fits the renderer to the page; the camera stays where it is (camera.js).
+  resize() {
+    this.renderer.setSize(innerWidth, innerHeight, false);
+    this.material.uniforms.viewportHeight.value = innerHeight * this.renderer.getPixelRatio();
+    this.rig.resize(innerWidth, innerHeight);
     this.requestRender();
   }
 
-  /// The camera's distance at which one unit on the plane is one CSS pixel.
-  oneToOne() {
-    return innerHeight / 2 / Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2));
-  }
-
-  /// CSS pixels per unit of the plane in the front view.
+  /// CSS pixels per unit of the plane at the camera's target.
   pixelsPerUnit() {
-    return this.front ? this.oneToOne() / this.front.distance : 1;
+    return this.rig.scale;
   }
 
   /// Fits the front view to what is drawn (the retained points of every stroke, with a
-  /// margin), never closer than one to one; the front view stays where it is when nothing is.
+  /// margin), never closer than one to one.
   fitToDrawing() {
     const box = new THREE.Box2();
     for (const s of this.strokes.values()) if (!s.removed) for (const p of s.points) box.expandByPoint(p);
-    if (box.isEmpty()) return;
-    const size = box.getSize(new THREE.Vector2());
-    const margin = 0.05 * Math.max(size.x, size.y) + 10;
-    const height = Math.max(size.y + 2 * margin, (size.x + 2 * margin) / this.camera.aspect);
-    const distance = height / 2 / Math.tan(THREE.MathUtils.degToRad(this.camera.fov / 2));
-    const centre = box.getCenter(new THREE.Vector2());
-    this.front = { x: centre.x, y: centre.y, distance: Math.max(distance, this.oneToOne()) };
-    this.frontView();
+    this.rig.fit(box);
+    this.requestRender();
   }
 
-  /// Orbit mode: the controls move the camera. Leaving it faces the drawing plane again (the
-  /// pen draws on the plane as seen from the front).
-  setOrbit(orbit) {
-    this.controls.enabled = orbit;
-    if (!orbit) this.frontView();
+  /// The camera moved (camera.js): drawn at the next frame.
+  cameraMoved() {
+    this.requestRender();
   }
 
   /// The stroke `id` of `participant`, drawn with `brush` when it is known (its begin): its
@@ -174,12 +173,13 @@ export class SceneView {
   stroke(id, participant, brush) {
     let s = this.strokes.get(id);
     if (!s) {
-      s = { participant, colour: strokeColour(participant, brush), done: false, removed: false, points: [], line: null, mesh: null };
+      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null };
       this.strokes.set(id, s);
     } else if (brush) {
       s.colour = strokeColour(participant, brush);
+      s.brush = brush;
       if (s.mesh) this.person(participant).setColour(s.mesh, s.colour);
-      if (s.line) s.line.material = this.lineMaterial(s.colour);
+      if (s.line) this.changedLines.add(s);
       this.requestRender();
     }
     return s;
@@ -209,13 +209,13 @@ export class SceneView {
     return this.meshCount - this.hiddenMeshCount;
   }
 
-  /// The shown, finished strokes of `participant` that pass within `radius` of the point
-  /// (`x`, `y`) of the drawing plane (their retained points joined by segments), for the eraser.
-  strokesAt(x, y, radius, participant) {
+  /// The shown, finished strokes that pass within `radius` of the point (`x`, `y`) of the
+  /// drawing plane (their retained points joined by segments), for the eraser.
+  strokesAt(x, y, radius) {
     const p = { x, y };
     const hits = [];
     for (const [id, s] of this.strokes) {
-      if (s.participant !== participant || s.removed || !s.done) continue;
+      if (s.removed || !s.done) continue;
       const pts = s.points;
       for (let i = 0; i < pts.length; i++) {
         if (segmentDistance(p, pts[i], pts[Math.min(i + 1, pts.length - 1)]) <= radius) {
@@ -225,12 +225,6 @@ export class SceneView {
       }
     }
     return hits;
-  }
-
-  lineMaterial(colour) {
-    const hex = colour.getHex();
-    if (!this.lineMaterials.has(hex)) this.lineMaterials.set(hex, new THREE.LineBasicMaterial({ color: colour }));
-    return this.lineMaterials.get(hex);
   }
 
   hasMesh(id) {
@@ -249,12 +243,16 @@ export class SceneView {
     return merged;
   }
 
-  /// A stroke's retained points from index `first` on (kept for the fit): until its mesh
-  /// comes, its polyline grows at the next frame.
+  /// A stroke's retained points `[x, y, t, p]` from index `first` on (kept for the fit and
+  /// the eraser): until its mesh comes, its ribbon grows at the next frame.
   addRetained(id, participant, first, points) {
     const s = this.stroke(id, participant);
     s.points.length = Math.min(s.points.length, first);
-    for (const [x, y] of points) s.points.push(new THREE.Vector3(x, y, 0));
+    s.pressures.length = s.points.length;
+    for (const [x, y, , p] of points) {
+      s.points.push(new THREE.Vector3(x, y, 0));
+      s.pressures.push(p);
+    }
     if (s.mesh) return;
     this.changedLines.add(s);
     this.requestRender();
@@ -263,7 +261,7 @@ export class SceneView {
   rebuildLine(s) {
     this.removeLine(s);
     if (s.mesh || s.points.length === 0) return;
-    s.line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(s.points), this.lineMaterial(s.colour));
+    s.line = new THREE.Mesh(ribbonGeometry(s.points, s.pressures, s.brush, s.colour), this.ribbonMaterial);
     s.line.visible = !s.removed;
     this.world.add(s.line);
   }
@@ -301,12 +299,13 @@ export class SceneView {
   /// Where on the drawing plane (stroke coordinates) a point of the page is, whatever the view;
   /// null when the plane is not under it.
   toStroke(clientX, clientY) {
-    const r = this.canvas.getBoundingClientRect();
-    const ndc = new THREE.Vector2(((clientX - r.left) / r.width) * 2 - 1, -((clientY - r.top) / r.height) * 2 + 1);
-    this.ray.setFromCamera(ndc, this.camera);
-    const hit = new THREE.Vector3();
-    if (!this.ray.ray.intersectPlane(this.plane, hit)) return null;
-    return [hit.x, -hit.y];
+    const hit = this.rig.toPlane(clientX, clientY);
+    return hit ? [hit.x, hit.y] : null;
+  }
+
+  /// Where a point of the drawing plane is on the page (CSS pixels).
+  toPage(x, y) {
+    return this.rig.toPage(x, y);
   }
 
   /// Resolves once what the scene holds now has been drawn on screen.

@@ -40,3 +40,20 @@ export function saveBrush(brush) {
 /// `#rrggbb` of a colour number, and back.
 export const hexOf = (colour) => `#${colour.toString(16).padStart(6, "0")}`;
 export const colourOf = (hex) => parseInt(hex.slice(1), 16);
+
+// Two people's colours closer than this (RGB distance, 0-441) are told apart badly.
+export const MIN_COLOUR_DISTANCE = 80;
+
+export function colourDistance(a, b) {
+  const ch = (c, shift) => (c >> shift) & 0xff;
+  return Math.hypot(ch(a, 16) - ch(b, 16), ch(a, 8) - ch(b, 8), ch(a, 0) - ch(b, 0));
+}
+
+/// A colour for a person who did not choose one: `preferred` (their default, which the others
+/// expect) when it is far enough from every colour in `taken`, else the colour of `palette`
+/// farthest from all of them.
+export function colourApart(preferred, taken, palette) {
+  const nearest = (c) => Math.min(Infinity, ...taken.map((t) => colourDistance(c, t)));
+  if (nearest(preferred) >= MIN_COLOUR_DISTANCE) return preferred;
+  return palette.reduce((best, c) => (nearest(c) > nearest(best) ? c : best), palette[0]);
+}

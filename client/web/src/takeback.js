@@ -11,12 +11,14 @@ export class TakeBack {
     this.send = send;
     this.undone = []; // steps to take back: {stroke, remove}, `remove` being what undo asks
     this.redone = []; // steps undone, to do again
+    this.onChange = () => {}; // either list changed
   }
 
   /// We drew `stroke` (it is done).
   drawn(stroke) {
     this.undone.push({ stroke, remove: true });
     this.redone.length = 0;
+    this.onChange();
   }
 
   /// The eraser touched our `stroke`: it is taken back now, and undo brings it back.
@@ -24,6 +26,7 @@ export class TakeBack {
     if (!this.send(stroke, true)) return false;
     this.undone.push({ stroke, remove: false });
     this.redone.length = 0;
+    this.onChange();
     return true;
   }
 
@@ -42,6 +45,7 @@ export class TakeBack {
     if (!last || !this.send(last.stroke, last.remove)) return false;
     from.pop();
     to.push({ stroke: last.stroke, remove: !last.remove });
+    this.onChange();
     return true;
   }
 }

@@ -127,7 +127,7 @@ await browserTest(async ({ proxy, browser }) => {
   await bob.evaluate((id) => window.penmesh.setRemoved(id, true), ids[1]);
   await until("Bob's page to report the refusal", () => bob.evaluate((n) => window.penmesh.errors.slice(n).some((e) => e.includes("not_owner")), bobErrors));
   // His eraser over her stroke touches nothing of hers.
-  await bob.locator("#eraser").click();
+  await bob.locator("#tool-erase").click();
   const second = drawn[1];
   await drawStroke(bob.cdp, { x0: second[30][0] - 5, y0: second[30][1] - 20, dx: 0, dy: 1, n: 40 });
   await bob.waitForTimeout(LIVE_MS);

@@ -116,8 +116,8 @@ export function runPenmesh(args, children) {
 }
 
 /// A pen stroke through CDP: down, `n` moves, up (unless `lift` is false); the pressure rises
-/// then falls. Returns the `[x, y, pressure]` of each event sent.
-export async function drawStroke(cdp, { x0, y0, dx, dy, n, lift = true }) {
+/// then falls; x wobbles by up to `wobble` px. Returns the `[x, y, pressure]` of each event sent.
+export async function drawStroke(cdp, { x0, y0, dx, dy, n, lift = true, wobble = 20 }) {
   const sent = [];
   const ev = (type, x, y, force) =>
     cdp.send("Input.dispatchMouseEvent", {
@@ -125,7 +125,7 @@ export async function drawStroke(cdp, { x0, y0, dx, dy, n, lift = true }) {
       clickCount: 1, pointerType: "pen",
     });
   for (let i = 0; i <= n; i++) {
-    const x = x0 + dx * i + 20 * Math.sin(i / 6);
+    const x = x0 + dx * i + wobble * Math.sin(i / 6);
     const y = y0 + dy * i;
     const force = Math.round((0.1 + 0.8 * Math.sin((Math.PI * i) / n)) * 1000) / 1000;
     await ev(i === 0 ? "mousePressed" : "mouseMoved", x, y, force);

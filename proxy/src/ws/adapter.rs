@@ -30,10 +30,29 @@ pub async fn ws_handler(
     // A browser cannot set headers on a WebSocket: it offers its token as a subprotocol. A
     // token in the query string is not read (URLs reach access logs).
     let token = crate::web::subprotocol_token(&headers);
-    let session = authorize_session(&state, &headers, token, &session).await?;
+    let authorized = authorize_session(&state, &headers, token, &session).await;
     let upgrade = match upgrade {
         Ok(upgrade) => upgrade,
-        Err(rejection) => return Ok(rejection.into_response()),
+        Err(rejection) => {
+            authorized?;
+            return Ok(rejection.into_response());
+        }
+    };
+    let session = match authorized {
+        Ok(session) => session,
+        // A browser's WebSocket sees a refused upgrade only as code 1006, the same as a network
+        // that failed: a browser (its token offered as a subprotocol) is told in a close code of
+        // its own, which it does not retry. Other clients get the HTTP 401.
+        Err(AppError::Unauthorized) if token.is_some() => {
+            let upgrade = upgrade.protocols([crate::web::SUBPROTOCOL]);
+            return Ok(upgrade.on_upgrade(|socket| async move {
+                let (mut sink, _) = split(socket);
+                let reason = "unauthorized: no session of this id opens with this token";
+                let _ =
+                    sink.send(Frame::Close(Some((close_code::UNAUTHORIZED, reason.into())))).await;
+            }));
+        }
+        Err(err) => return Err(err),
     };
     // The serve loop always gives the peer; a request handed to the router directly (a test)
     // counts as the unspecified address.

@@ -78,4 +78,6 @@ pub mod close_code {
     pub const PROTOCOL: u16 = 1002;
     pub const POLICY: u16 = 1008;
     pub const TOO_BIG: u16 = 1009;
+    /// The token does not open the session (a browser's WebSocket cannot see an HTTP 401).
+    pub const UNAUTHORIZED: u16 = 4401;
 }

@@ -1,8 +1,10 @@
 //! What the browser page needs from the proxy: the page itself, the token as a WebSocket
 //! subprotocol, and the mesh of a stroke built by the proxy (`POST /v1/strokes/{id}/mesh/build`).
 
+use futures_util::StreamExt;
 use penmesh::protocol::{PROTOCOL_VERSION, ServerMessage};
 use penmesh_e2e::{WsClient, draw_stroke, spawn_proxy, stroke_samples};
+use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use uuid::Uuid;
 
@@ -58,10 +60,28 @@ async fn a_browser_passes_its_token_as_a_subprotocol() {
     assert_eq!(chosen.as_deref(), Some("penmesh"), "the proxy selects the plain subprotocol");
     ws.hello(vec![]).await;
 
-    let wrong = connect_with_subprotocols(proxy.port, session.session, "penmesh, penmesh.token.00")
-        .await
-        .expect_err("a wrong token is refused");
-    assert!(wrong.to_string().contains("401"), "{wrong}");
+    // A browser sees a refused upgrade only as a failed connection (1006), as when the network
+    // fails: a wrong token offered as a subprotocol, or a session that does not exist, is told
+    // in close code 4401 instead, which the page does not retry.
+    for (session, offer) in [
+        (session.session, "penmesh, penmesh.token.00".to_string()),
+        (Uuid::new_v4(), format!("penmesh, penmesh.token.{}", session.token)),
+    ] {
+        let (mut wrong, _) = connect_with_subprotocols(proxy.port, session, &offer).await.unwrap();
+        let close = match wrong.ws.next().await {
+            Some(Ok(Message::Close(frame))) => frame.expect("a close frame with a code"),
+            other => panic!("not a close frame first: {other:?}"),
+        };
+        assert_eq!(u16::from(close.code), 4401, "{close:?}");
+        assert!(close.reason.contains("unauthorized"), "{close:?}");
+    }
+    // Without a subprotocol token (the native client's header), still the HTTP 401.
+    let mut request = format!("ws://127.0.0.1:{}/v1/sessions/{}/ws", proxy.port, session.session)
+        .into_client_request()
+        .unwrap();
+    request.headers_mut().insert("authorization", "Bearer 00".parse().unwrap());
+    let refused = tokio_tungstenite::connect_async(request).await.expect_err("a wrong token");
+    assert!(refused.to_string().contains("401"), "{refused}");
 }
 
 #[tokio::test]
