@@ -11,8 +11,11 @@
 //! (centres with their radii), `w = t * L0 / (c * size - 2 * t)` (`c` the thickness factor)
 //! keeps `c * w * size / (L0 + 2 * w) >= t` whatever the floored bounds turn out to be.
 //!
-//! Manifold's booleans are robust on closed, consistently wound inputs; a stroke whose solid
-//! crosses itself (a loop) is one such input whose overlap with itself Manifold does not resolve.
+//! Manifold's booleans are robust on closed, consistently wound inputs, coplanar overlaps
+//! included. A stroke that crosses itself (a loop, a figure-eight) is a closed input that
+//! overlaps itself: the union stays a closed indexed manifold (its 3MF reads as manifold), but
+//! Manifold leaves distinct vertices at one position there, which STL, having no indices,
+//! cannot keep apart (docs/print.md, "Known limits").
 
 use glam::{DMat4, DVec3};
 use manifold_rs::{Manifold, Mesh};

@@ -289,3 +289,17 @@ fn the_3mf_model_is_in_millimetres_with_every_vertex_and_triangle() {
     assert_eq!(xml.matches("<triangle ").count(), mesh.indices.len() / 3);
     assert!(zip.by_name("[Content_Types].xml").is_ok() && zip.by_name("_rels/.rels").is_ok());
 }
+
+#[test]
+fn strokes_floored_to_one_thickness_still_unite_into_a_manifold_stl() {
+    // A floor above every stroke's radius gives them all one thickness: their tops and bottoms
+    // are coplanar where they cross, which Manifold's symbolic perturbation resolves.
+    let dir = tempfile::tempdir().unwrap();
+    let options = PrintOptions { min_thickness_mm: 6.0, ..PrintOptions::default() };
+    let mesh = print(&crossing_board(), &options);
+    let info = stl_info(dir.path(), "floored.stl", &mesh);
+    assert_eq!(info_value(&info, "manifold"), "yes", "{info:?}");
+    assert_eq!(info_value(&info, "number_of_parts").trim(), "2", "{info:?}");
+    let thickness: f64 = info_value(&info, "size_z").parse().unwrap();
+    assert!(thickness >= 6.0 - 1e-4, "{thickness} mm");
+}
