@@ -1,5 +1,5 @@
 //! Times the print of a board of generated strokes (docs/performance.md, "The print"):
-//! `cargo run --release -p penmesh-print --example print_board -- [STROKES] [OUT.stl]`.
+//! `cargo run --release -p penmesh-print --example print_board -- [STROKES] [OUT.stl|OUT.3mf]`.
 //! Strokes of every generator shape, 120 px, on a grid 100 px apart so neighbours overlap,
 //! simplified by ACUTS (the indices the proxy keeps), on the identity placement.
 
@@ -50,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mesh.volume()
     );
     if let Some(out) = out {
-        std::fs::write(out, stl)?;
+        std::fs::write(&out, if out.ends_with(".3mf") { threemf } else { stl })?;
     }
     Ok(())
 }
