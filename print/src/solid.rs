@@ -120,7 +120,7 @@ pub fn print_mesh(
     options: &PrintOptions,
     progress: Progress<'_>,
 ) -> Result<PrintMesh, PrintError> {
-    validate(options)?;
+    options.validate()?;
     if strokes.is_empty() {
         return Err(PrintError::NoStrokes);
     }
@@ -172,24 +172,27 @@ pub fn print_mesh(
     to_millimetres(&mesh, options.size_mm)
 }
 
-fn validate(options: &PrintOptions) -> Result<(), PrintError> {
-    let PrintOptions { size_mm, min_thickness_mm } = *options;
-    if !(size_mm.is_finite() && size_mm > 0.0 && size_mm <= MAX_SIZE_MM) {
-        return Err(PrintError::BadOption {
-            name: "size_mm",
-            value: size_mm,
-            reason: format!("it must be above 0 and at most {MAX_SIZE_MM}"),
-        });
+impl PrintOptions {
+    /// Refuses a size or thickness no print can have, naming it.
+    pub fn validate(&self) -> Result<(), PrintError> {
+        let PrintOptions { size_mm, min_thickness_mm } = *self;
+        if !(size_mm.is_finite() && size_mm > 0.0 && size_mm <= MAX_SIZE_MM) {
+            return Err(PrintError::BadOption {
+                name: "size_mm",
+                value: size_mm,
+                reason: format!("it must be above 0 and at most {MAX_SIZE_MM}"),
+            });
+        }
+        let most = size_mm * DEFAULT_THICKNESS.min(1.0) / 2.0;
+        if !(min_thickness_mm.is_finite() && min_thickness_mm > 0.0 && min_thickness_mm < most) {
+            return Err(PrintError::BadOption {
+                name: "min_thickness_mm",
+                value: min_thickness_mm,
+                reason: format!("it must be above 0 and below {most} (a quarter of size_mm)"),
+            });
+        }
+        Ok(())
     }
-    let most = size_mm * DEFAULT_THICKNESS.min(1.0) / 2.0;
-    if !(min_thickness_mm.is_finite() && min_thickness_mm > 0.0 && min_thickness_mm < most) {
-        return Err(PrintError::BadOption {
-            name: "min_thickness_mm",
-            value: min_thickness_mm,
-            reason: format!("it must be above 0 and below {most} (a quarter of size_mm)"),
-        });
-    }
-    Ok(())
 }
 
 struct Placement {
