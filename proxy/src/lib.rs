@@ -7,6 +7,7 @@
 mod cluster;
 mod config;
 mod events;
+mod export;
 mod fanout;
 mod glb;
 mod http;

@@ -3,7 +3,7 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{http, mesh_build, placement, removal, session_meshes};
+use crate::{export, http, mesh_build, placement, removal, session_meshes};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
@@ -16,6 +16,7 @@ use crate::{http, mesh_build, placement, removal, session_meshes};
     paths(
         http::create_session,
         http::list_strokes,
+        export::export_print,
         http::simplified,
         http::raw,
         http::put_mesh,

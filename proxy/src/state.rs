@@ -56,6 +56,8 @@ pub struct Inner {
     addresses: Mutex<HashMap<IpAddr, usize>>,
     /// One permit per large HTTP body being handled (`max_large_bodies`).
     large_bodies: Arc<tokio::sync::Semaphore>,
+    /// One permit per print being made (`crate::export::MAX_EXPORTS`).
+    exports: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -102,6 +104,7 @@ impl AppState {
                 connections,
                 addresses: Mutex::new(HashMap::new()),
                 large_bodies,
+                exports: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_EXPORTS)),
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -127,6 +130,12 @@ impl AppState {
             address
         });
         Ok(ConnectionSlot { state: self.clone(), address, _permit: permit })
+    }
+
+    /// The permit to make a print, or `None` while [`crate::export::MAX_EXPORTS`] are being
+    /// made; it frees when dropped.
+    pub fn export_permit(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        self.exports.clone().try_acquire_owned().ok()
     }
 
     /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up

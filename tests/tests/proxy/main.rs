@@ -6,6 +6,7 @@ mod auth;
 mod bad_input;
 mod costs;
 mod deploy;
+mod export;
 mod http;
 mod identity;
 mod limits;

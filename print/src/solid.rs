@@ -1,0 +1,286 @@
+//! The print: every stroke's direct closed solid (`penmesh::solid_mesh`, the same outline as the
+//! stroke's mesh) placed by its matrix, united by Manifold into one closed manifold with no
+//! overlapping shells, and scaled to millimetres so that the model's longest side is
+//! [`PrintOptions::size_mm`]. Disjoint strokes stay separate bodies of the one mesh.
+//!
+//! The printable thickness is a radius floor in model units applied before meshing: the
+//! thinnest dimension of a stroke's solid is its thickness, `2 * DEFAULT_THICKNESS * r`, so every
+//! stroke's radius is raised to at least the world radius `w` that comes out as
+//! `min_thickness_mm` after the final scale. Raising radii by at most `w` grows the model's
+//! bounds by at most `w` on each side, so with `L0` the longest side of the unfloored bounds
+//! (centres with their radii), `w = t * L0 / (c * size - 2 * t)` (`c` the thickness factor)
+//! keeps `c * w * size / (L0 + 2 * w) >= t` whatever the floored bounds turn out to be.
+//!
+//! Manifold's booleans are robust on closed, consistently wound inputs, coplanar overlaps
+//! included. A stroke that crosses itself (a loop, a figure-eight) is a closed input that
+//! overlaps itself: the union stays a closed indexed manifold (its 3MF reads as manifold), but
+//! Manifold leaves distinct vertices at one position there, which STL, having no indices,
+//! cannot keep apart (docs/print.md, "Known limits").
+
+use glam::{DMat4, DVec3};
+use manifold_rs::{Manifold, Mesh};
+use penmesh::{
+    Brush, DEFAULT_THICKNESS, KeptError, OutlineOptions, Sample, SolidOptions, StrokeMesh,
+    fitted_outline, solid_mesh,
+};
+
+/// Default longest side of the print (mm).
+pub const DEFAULT_SIZE_MM: f64 = 100.0;
+/// Default smallest thickness of any part of the print (mm): a usual 0.4 mm nozzle lays two lines.
+pub const DEFAULT_MIN_THICKNESS_MM: f64 = 0.8;
+/// Largest accepted `size_mm`: beyond any printer's bed.
+pub const MAX_SIZE_MM: f64 = 10_000.0;
+
+/// The identity placement: the ground plane, every stroke's placement today.
+pub const IDENTITY: [f64; 16] =
+    [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+
+/// One stroke to print: its drawn samples, the indices ACUTS kept of them (as the proxy stores
+/// them; the outline is the stroke mesh's own, `penmesh::fitted_outline`), its brush, and its
+/// placement (glTF's `node.matrix`: a column-major similarity from its plane to the session).
+#[derive(Debug, Clone)]
+pub struct PrintStroke {
+    pub raw: Vec<Sample>,
+    pub kept: Vec<usize>,
+    pub brush: Brush,
+    pub placement: [f64; 16],
+}
+
+/// How big the print is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrintOptions {
+    /// The model's longest side (mm).
+    pub size_mm: f64,
+    /// Every part at least this thick (mm).
+    pub min_thickness_mm: f64,
+}
+
+impl Default for PrintOptions {
+    fn default() -> PrintOptions {
+        PrintOptions { size_mm: DEFAULT_SIZE_MM, min_thickness_mm: DEFAULT_MIN_THICKNESS_MM }
+    }
+}
+
+/// The united, closed mesh in millimetres, its lowest corner at the origin.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PrintMesh {
+    pub positions: Vec<[f32; 3]>,
+    /// Three indices per triangle, counter-clockwise seen from outside.
+    pub indices: Vec<u32>,
+}
+
+impl PrintMesh {
+    pub fn triangles(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        self.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]])
+    }
+
+    /// The lowest and highest corner of the mesh's bounding box.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.positions {
+            for axis in 0..3 {
+                lo[axis] = lo[axis].min(f64::from(p[axis]));
+                hi[axis] = hi[axis].max(f64::from(p[axis]));
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The enclosed volume (mm³): the signed sum of the origin's tetrahedra, in `f64`.
+    pub fn volume(&self) -> f64 {
+        let v = |i: u32| DVec3::from(self.positions[i as usize].map(f64::from));
+        self.triangles().map(|[a, b, c]| v(a).dot(v(b).cross(v(c)))).sum::<f64>() / 6.0
+    }
+}
+
+/// Why no print was made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PrintError {
+    #[error("nothing to print: no strokes")]
+    NoStrokes,
+    #[error("{name} = {value} mm is not accepted: {reason}")]
+    BadOption { name: &'static str, value: f64, reason: String },
+    #[error("stroke {index}: its placement {reason}")]
+    BadPlacement { index: usize, reason: &'static str },
+    #[error("stroke {index}: {error}")]
+    Stroke { index: usize, error: KeptError },
+    #[error("stroke {index}: its solid is not a closed manifold ({triangles} triangles)")]
+    NotManifold { index: usize, triangles: usize },
+    #[error("the strokes make no volume to print")]
+    Empty,
+}
+
+/// Where the print is: `done` of `total` steps (one per stroke meshed, one per union).
+pub type Progress<'a> = &'a mut dyn FnMut(usize, usize);
+
+/// The print of `strokes`: see the module docs.
+pub fn print_mesh(
+    strokes: &[PrintStroke],
+    options: &PrintOptions,
+    progress: Progress<'_>,
+) -> Result<PrintMesh, PrintError> {
+    options.validate()?;
+    if strokes.is_empty() {
+        return Err(PrintError::NoStrokes);
+    }
+    let placements = strokes
+        .iter()
+        .enumerate()
+        .map(|(index, s)| placement(index, &s.placement))
+        .collect::<Result<Vec<_>, _>>()?;
+    let outline_options = OutlineOptions::default();
+    let thickness = 2.0 * DEFAULT_THICKNESS.min(1.0);
+
+    // Unfloored bounds: every centre with its radius, placed.
+    let mut lo = DVec3::INFINITY;
+    let mut hi = DVec3::NEG_INFINITY;
+    for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
+        let outline = fitted_outline(&stroke.raw, &stroke.kept, &stroke.brush, &outline_options)
+            .map_err(|error| PrintError::Stroke { index, error })?;
+        for (c, r) in outline.centres.iter().zip(&outline.radii) {
+            let p = place.matrix.transform_point3(DVec3::new(c.x, c.y, 0.0));
+            lo = lo.min(p - r * place.scale);
+            hi = hi.max(p + r * place.scale);
+        }
+    }
+    let longest = (hi - lo).max_element();
+    if !longest.is_finite() || longest <= 0.0 {
+        return Err(PrintError::Empty);
+    }
+    let t = options.min_thickness_mm;
+    let floor_world = t * longest / (thickness * options.size_mm - 2.0 * t);
+
+    let total = 2 * strokes.len() - 1;
+    let mut done = 0;
+    let mut solids = Vec::with_capacity(strokes.len());
+    for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
+        let mut brush = stroke.brush;
+        brush.min_radius = brush.min_radius.max(floor_world / place.scale);
+        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &outline_options)
+            .map_err(|error| PrintError::Stroke { index, error })?;
+        let mesh = solid_mesh(&outline, &SolidOptions::default());
+        solids.push(to_manifold(index, &mesh, place)?);
+        done += 1;
+        progress(done, total);
+    }
+    let united = union_all(solids, &mut |_| {
+        done += 1;
+        progress(done, total);
+    });
+    let mesh = united.to_mesh();
+    to_millimetres(&mesh, options.size_mm)
+}
+
+impl PrintOptions {
+    /// Refuses a size or thickness no print can have, naming it.
+    pub fn validate(&self) -> Result<(), PrintError> {
+        let PrintOptions { size_mm, min_thickness_mm } = *self;
+        if !(size_mm.is_finite() && size_mm > 0.0 && size_mm <= MAX_SIZE_MM) {
+            return Err(PrintError::BadOption {
+                name: "size_mm",
+                value: size_mm,
+                reason: format!("it must be above 0 and at most {MAX_SIZE_MM}"),
+            });
+        }
+        let most = size_mm * DEFAULT_THICKNESS.min(1.0) / 2.0;
+        if !(min_thickness_mm.is_finite() && min_thickness_mm > 0.0 && min_thickness_mm < most) {
+            return Err(PrintError::BadOption {
+                name: "min_thickness_mm",
+                value: min_thickness_mm,
+                reason: format!("it must be above 0 and below {most} (a quarter of size_mm)"),
+            });
+        }
+        Ok(())
+    }
+}
+
+struct Placement {
+    matrix: DMat4,
+    /// The similarity's uniform scale.
+    scale: f64,
+    mirrored: bool,
+}
+
+fn placement(index: usize, m: &[f64; 16]) -> Result<Placement, PrintError> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(PrintError::BadPlacement { index, reason: "has a value that is not finite" });
+    }
+    let matrix = DMat4::from_cols_array(m);
+    let det = glam::DMat3::from_mat4(matrix).determinant();
+    if det.abs() <= 1e-12 {
+        return Err(PrintError::BadPlacement { index, reason: "is singular" });
+    }
+    Ok(Placement { matrix, scale: det.abs().cbrt(), mirrored: det < 0.0 })
+}
+
+/// The placed solid as a Manifold; a mirror turns the triangles inside out, so their winding
+/// is flipped back.
+fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Manifold, PrintError> {
+    let vertices: Vec<f32> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| {
+            let q = place.matrix.transform_point3(DVec3::from(p.map(f64::from)));
+            [q.x as f32, q.y as f32, q.z as f32]
+        })
+        .collect();
+    let mut indices = mesh.indices.clone();
+    if place.mirrored {
+        for t in indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+    }
+    let triangles = indices.len() / 3;
+    let manifold = Mesh::new(&vertices, &indices).to_manifold();
+    if manifold.is_empty() {
+        return Err(PrintError::NotManifold { index, triangles });
+    }
+    Ok(manifold)
+}
+
+/// Unites the solids pairwise as a balanced tree (each union's inputs of similar size), calling
+/// `step` after each union.
+fn union_all(mut solids: Vec<Manifold>, step: &mut dyn FnMut(usize)) -> Manifold {
+    while solids.len() > 1 {
+        let mut next = Vec::with_capacity(solids.len().div_ceil(2));
+        let mut pairs = solids.into_iter();
+        while let Some(a) = pairs.next() {
+            match pairs.next() {
+                Some(b) => {
+                    next.push(a.union(&b));
+                    step(1);
+                }
+                None => next.push(a),
+            }
+        }
+        solids = next;
+    }
+    solids.pop().unwrap_or_else(Manifold::empty)
+}
+
+/// Manifold's output mesh scaled so its longest side is `size_mm`, its lowest corner moved to
+/// the origin.
+fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
+    let props = mesh.num_props() as usize;
+    let vertices = mesh.vertices();
+    let points: Vec<DVec3> = vertices
+        .chunks_exact(props)
+        .map(|v| DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
+        .collect();
+    let lo = points.iter().fold(DVec3::INFINITY, |a, &p| a.min(p));
+    let hi = points.iter().fold(DVec3::NEG_INFINITY, |a, &p| a.max(p));
+    let longest = (hi - lo).max_element();
+    if points.is_empty() || longest.is_nan() || longest <= 0.0 {
+        return Err(PrintError::Empty);
+    }
+    let k = size_mm / longest;
+    let positions = points
+        .iter()
+        .map(|&p| {
+            let q = (p - lo) * k;
+            [q.x as f32, q.y as f32, q.z as f32]
+        })
+        .collect();
+    Ok(PrintMesh { positions, indices: mesh.indices() })
+}

@@ -1,0 +1,155 @@
+//! The print of a session (issue 39, `docs/print.md`): `GET /v1/sessions/{session}/export`
+//! answers the union of its strokes' solids as one STL or 3MF file, made by `penmesh-print`
+//! from the stored drawn samples, kept indices and brushes. A bounded job like a mesh build:
+//! at most [`MAX_EXPORTS`] at once on a replica (the next is answered 503 `busy`), at most
+//! [`MAX_EXPORT_STROKES`] strokes, on the blocking pool.
+
+use std::collections::HashSet;
+
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use penmesh::protocol::StrokeStatus;
+use penmesh_print::{PrintOptions, PrintStroke};
+use uuid::Uuid;
+
+use crate::http::{AppError, authorize_session};
+use crate::state::AppState;
+
+/// Prints made at once on one replica: each keeps a core busy for up to seconds.
+pub const MAX_EXPORTS: usize = 1;
+/// Most strokes in one print.
+pub const MAX_EXPORT_STROKES: usize = 5_000;
+
+/// What to export.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+pub struct ExportQuery {
+    /// `stl` or `3mf`.
+    format: String,
+    /// Stroke ids, comma-separated: only these (each done and in the session); all the
+    /// session's done strokes when absent.
+    strokes: Option<String>,
+    /// The model's longest side in millimetres (default 100).
+    size_mm: Option<f64>,
+    /// Every part at least this thick, in millimetres (default 0.8).
+    min_thickness_mm: Option<f64>,
+}
+
+/// The print of a session's done strokes (or of `strokes`): one closed manifold, in
+/// millimetres, as binary STL or 3MF.
+#[utoipa::path(get, path = "/v1/sessions/{session}/export", tag = "export",
+    params(("session" = Uuid, Path), ExportQuery), security(("bearer" = [])),
+    responses((status = 200, description = "the STL (model/stl) or 3MF (model/3mf) file"),
+        (status = 400, body = crate::http::ErrorBody), (status = 401, body = crate::http::ErrorBody),
+        (status = 404, description = "a chosen stroke is not in the session", body = crate::http::ErrorBody),
+        (status = 409, description = "nothing done to print", body = crate::http::ErrorBody),
+        (status = 413, description = "too many strokes", body = crate::http::ErrorBody),
+        (status = 503, description = "busy: another print is being made", body = crate::http::ErrorBody)))]
+pub async fn export_print(
+    State(state): State<AppState>,
+    Path(session): Path<String>,
+    Query(query): Query<ExportQuery>,
+    headers: HeaderMap,
+) -> Result<Response, AppError> {
+    let session = authorize_session(&state, &headers, None, &session).await?;
+    let (content_type, extension) = match query.format.as_str() {
+        "stl" => ("model/stl", "stl"),
+        "3mf" => ("model/3mf", "3mf"),
+        other => {
+            return Err(AppError::BadRequest(format!(
+                "format={other:?}: a print is exported as `stl` or `3mf`"
+            )));
+        }
+    };
+    let options = PrintOptions {
+        size_mm: query.size_mm.unwrap_or(penmesh_print::DEFAULT_SIZE_MM),
+        min_thickness_mm: query.min_thickness_mm.unwrap_or(penmesh_print::DEFAULT_MIN_THICKNESS_MM),
+    };
+    options.validate().map_err(|e| AppError::BadRequest(e.to_string()))?;
+    let chosen = query.strokes.as_deref().map(parse_ids).transpose()?;
+    let rows = state.store.list_strokes(session, false).await?;
+    let rows: Vec<_> = match &chosen {
+        None => rows.into_iter().filter(|r| r.status == StrokeStatus::Done).collect(),
+        Some(ids) => {
+            for id in ids {
+                match rows.iter().find(|r| r.id == *id) {
+                    None => {
+                        return Err(AppError::NotFound(format!(
+                            "stroke {id} is not a stroke of this session (or was taken back)"
+                        )));
+                    }
+                    Some(r) if r.status != StrokeStatus::Done => {
+                        return Err(AppError::Conflict(format!(
+                            "stroke {id} is {}: only done strokes are printed",
+                            r.status.as_str()
+                        )));
+                    }
+                    Some(_) => {}
+                }
+            }
+            rows.into_iter().filter(|r| ids.contains(&r.id)).collect()
+        }
+    };
+    if rows.is_empty() {
+        return Err(AppError::Conflict("the session has no done stroke to print".into()));
+    }
+    if rows.len() > MAX_EXPORT_STROKES {
+        return Err(AppError::TooLarge(format!(
+            "{} strokes: a print takes at most {MAX_EXPORT_STROKES}; choose some with `strokes`",
+            rows.len()
+        )));
+    }
+    let Some(_permit) = state.export_permit() else {
+        return Err(AppError::Busy(format!(
+            "{MAX_EXPORTS} print(s) are being made, the limit; try again shortly"
+        )));
+    };
+    let mut strokes = Vec::with_capacity(rows.len());
+    for row in &rows {
+        let Some(simplified) = state.store.simplified(row.id).await? else {
+            return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
+        };
+        let raw = state.store.raw_samples(row.id).await?;
+        if let Err(err) = penmesh::validate_samples(&raw, None, 0) {
+            return Err(AppError::Conflict(format!("stroke {} cannot be printed: {err}", row.id)));
+        }
+        strokes.push(PrintStroke {
+            raw,
+            kept: simplified.indices.iter().map(|&i| i as usize).collect(),
+            brush: row.brush,
+            // Its node's matrix: the print places each solid where the scene shows it.
+            placement: *row.placement.matrix(),
+        });
+    }
+    let file = tokio::task::spawn_blocking(move || {
+        let mesh = penmesh_print::print_mesh(&strokes, &options, &mut |_, _| {})?;
+        Ok::<_, penmesh_print::PrintError>(match extension {
+            "stl" => Ok(penmesh_print::write_stl(&mesh)),
+            _ => penmesh_print::write_3mf(&mesh),
+        })
+    })
+    .await
+    .map_err(anyhow::Error::from)?
+    .map_err(|e| AppError::Conflict(format!("no print: {e}")))?
+    .map_err(anyhow::Error::from)?;
+    let disposition = format!("attachment; filename=\"penmesh-{session}.{extension}\"");
+    Ok((
+        [
+            (header::CONTENT_TYPE, content_type.to_string()),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        file,
+    )
+        .into_response())
+}
+
+/// `strokes=id,id,…` as ids, refusing one that is not a UUID by name.
+fn parse_ids(text: &str) -> Result<HashSet<Uuid>, AppError> {
+    text.split(',')
+        .map(|id| {
+            Uuid::parse_str(id.trim()).map_err(|_| {
+                AppError::BadRequest(format!("strokes: {id:?} is not a stroke id (a UUID)"))
+            })
+        })
+        .collect()
+}
