@@ -20,6 +20,9 @@ export PROPTEST_RNG_SEED=${PROPTEST_RNG_SEED:-20261126}
 # The page's dependencies from its lock file (proxy/build.rs would run this too).
 (cd client/web && npm ci --no-audit --no-fund)
 
+# libclang and a C++ compiler: the client's Poisson mesher is PoissonRecon, C++ built by cargo.
+./scripts/native-deps.sh
+
 env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets
 
 echo "== browser test"
