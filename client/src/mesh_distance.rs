@@ -74,9 +74,11 @@ fn largest(points: &[Point3<f64>], surface: &TriMesh) -> f64 {
     points.iter().map(|p| surface.distance_to_local_point(p, false)).fold(0.0, f64::max)
 }
 
-/// Points on every triangle of `mesh`, a barycentric grid at most `step` apart.
+/// Points on every triangle of `mesh`, a barycentric grid at most `step` apart: each vertex
+/// once, then each triangle's grid points but its corners (a triangle smaller than `step` adds
+/// none, so a fine mesh costs its vertices, not six times them).
 fn surface_samples(mesh: &StrokeMesh, step: f64) -> Vec<Point3<f64>> {
-    let mut samples = Vec::new();
+    let mut samples: Vec<Point3<f64>> = mesh.positions.iter().map(|p| point(*p)).collect();
     for [a, b, c] in mesh.triangles() {
         let (a, b, c) = (
             point(mesh.positions[a as usize]),
@@ -88,8 +90,11 @@ fn surface_samples(mesh: &StrokeMesh, step: f64) -> Vec<Point3<f64>> {
         let n = (longest / step).ceil().clamp(1.0, 1e4) as usize;
         for i in 0..=n {
             for j in 0..=n - i {
-                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
-                samples.push(a + (b - a) * u + (c - a) * v);
+                let corner = (i == 0 && j == 0) || i == n || j == n;
+                if !corner {
+                    let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                    samples.push(a + (b - a) * u + (c - a) * v);
+                }
             }
         }
     }

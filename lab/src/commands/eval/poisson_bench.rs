@@ -212,3 +212,52 @@ fn bench_markdown(rows: &[BenchRow]) -> String {
     table.write(&mut md);
     md
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_implementations_mesh_the_same_small_cloud() {
+        // A 30-px leaf at depth 4: one row per implementation and depth, each a closed surface
+        // of some vertices, and the table names both; a depth past the maximum is refused.
+        let params = penmesh::GeneratorParams {
+            shape: penmesh::Shape::Leaf,
+            size: 30.0,
+            ..penmesh::GeneratorParams::default()
+        };
+        let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
+        let cloud = cloud_of(&stroke, PoissonCloud::Paper).unwrap();
+        let options = PoissonOptions { depth: 4, ..PoissonOptions::default() };
+        let new = poisson::reconstruct(&cloud, &options).unwrap();
+        let (old_vertices, old_triangles) = old_crate(&cloud, 4);
+        assert!(new.stats().vertices > 20 && old_vertices > 20, "{:?} {old_vertices}", new.stats());
+        assert!(old_triangles > 20);
+        let row = |implementation, vertices| BenchRow {
+            cloud: "leaf".into(),
+            points: cloud.len(),
+            implementation,
+            depth: 4,
+            vertices,
+            triangles: 0,
+            seconds: 0.0,
+            cpu_seconds: 0.0,
+        };
+        let md = bench_markdown(&[
+            row("PoissonRecon", new.stats().vertices),
+            row("poisson_reconstruction", old_vertices),
+        ]);
+        assert!(md.contains("| leaf |") && md.contains("poisson_reconstruction"), "{md}");
+        let args = PoissonBenchArgs {
+            inputs: Vec::new(),
+            curves: vec!["leaf".into()],
+            px_per_unit: None,
+            depths: vec![poisson::MAX_DEPTH + 1],
+            old_depths: Vec::new(),
+            poisson_cloud: PoissonCloud::Paper,
+            json: None,
+            markdown: None,
+        };
+        assert!(run(&args).unwrap_err().to_string().contains("Poisson depth"));
+    }
+}

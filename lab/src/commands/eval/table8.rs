@@ -436,4 +436,50 @@ mod tests {
         let direct = rows.iter().find(|r| r["algo"] == "bqs" && r["mesher"] == "direct").unwrap();
         assert!(direct["eta_bytes"].as_f64().unwrap() > 0.0, "{direct}");
     }
+
+    #[test]
+    fn rows_are_the_same_on_one_thread_and_on_three() {
+        // Three small strokes (two curves) meshed on one thread and on three at once: the same
+        // rows but for the times, so PoissonRecon's calls from several threads do not disturb
+        // one another and every stroke lands in its own curve's rows.
+        let stroke = |shape, size| {
+            let params = penmesh::GeneratorParams { shape, size, ..Default::default() };
+            penmesh::generate_stroke(&params).unwrap().into_samples()
+        };
+        let curves = vec![
+            DataSet {
+                name: "two".into(),
+                files: vec![DataFile {
+                    name: "two".into(),
+                    strokes: vec![
+                        stroke(penmesh::Shape::Leaf, 30.0),
+                        stroke(penmesh::Shape::Figure8, 40.0),
+                    ],
+                }],
+            },
+            DataSet {
+                name: "one".into(),
+                files: vec![DataFile {
+                    name: "one".into(),
+                    strokes: vec![stroke(penmesh::Shape::Semicircles, 30.0)],
+                }],
+            },
+        ];
+        let algos = algos(&["dp".into()], (0.0, AcutsParams::default())).unwrap();
+        let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
+        let run = |jobs| {
+            let rows = mesh_rows(&curves, &algos, 1.74, &poisson, jobs, &ProgressBar::hidden());
+            let mut json = serde_json::to_value(rows.unwrap()).unwrap();
+            for row in json.as_array_mut().unwrap() {
+                for key in ["seconds", "eta_seconds"] {
+                    row.as_object_mut().unwrap().remove(key);
+                }
+            }
+            json
+        };
+        let (serial, parallel) = (run(1), run(3));
+        assert_eq!(serial, parallel);
+        assert_eq!(serial.as_array().unwrap().len(), 2 * 2 * 2);
+        assert!(serial.as_array().unwrap().iter().all(|r| r["vertices"].as_u64().unwrap() > 0));
+    }
 }
