@@ -100,6 +100,9 @@ struct StrokeMeasure {
     hausdorff: Option<Hausdorff>,
 }
 
+/// One stroke's measures, by mesher then method, or why it could not be measured.
+type StrokeResult = anyhow::Result<Vec<Vec<StrokeMeasure>>>;
+
 /// Every row of table 8 for `curves`. The strokes of all curves are meshed by `jobs` threads at
 /// once (each stroke by every method and mesher on one thread, so that only two of its meshes
 /// are held at a time); the rows are the same whatever `jobs` is, but for the times.
@@ -130,7 +133,7 @@ pub(super) fn mesh_rows(
 
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
-    let measured: Mutex<Vec<Option<anyhow::Result<Vec<Vec<StrokeMeasure>>>>>> =
+    let measured: Mutex<Vec<Option<StrokeResult>>> =
         Mutex::new(units.iter().map(|_| None).collect());
     std::thread::scope(|scope| {
         for _ in 0..jobs.max(1) {
