@@ -5,7 +5,7 @@
 // Usage (from the repository root, after `cargo build --release -p penmesh-client` and
 // `npm ci --prefix bench`):
 //   node bench/render-strokes.mjs IN.{txt,hwr,csv,json} OUT.png [--px-per-unit K] [--zoom F]
-//        [--meshers [--poisson-cell PX]]
+//        [--meshers [--poisson-depth D]]
 // --zoom F renders the middle 1/F of the picture, F times larger, to show corners close up.
 // --meshers shows the direct solid and the paper's screened Poisson mesh of the same strokes
 // (both on the default smooth outline) in the two 3D panels instead of the two outlines.
@@ -32,7 +32,7 @@ const option = (name, fallback) => {
 };
 const pxPerUnit = option('--px-per-unit', null);
 const zoom = Number(option('--zoom', '1'));
-const poissonCell = option('--poisson-cell', null);
+const poissonDepth = option('--poisson-depth', null);
 const meshers = args.includes('--meshers');
 if (meshers) args.splice(args.indexOf('--meshers'), 1);
 const [input, output] = args;
@@ -48,7 +48,7 @@ function mesh(centreline, mesher = 'direct') {
   const glb = join(work, `${centreline}-${mesher}.glb`);
   const cmd = ['mesh', input, '--out', glb, '--json', '--centreline', centreline, '--mesher', mesher];
   if (pxPerUnit) cmd.push('--px-per-unit', pxPerUnit);
-  if (poissonCell) cmd.push('--poisson-cell', poissonCell);
+  if (poissonDepth) cmd.push('--poisson-depth', poissonDepth);
   const report = JSON.parse(execFileSync(penmesh, cmd, { encoding: 'utf8', maxBuffer: 1 << 28 }));
   return { report, glb: readFileSync(glb).toString('base64') };
 }

@@ -20,8 +20,8 @@ export PROPTEST_RNG_SEED=${PROPTEST_RNG_SEED:-20261126}
 # The page's dependencies from its lock file (proxy/build.rs would run this too).
 (cd client/web && npm ci --no-audit --no-fund)
 
-# cmake and ninja for Manifold's build, PrusaSlicer for the print's tests (print/).
-./scripts/install-print-tools.sh
+# The native tools: libclang and C++ for PoissonRecon, cmake and ninja for Manifold, PrusaSlicer.
+./scripts/native-deps.sh
 
 env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets
 

@@ -21,6 +21,8 @@ pub enum Command {
     Demo(commands::demo::DemoArgs),
     /// Evaluate ACUTS against the baselines and optimal min-#: tables, sweeps, plots.
     Eval(commands::eval::EvalArgs),
+    /// Screened Poisson: PoissonRecon (the mesher) against the old pure-Rust crate, same clouds.
+    PoissonBench(commands::eval::poisson_bench::PoissonBenchArgs),
     /// Load a proxy on this machine with many simulated pens; throughput, latency, lost samples.
     Load(commands::load::LoadArgs),
     /// The ceiling server for `load`: decode and ack only, on the proxy's stack.
@@ -42,6 +44,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(args) => commands::demo::run(&args),
         Command::Eval(args) => commands::eval::run(&args),
+        Command::PoissonBench(args) => commands::eval::poisson_bench::run(&args),
         Command::Load(args) => commands::load::run(&args),
         Command::Ceiling(args) => commands::ceiling::run(&args),
         Command::ServeProxy(args) => commands::demo::serve_proxy(&args),

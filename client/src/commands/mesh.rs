@@ -35,9 +35,10 @@ pub struct MeshArgs {
     /// Poisson reconstruction of the dense layered point cloud (seconds, not milliseconds).
     #[arg(long, value_enum, default_value_t = Mesher::Direct)]
     pub mesher: Mesher,
-    /// With --mesher poisson: the width of the reconstruction's finest cell, px.
-    #[arg(long, default_value_t = poisson::DEFAULT_CELL)]
-    pub poisson_cell: f64,
+    /// With --mesher poisson: the octree depth of the reconstruction (its finest cell is the
+    /// stroke's cloud's bounding cube, padded by 1.1, over 2^depth); 1 to 12.
+    #[arg(long, default_value_t = poisson::DEFAULT_DEPTH)]
+    pub poisson_depth: u32,
     /// With --mesher poisson / --meshes: the cloud reconstructed: the paper's open tube (the
     /// default; the mesh balloons above and below), or closed top and bottom.
     #[arg(long, value_enum, default_value_t = poisson::PoissonCloud::default())]
@@ -90,14 +91,15 @@ impl Mesher {
     }
 }
 
-/// The mesh of one outline by `mesher` (the direct solid with its default thickness).
+/// The mesh of one outline by `mesher` (the direct solid with its default thickness); an error
+/// only from the Poisson reconstruction.
 pub fn build_mesh(
     mesher: Mesher,
     outline: &penmesh::Outline,
     poisson: &PoissonOptions,
-) -> StrokeMesh {
+) -> anyhow::Result<StrokeMesh> {
     match mesher {
-        Mesher::Direct => penmesh::solid_mesh(outline, &SolidOptions::default()),
+        Mesher::Direct => Ok(penmesh::solid_mesh(outline, &SolidOptions::default())),
         Mesher::Poisson => poisson::poisson_mesh(outline, poisson),
     }
 }
@@ -105,7 +107,7 @@ pub fn build_mesh(
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let params = args.acuts.params()?;
     let poisson_options = PoissonOptions {
-        cell: args.poisson_cell,
+        depth: args.poisson_depth,
         cloud: args.poisson_cloud,
         ..PoissonOptions::default()
     };
@@ -146,8 +148,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         .zip(&kept)
         .map(|(stroke, kept)| penmesh::fitted_outline(stroke, kept, &brush, &outline_options))
         .collect::<Result<Vec<_>, _>>()?;
-    let meshes: Vec<StrokeMesh> =
-        outlines.iter().map(|o| build_mesh(args.mesher, o, &poisson_options)).collect();
+    let meshes: Vec<StrokeMesh> = outlines
+        .iter()
+        .map(|o| build_mesh(args.mesher, o, &poisson_options))
+        .collect::<anyhow::Result<_>>()?;
     let metas: Vec<GlbMeta> = (0..meshes.len())
         .map(|_| GlbMeta { stroke: uuid::Uuid::new_v4(), author: "penmesh mesh".into(), brush })
         .collect();
@@ -213,7 +217,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
                 "thickness": solid_options.thickness,
                 "glb": args.glb.to_possible_value().map(|v| v.get_name().to_owned()),
                 "mesher": args.mesher,
-                "poisson_cell": args.poisson_cell,
+                "poisson_depth": args.poisson_depth,
                 "poisson_cloud": args.poisson_cloud,
             },
         });

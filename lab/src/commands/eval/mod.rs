@@ -26,6 +26,7 @@ mod algos;
 mod data;
 mod glb_sizes;
 mod meshes;
+pub mod poisson_bench;
 mod report;
 mod stage1;
 mod table;
@@ -116,13 +117,16 @@ pub struct EvalArgs {
     /// default the paper's four); `--curves ''` for none.
     #[arg(long, value_delimiter = ',')]
     pub curves: Option<Vec<String>>,
-    /// With --meshes: the width of the Poisson reconstruction's finest cell, px.
-    #[arg(long, default_value_t = penmesh_client::poisson::DEFAULT_CELL)]
-    pub poisson_cell: f64,
+    /// With --meshes: the octree depth of the Poisson reconstruction (1 to 12).
+    #[arg(long, default_value_t = penmesh_client::poisson::DEFAULT_DEPTH)]
+    pub poisson_depth: u32,
     /// With --mesher poisson / --meshes: the cloud reconstructed: the paper's open tube (the
     /// default; the mesh balloons above and below), or closed top and bottom.
     #[arg(long, value_enum, default_value_t = penmesh_client::poisson::PoissonCloud::default())]
     pub poisson_cloud: penmesh_client::poisson::PoissonCloud,
+    /// With --meshes: strokes meshed at once, one a thread (default: the machine's cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
 }
 
 /// Table 6's row for one algorithm on one data set, plus the equal-error ratios.
@@ -275,7 +279,7 @@ fn split_names(names: &str) -> Vec<String> {
 /// `--meshes`: table 8, printed as Markdown; `--markdown` and `--json` write it.
 fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
     let poisson = penmesh_client::poisson::PoissonOptions {
-        cell: args.poisson_cell,
+        depth: args.poisson_depth,
         cloud: args.poisson_cloud,
         ..Default::default()
     };
@@ -294,11 +298,20 @@ fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
     let bound = args.acuts.tolerance + args.acuts.resample;
     let work: usize = curves.iter().map(|c| c.n_strokes() * (algos.len() + 1) * 2).sum();
     let progress = ProgressBar::new(work as u64).with_style(
-        ProgressStyle::with_template("{msg:>18} [{bar:40}] {pos}/{len} meshes ({eta})")
-            .context("progress bar style")?
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{msg:>18} [{bar:40}] {pos}/{len} meshes ({elapsed}, {eta} left)",
+        )
+        .context("progress bar style")?
+        .progress_chars("=> "),
     );
-    let rows = mesh_rows(&curves, &algos, bound, &poisson, &progress)?;
+    let jobs = match args.jobs {
+        Some(jobs) => {
+            anyhow::ensure!(jobs > 0, "--jobs must be at least 1");
+            jobs
+        }
+        None => std::thread::available_parallelism().map_or(1, usize::from),
+    };
+    let rows = mesh_rows(&curves, &algos, bound, &poisson, jobs, &progress)?;
     progress.finish_and_clear();
     let markdown = mesh_markdown(&rows, &poisson);
     print!("{markdown}");

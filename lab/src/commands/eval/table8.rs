@@ -14,8 +14,10 @@
 use super::table::{Table, fixed};
 use super::*;
 use penmesh_client::commands::mesh::{Mesher, build_mesh};
-use penmesh_client::mesh_distance::{Hausdorff, hausdorff};
+use penmesh_client::mesh_distance::{Hausdorff, SAMPLE_STEP, hausdorff_sampled};
 use penmesh_client::poisson::PoissonOptions;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 /// The simplifiers of `--meshes` unless `--algos` says otherwise: the paper's five (BQS, IDP as
 /// Douglas–Peucker, ISWTC as the opening window, PSQUISH-E as SQUISH-E, ODPTS as DPTS), ACUTS
@@ -32,6 +34,10 @@ const CURVE_SPEED_PX_PER_S: f64 = 300.0;
 /// The row every `eta` is measured against.
 const ETA_ALGO: &str = "bqs";
 const ETA_MESHER: Mesher = Mesher::Poisson;
+/// The Hausdorff columns' sampling step of the Poisson meshes, px: their balloons are thousands
+/// of px² (the direct solids' step, [`SAMPLE_STEP`], would cost seconds a pair), and their
+/// distances to the reference tens of px, so a 1-px bound on the error is small beside them.
+pub(super) const POISSON_HAUSDORFF_STEP: f64 = 1.0;
 
 /// One row of table 8: a curve, a simplifier (or "original") and a mesher.
 #[derive(Debug, Clone, Serialize)]
@@ -79,17 +85,40 @@ pub(super) fn curves(
     Ok(curves)
 }
 
-/// Every row of table 8 for `curves`.
+/// The meshers of each curve's rows, in the rows' order.
+const MESHERS: [Mesher; 2] = [Mesher::Poisson, Mesher::Direct];
+
+/// One stroke's mesh by one method and mesher, measured.
+#[derive(Debug, Clone, Copy)]
+struct StrokeMeasure {
+    vertices: usize,
+    faces: usize,
+    bytes: usize,
+    plain_bytes: usize,
+    seconds: f64,
+    /// Against the same mesher's mesh of the unsimplified stroke (`None`: a mesh is empty).
+    hausdorff: Option<Hausdorff>,
+}
+
+/// One stroke's measures, by mesher then method, or why it could not be measured.
+type StrokeResult = anyhow::Result<Vec<Vec<StrokeMeasure>>>;
+
+/// Every row of table 8 for `curves`. The strokes of all curves are meshed by `jobs` threads at
+/// once (each stroke by every method and mesher on one thread, so that only two of its meshes
+/// are held at a time); the rows are the same whatever `jobs` is, but for the times.
 pub(super) fn mesh_rows(
     curves: &[DataSet],
     algos: &[Algo],
     bound: f64,
     poisson: &PoissonOptions,
+    jobs: usize,
     progress: &ProgressBar,
 ) -> anyhow::Result<Vec<MeshEvalRow>> {
-    let mut rows = Vec::new();
-    for curve in curves {
-        progress.set_message(curve.name.clone());
+    // For each curve, each method's retained samples of each stroke ("original" first: the
+    // reference of the Hausdorff columns).
+    let mut kept_by_curve: Vec<Vec<(String, Vec<Vec<usize>>)>> = Vec::with_capacity(curves.len());
+    let mut units: Vec<(usize, usize)> = Vec::new();
+    for (c, curve) in curves.iter().enumerate() {
         let strokes: Vec<&[Sample]> = curve.strokes().collect();
         let mut kept_by_algo: Vec<(String, Vec<Vec<usize>>)> =
             vec![("original".into(), strokes.iter().map(|s| (0..s.len()).collect()).collect())];
@@ -97,11 +126,41 @@ pub(super) fn mesh_rows(
             kept_by_algo
                 .push((algo.name.clone(), strokes.iter().map(|s| algo.run(s, bound)).collect()));
         }
+        kept_by_curve.push(kept_by_algo);
+        units.extend((0..strokes.len()).map(|s| (c, s)));
+    }
+    let strokes: Vec<Vec<&[Sample]>> = curves.iter().map(|c| c.strokes().collect()).collect();
+
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let measured: Mutex<Vec<Option<StrokeResult>>> =
+        Mutex::new(units.iter().map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.max(1) {
+            scope.spawn(|| {
+                loop {
+                    let unit = next.fetch_add(1, Ordering::Relaxed);
+                    if unit >= units.len() || failed.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let (c, s) = units[unit];
+                    progress.set_message(curves[c].name.clone());
+                    let kept = kept_by_curve[c].iter().map(|(_, kept)| kept[s].as_slice());
+                    let result = measure_stroke(strokes[c][s], kept, bound, poisson, progress);
+                    failed.fetch_or(result.is_err(), Ordering::Relaxed);
+                    measured.lock().unwrap_or_else(PoisonError::into_inner)[unit] = Some(result);
+                }
+            });
+        }
+    });
+    let mut measured = measured.into_inner().unwrap_or_else(PoisonError::into_inner).into_iter();
+
+    let mut rows = Vec::new();
+    for (curve, kept_by_algo) in curves.iter().zip(&kept_by_curve) {
         let first_row = rows.len();
-        for mesher in [Mesher::Poisson, Mesher::Direct] {
-            let mut references: Vec<StrokeMesh> = Vec::new();
-            for (algo, kept) in &kept_by_algo {
-                let mut row = MeshEvalRow {
+        for mesher in MESHERS {
+            for (algo, kept) in kept_by_algo {
+                rows.push(MeshEvalRow {
                     curve: curve.name.clone(),
                     algo: algo.clone(),
                     mesher,
@@ -116,27 +175,25 @@ pub(super) fn mesh_rows(
                     eta_bytes: None,
                     eta_seconds: None,
                     hausdorff: Some(Hausdorff { to_reference: 0.0, from_reference: 0.0 }),
-                };
-                for (stroke_idx, (samples, kept)) in strokes.iter().zip(kept).enumerate() {
-                    let (mesh, bytes, seconds) =
-                        stroke_mesh(samples, kept, bound, mesher, poisson)?;
-                    row.vertices += mesh.stats().vertices;
-                    row.faces += mesh.stats().triangles;
-                    row.bytes += bytes;
-                    row.plain_bytes += plain_glb_bytes(&mesh);
-                    row.seconds += seconds;
-                    if references.len() < strokes.len() {
-                        references.push(mesh);
-                    } else {
-                        let h = hausdorff(&mesh, &references[stroke_idx]);
-                        row.hausdorff = row.hausdorff.zip(h).map(|(a, b)| Hausdorff {
-                            to_reference: a.to_reference.max(b.to_reference),
-                            from_reference: a.from_reference.max(b.from_reference),
-                        });
-                    }
-                    progress.inc(1);
-                }
-                rows.push(row);
+                });
+            }
+        }
+        for _ in 0..curve.n_strokes() {
+            // A unit that never ran was stopped by another's error, which comes first.
+            let stroke = match measured.next().flatten() {
+                Some(result) => result?,
+                None => continue,
+            };
+            for (row, m) in rows[first_row..].iter_mut().zip(stroke.iter().flatten()) {
+                row.vertices += m.vertices;
+                row.faces += m.faces;
+                row.bytes += m.bytes;
+                row.plain_bytes += m.plain_bytes;
+                row.seconds += m.seconds;
+                row.hausdorff = row.hausdorff.zip(m.hausdorff).map(|(a, b)| Hausdorff {
+                    to_reference: a.to_reference.max(b.to_reference),
+                    from_reference: a.from_reference.max(b.from_reference),
+                });
             }
         }
         let curve_rows = &mut rows[first_row..];
@@ -154,7 +211,55 @@ pub(super) fn mesh_rows(
             }
         }
     }
+    if let Some(Some(Err(error))) = measured.find(|m| matches!(m, Some(Err(_)))) {
+        return Err(error);
+    }
     Ok(rows)
+}
+
+/// The Hausdorff columns' sampling step for `mesher`'s meshes, px.
+fn hausdorff_step(mesher: Mesher) -> f64 {
+    match mesher {
+        Mesher::Poisson => POISSON_HAUSDORFF_STEP,
+        Mesher::Direct => SAMPLE_STEP,
+    }
+}
+
+/// One stroke by each mesher ([`MESHERS`]) and each method's retained samples (`kept`, the
+/// unsimplified stroke first): one measure per mesher and method, in that order.
+fn measure_stroke<'a>(
+    samples: &[Sample],
+    kept: impl Iterator<Item = &'a [usize]> + Clone,
+    bound: f64,
+    poisson: &PoissonOptions,
+    progress: &ProgressBar,
+) -> anyhow::Result<Vec<Vec<StrokeMeasure>>> {
+    let mut by_mesher = Vec::with_capacity(MESHERS.len());
+    for mesher in MESHERS {
+        let mut reference: Option<StrokeMesh> = None;
+        let mut measures = Vec::new();
+        for kept in kept.clone() {
+            let (mesh, bytes, seconds) = stroke_mesh(samples, kept, bound, mesher, poisson)?;
+            let hausdorff = match &reference {
+                Some(reference) => hausdorff_sampled(&mesh, reference, hausdorff_step(mesher)),
+                None => Some(Hausdorff { to_reference: 0.0, from_reference: 0.0 }),
+            };
+            measures.push(StrokeMeasure {
+                vertices: mesh.stats().vertices,
+                faces: mesh.stats().triangles,
+                bytes,
+                plain_bytes: plain_glb_bytes(&mesh),
+                seconds,
+                hausdorff,
+            });
+            if reference.is_none() {
+                reference = Some(mesh);
+            }
+            progress.inc(1);
+        }
+        by_mesher.push(measures);
+    }
+    Ok(by_mesher)
 }
 
 /// One stroke's mesh from its retained samples by `mesher`: the mesh, its GLB's bytes and the
@@ -172,7 +277,7 @@ fn stroke_mesh(
     let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
     let started = Instant::now();
     let outline = penmesh::fitted_outline(samples, kept, &brush, &options)?;
-    let mesh = build_mesh(mesher, &outline, poisson);
+    let mesh = build_mesh(mesher, &outline, poisson)?;
     let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
     Ok((mesh, glb.len(), started.elapsed().as_secs_f64()))
 }
@@ -192,13 +297,12 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "Meshes (table 8): Poisson = screened Poisson of the dense layered point cloud ({:?}, \
-         finest cell {} px), direct = the LRPDP solid; same outline for both; eta against the BQS \
+        "Meshes (table 8): Poisson = screened Poisson (PoissonRecon) of the dense layered point \
+         cloud ({:?}, depth {}), direct = the LRPDP solid; same outline for both; eta against the BQS \
          Poisson mesh of the curve; Hausdorff against the same mesher's mesh of the \
-         unsimplified strokes (sampled every {} px).\n",
-        poisson.cloud,
-        poisson.cell,
-        penmesh_client::mesh_distance::SAMPLE_STEP
+         unsimplified strokes (sampled every {} px on the Poisson meshes, {} px on the direct \
+         solids: each value is at most that much below the true one).\n",
+        poisson.cloud, poisson.depth, POISSON_HAUSDORFF_STEP, SAMPLE_STEP
     );
     let percent = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{x:.1}"));
     let mut curves: Vec<&str> = Vec::new();
@@ -288,7 +392,7 @@ mod tests {
 
     #[test]
     fn rows_have_the_fields_and_bqs_poisson_is_the_eta_reference() {
-        // One small generated stroke (a coarse cell keeps Poisson quick): one row per method
+        // One small generated stroke (a shallow octree keeps Poisson quick): one row per method
         // (and "original") and mesher, with every field of the JSON, and eta 0 for BQS's
         // Poisson mesh, the reference of every eta.
         let params = penmesh::GeneratorParams {
@@ -302,8 +406,8 @@ mod tests {
             files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
         };
         let algos = algos(&["bqs".into(), "acuts".into()], (0.0, AcutsParams::default())).unwrap();
-        let poisson = PoissonOptions { cell: 3.0, ..PoissonOptions::default() };
-        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, &ProgressBar::hidden()).unwrap();
+        let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
+        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, 2, &ProgressBar::hidden()).unwrap();
         let json = serde_json::to_value(&rows).unwrap();
         let rows = json.as_array().unwrap();
         assert_eq!(rows.len(), 3 * 2);
@@ -334,5 +438,51 @@ mod tests {
         }
         let direct = rows.iter().find(|r| r["algo"] == "bqs" && r["mesher"] == "direct").unwrap();
         assert!(direct["eta_bytes"].as_f64().unwrap() > 0.0, "{direct}");
+    }
+
+    #[test]
+    fn rows_are_the_same_on_one_thread_and_on_three() {
+        // Three small strokes (two curves) meshed on one thread and on three at once: the same
+        // rows but for the times, so PoissonRecon's calls from several threads do not disturb
+        // one another and every stroke lands in its own curve's rows.
+        let stroke = |shape, size| {
+            let params = penmesh::GeneratorParams { shape, size, ..Default::default() };
+            penmesh::generate_stroke(&params).unwrap().into_samples()
+        };
+        let curves = vec![
+            DataSet {
+                name: "two".into(),
+                files: vec![DataFile {
+                    name: "two".into(),
+                    strokes: vec![
+                        stroke(penmesh::Shape::Leaf, 30.0),
+                        stroke(penmesh::Shape::Figure8, 40.0),
+                    ],
+                }],
+            },
+            DataSet {
+                name: "one".into(),
+                files: vec![DataFile {
+                    name: "one".into(),
+                    strokes: vec![stroke(penmesh::Shape::Semicircles, 30.0)],
+                }],
+            },
+        ];
+        let algos = algos(&["dp".into()], (0.0, AcutsParams::default())).unwrap();
+        let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
+        let run = |jobs| {
+            let rows = mesh_rows(&curves, &algos, 1.74, &poisson, jobs, &ProgressBar::hidden());
+            let mut json = serde_json::to_value(rows.unwrap()).unwrap();
+            for row in json.as_array_mut().unwrap() {
+                for key in ["seconds", "eta_seconds"] {
+                    row.as_object_mut().unwrap().remove(key);
+                }
+            }
+            json
+        };
+        let (serial, parallel) = (run(1), run(3));
+        assert_eq!(serial, parallel);
+        assert_eq!(serial.as_array().unwrap().len(), 2 * 2 * 2);
+        assert!(serial.as_array().unwrap().iter().all(|r| r["vertices"].as_u64().unwrap() > 0));
     }
 }
