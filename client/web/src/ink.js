@@ -50,6 +50,10 @@ export class Ink {
   }
 
   redraw() {
+    // An empty overlay stays as it is: clearing it again on every camera move made the
+    // compositor take the canvas anew each frame (the busy board's orbit, docs/performance.md).
+    if (this.paths.size === 0 && this.blank) return;
+    this.blank = this.paths.size === 0;
     const ctx = this.ctx;
     ctx.setTransform(devicePixelRatio, 0, 0, devicePixelRatio, 0, 0);
     ctx.clearRect(0, 0, this.canvas.width, this.canvas.height);
