@@ -4,7 +4,7 @@
 //! session's events: the same frames, with its version byte, and no placements.
 
 use penmesh::protocol::{
-    ErrorCode, PeerPlacement, ServerMessage, SetPlacement, encode_server_as, encode_server_json_as,
+    PeerPlacement, ServerMessage, SetPlacement, encode_server_as, encode_server_json_as,
 };
 
 use super::Frame;
@@ -18,24 +18,7 @@ impl Connection {
     /// Places the stroke of `set` anew.
     pub(super) async fn on_set_placement(&mut self, set: SetPlacement) -> Result<(), ConnError> {
         let stroke = set.stroke;
-        let row = match self.state.store.stroke(stroke).await {
-            Ok(Some(row)) if row.session_id == self.session => row,
-            Ok(_) => {
-                return Err(ConnError::refused(
-                    ErrorCode::UnknownStroke,
-                    format!("unknown stroke {stroke}: no such stroke in this session"),
-                    Some(stroke),
-                ));
-            }
-            Err(err) => {
-                return Err(ConnError::internal(
-                    "reading a stroke to place",
-                    err,
-                    "could not read the stroke; try again",
-                    Some(stroke),
-                ));
-            }
-        };
+        let row = self.stroke_of_session(stroke, "reading a stroke to place").await?;
         placement::check(&row, self.participant)
             .map_err(|refused| ConnError::refused(refused.code, refused.message, Some(stroke)))?;
         let (op, event) = placement::request(
