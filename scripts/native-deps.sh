@@ -9,9 +9,11 @@
 # Run by .ci/run and scripts/test.sh before the first cargo build. The proxy's image builds
 # Manifold too (deploy/Dockerfile installs cmake and ninja itself) but not PoissonRecon.
 set -euo pipefail
+# libclang itself, not libclang-cpp (which other packages bring and bindgen cannot load).
 have_libclang() {
   ldconfig -p 2>/dev/null | grep -q 'libclang[-.0-9]*\.so' ||
-    compgen -G '/usr/lib/llvm-*/lib/libclang*.so*' >/dev/null
+    compgen -G '/usr/lib/llvm-*/lib/libclang.so*' >/dev/null ||
+    compgen -G '/usr/lib/llvm-*/lib/libclang-[0-9]*.so*' >/dev/null
 }
 missing=()
 have_libclang || missing+=(libclang-dev)
