@@ -1,0 +1,76 @@
+// The work plane: the plane the pen draws on, shown as a grid. The board (the identity, z = 0),
+// the two planes standing on it (front, side), the plane of a picked stroke, or the plane
+// through three picked points; moved along its normal by `offset`. Its placement is what a
+// stroke begun on it carries (`stroke_begin.placement`); the view draws the pen's pointer ray
+// onto it (scene.js `toStroke`). The grid follows the camera's target along the plane, and is
+// hidden on the plain board seen from the front, where the page itself is the board.
+import * as THREE from "three";
+import { FRONT, IDENTITY, SIDE, isIdentity, matrixOf } from "./placement.js";
+
+/// A grid cell, in plane units (one CSS pixel at one to one); the gizmo snaps to GRID_SNAP.
+export const GRID_CELL = 50;
+export const GRID_SNAP = 10;
+const GRID_CELLS = 60;
+
+export const PLANES = { board: IDENTITY, front: FRONT, side: SIDE };
+
+export class WorkPlane {
+  /// `view`: the 3D view (scene.js), whose `workPlacement` this sets.
+  constructor(view) {
+    this.view = view;
+    this.kind = "board"; // board | front | side | stroke | points
+    this.base = IDENTITY;
+    this.offset = 0; // along the normal, plane units
+    this.onChange = () => {};
+    this.grid = new THREE.GridHelper(GRID_CELL * GRID_CELLS, GRID_CELLS, 0x8a8a80, 0xc4c3bb);
+    this.grid.material.transparent = true;
+    this.grid.material.opacity = 0.7;
+    this.grid.material.depthWrite = false;
+    this.grid.matrixAutoUpdate = false;
+    this.grid.frustumCulled = false;
+    view.world.add(this.grid);
+    this.apply();
+  }
+
+  /// The plane's placement (16 numbers; null: the board itself).
+  get placement() {
+    if (this.offset === 0) return isIdentity(this.base) ? null : [...this.base];
+    const m = [...this.base];
+    const n = Math.hypot(m[8], m[9], m[10]);
+    for (let k = 0; k < 3; k++) m[12 + k] += (m[8 + k] / n) * this.offset;
+    return m;
+  }
+
+  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points").
+  set(kind, base = PLANES[kind]) {
+    this.kind = kind;
+    this.base = base || IDENTITY;
+    this.offset = 0;
+    this.apply();
+  }
+
+  /// Moves the plane along its normal by `d` plane units.
+  move(d) {
+    this.offset += d;
+    this.apply();
+  }
+
+  apply() {
+    this.view.workPlacement = this.placement;
+    this.follow();
+    this.onChange(this);
+  }
+
+  /// The grid under the camera's target: its centre the cell of the plane nearest to it.
+  follow() {
+    const rig = this.view.rig;
+    const m = matrixOf(this.placement);
+    const target = new THREE.Vector3(rig.target.x, rig.target.y, 0).applyMatrix4(m.clone().invert());
+    const snap = (v) => Math.round(v / GRID_CELL) * GRID_CELL;
+    // GridHelper lies in its x-z plane: turned a quarter about x into the plane's x-y.
+    const local = new THREE.Matrix4().makeTranslation(snap(target.x), snap(target.y), 0).multiply(new THREE.Matrix4().makeRotationX(Math.PI / 2));
+    this.grid.matrix.copy(m.multiply(local));
+    this.grid.visible = this.placement !== null || !rig.front;
+    this.view.requestRender();
+  }
+}
