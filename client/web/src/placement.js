@@ -18,9 +18,10 @@ export function matrixOf(placement) {
   return new THREE.Matrix4().fromArray(placement || IDENTITY);
 }
 
-/// A placement of a THREE.Matrix4: its 16 elements, column-major.
+/// A placement of a THREE.Matrix4: its 16 elements, column-major (a -0 made by the products
+/// written 0, as JSON would).
 export function placementOf(matrix) {
-  return matrix.toArray(new Array(16));
+  return matrix.toArray(new Array(16)).map((v) => (v === 0 ? 0 : v));
 }
 
 export function isIdentity(placement) {

@@ -221,6 +221,9 @@ export class Selection {
   grab(x, y) {
     if (!this.gizmo.object) return false;
     this.gizmo.pointerHover(this.pointer(x, y, 0));
+    // The gizmo's drag plane turned to the handle hovered before the drag starts on it (three.js
+    // does this in the frame between a hover and a press).
+    this.gizmo.getHelper().updateMatrixWorld(true);
     this.gizmo.pointerDown(this.pointer(x, y, 0));
     if (!this.gizmo.dragging) return false;
     this.drag = { pivot: this.pivot.matrixWorld.clone(), before: new Map(this.list.map((id) => [id, this.view.strokes.get(id).placement])) };

@@ -10,7 +10,7 @@ import { FRONT, IDENTITY, SIDE, isIdentity, matrixOf } from "./placement.js";
 /// A grid cell, in plane units (one CSS pixel at one to one); the gizmo snaps to GRID_SNAP.
 export const GRID_CELL = 50;
 export const GRID_SNAP = 10;
-const GRID_CELLS = 60;
+const GRID_CELLS = 40;
 
 export const PLANES = { board: IDENTITY, front: FRONT, side: SIDE };
 
@@ -22,10 +22,7 @@ export class WorkPlane {
     this.base = IDENTITY;
     this.offset = 0; // along the normal, plane units
     this.onChange = () => {};
-    this.grid = new THREE.GridHelper(GRID_CELL * GRID_CELLS, GRID_CELLS, 0x8a8a80, 0xc4c3bb);
-    this.grid.material.transparent = true;
-    this.grid.material.opacity = 0.7;
-    this.grid.material.depthWrite = false;
+    this.grid = gridLines();
     this.grid.matrixAutoUpdate = false;
     this.grid.frustumCulled = false;
     view.world.add(this.grid);
@@ -67,10 +64,31 @@ export class WorkPlane {
     const m = matrixOf(this.placement);
     const target = new THREE.Vector3(rig.target.x, rig.target.y, 0).applyMatrix4(m.clone().invert());
     const snap = (v) => Math.round(v / GRID_CELL) * GRID_CELL;
-    // GridHelper lies in its x-z plane: turned a quarter about x into the plane's x-y.
-    const local = new THREE.Matrix4().makeTranslation(snap(target.x), snap(target.y), 0).multiply(new THREE.Matrix4().makeRotationX(Math.PI / 2));
-    this.grid.matrix.copy(m.multiply(local));
+    this.grid.matrix.copy(m.multiply(new THREE.Matrix4().makeTranslation(snap(target.x), snap(target.y), 0)));
     this.grid.visible = this.placement !== null || !rig.front;
     this.view.requestRender();
   }
+}
+
+/// The grid: GRID_CELLS cells a side in the plane's x-y, centred on its origin, its two middle
+/// lines darker. Each line is cut at every cell: a line that passes behind the camera was not
+/// drawn at all in software WebGL (SwiftShader), whole.
+function gridLines() {
+  const half = (GRID_CELL * GRID_CELLS) / 2;
+  const positions = [];
+  const colours = [];
+  const [dark, light] = [new THREE.Color(0x8a8a80), new THREE.Color(0xc8c7bf)];
+  for (let i = 0; i <= GRID_CELLS; i++) {
+    const k = -half + i * GRID_CELL;
+    const c = i === GRID_CELLS / 2 ? dark : light;
+    for (let j = 0; j < GRID_CELLS; j++) {
+      const [a, b] = [-half + j * GRID_CELL, -half + (j + 1) * GRID_CELL];
+      positions.push(a, k, 0, b, k, 0, k, a, 0, k, b, 0);
+      for (let v = 0; v < 4; v++) colours.push(c.r, c.g, c.b);
+    }
+  }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute("position", new THREE.Float32BufferAttribute(positions, 3));
+  g.setAttribute("color", new THREE.Float32BufferAttribute(colours, 3));
+  return new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true, transparent: true, opacity: 0.8, depthWrite: false }));
 }

@@ -1,0 +1,207 @@
+// The browser test of the page as a modelling tool (issue 37, docs/web.md "How to model"): two
+// pages of one session (Ada draws, Bob watches) and a late joiner, as a person drives them
+// (Debian's Chromium, playwright-core, a pen through CDP, the mouse on the gizmo's handle).
+// Ada draws on the board, picks the front plane, orbits 60°, draws on it (the view kept),
+// selects the board's stroke and moves it with the gizmo, duplicates it, undoes both, redoes
+// both, mirrors the copy. At each step the placements the proxy stores are the page's, bit for
+// bit, and Bob's strokes have the same world-space boxes as Ada's; the late joiner (the mesh
+// bundle with placements, PMB2) too. Screenshots from two angles go to target/web-test/model-*.png.
+// Run by scripts/test.sh as `node client/web/test/model.mjs`.
+import { join } from "node:path";
+import assert from "node:assert/strict";
+import { ARTIFACTS, browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
+
+const VIEW = { width: 1000, height: 700 };
+const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
+const FRONT = [1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1];
+// Orbit: radians per CSS pixel dragged (camera.js ORBIT_PER_PX).
+const ORBIT_PER_PX = 0.006;
+
+async function openPage(browser, url, name) {
+  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
+  const page = await context.newPage();
+  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
+  await page.goto(url);
+  page.cdp = await context.newCDPSession(page);
+  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  return page;
+}
+
+const line = (cdp, x0, x1, y, n = 30) => drawStroke(cdp, { x0, y0: y, dx: (x1 - x0) / n, dy: 0, n, wobble: 0 });
+const placements = (page) => page.evaluate(() => window.penmesh.placements);
+const boxes = (page) => page.evaluate(() => window.penmesh.boxes());
+const orIdentity = (m) => m || IDENTITY;
+
+/// The placements the proxy stores, by stroke (taken-back strokes left out).
+async function stored(base, s) {
+  return Object.fromEntries((await storedStrokes(base, s)).map((x) => [x.id, x.placement.matrix]));
+}
+
+/// The page's placements equal the proxy's, bit for bit, for every stroke the proxy lists.
+function assertSamePlacements(page, server, what) {
+  for (const [id, matrix] of Object.entries(server)) {
+    assert.ok(id in page, `${what}: stroke ${id} is not on the page`);
+    assert.deepEqual(orIdentity(page[id]), matrix, `${what}: stroke ${id}'s placement`);
+  }
+}
+
+/// Two pages' boxes of the shown strokes agree (the same strokes, within float rounding).
+function assertSameBoxes(a, b, what) {
+  assert.deepEqual(Object.keys(a).sort(), Object.keys(b).sort(), `${what}: the strokes shown`);
+  for (const id of Object.keys(a)) {
+    for (const k of ["min", "max"]) {
+      a[id][k].forEach((v, i) => assert.ok(Math.abs(v - b[id][k][i]) < 1e-3, `${what}: stroke ${id}'s box ${k}[${i}]: ${v} against ${b[id][k][i]}`));
+    }
+  }
+}
+
+/// Waits until Bob's boxes equal Ada's and both pages' placements are the proxy's.
+async function agree(base, s, ada, bob, what) {
+  await until(`${what}: Bob's page like Ada's`, async () => {
+    const [a, b] = [await boxes(ada), await boxes(bob)];
+    try {
+      assertSameBoxes(a, b, what);
+      return true;
+    } catch {
+      return false;
+    }
+  });
+  assertSameBoxes(await boxes(ada), await boxes(bob), what);
+  const server = await stored(base, s);
+  assertSamePlacements(await placements(ada), server, `${what} (Ada)`);
+  assertSamePlacements(await placements(bob), server, `${what} (Bob)`);
+  return server;
+}
+
+/// Drags with the mouse from `from` to `to` in `steps`.
+async function drag(page, [x0, y0], [x1, y1], steps = 10) {
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  await page.mouse.move(x1, y1, { steps });
+  await page.mouse.up();
+}
+
+browserTest(async ({ proxy, browser }) => {
+  const base = proxy.base;
+  const s = await newSession(base);
+  const url = `${base}/s/${s.session}#token=${s.token}`;
+  const ada = await openPage(browser, url, "ada");
+  const bob = await openPage(browser, url, "bob");
+  assert.equal(await ada.evaluate(() => Number(document.querySelector('meta[name="penmesh-protocol"]').content)), 5, "the page speaks protocol 5");
+
+  // 1. On the board.
+  await line(ada.cdp, 300, 500, 250);
+  await until("the board's stroke", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
+  const [board] = Object.keys(await placements(ada));
+  assert.deepEqual((await stored(base, s))[board], IDENTITY, "a stroke on the board has the identity");
+
+  // 2. The front plane, seen from 60° above: the pen draws on it, and the view stays.
+  await ada.locator("#plane").selectOption("front");
+  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, FRONT, "the front plane's placement");
+  await ada.keyboard.press("o");
+  const pitch = Math.PI / 3;
+  await drag(ada, [500, 200], [500, 200 + pitch / ORBIT_PER_PX], 12);
+  const turned = await ada.evaluate(() => window.penmesh.camera);
+  assert.ok(Math.abs(turned.pitch - pitch) < 0.01, `orbited to ${turned.pitch} rad, not 60°`);
+  await ada.keyboard.press("Escape");
+  await ada.waitForTimeout(100);
+  const inkBefore = await ada.evaluate(() => window.penmesh.inked);
+  await drawStroke(ada.cdp, { x0: 420, y0: 420, dx: 8, dy: -2, n: 25, wobble: 10, lift: false });
+  assert.equal(await ada.evaluate(() => window.penmesh.inked), inkBefore + 1, "the live stroke is on the ink");
+  const [ex, ey] = [420 + 8 * 25 + 10 * Math.sin(25 / 6), 420 - 2 * 25];
+  await ada.cdp.send("Input.dispatchMouseEvent", { type: "mouseReleased", x: ex, y: ey, button: "left", buttons: 0, clickCount: 1, pointerType: "pen" });
+  await until("the front plane's stroke", () => ada.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
+  const kept = await ada.evaluate(() => window.penmesh.camera);
+  assert.deepEqual(kept, turned, "drawing kept the view");
+  let server = await agree(base, s, ada, bob, "drawn on two planes");
+  const front = Object.keys(server).find((id) => id !== board);
+  assert.deepEqual(server[front], FRONT, "the stroke drawn on the front plane carries its placement");
+  // Drawn where the pen was: the stroke's first point is under the pen's first sample.
+  const [fx, fy] = await ada.evaluate((id) => {
+    const s = window.penmesh.strokes.get(id);
+    return window.penmesh.toPage(s.points[0].x, s.points[0].y, s.placement);
+  }, front);
+  assert.ok(Math.hypot(fx - 420, fy - 420) < 3, `the front plane's stroke begins at (${fx}, ${fy}), not under the pen (420, 420)`);
+  const frontBox = (await boxes(ada))[front];
+  assert.ok(frontBox.max[1] - frontBox.min[1] < 20 && frontBox.max[2] - frontBox.min[2] > 20, `the front plane's stroke stands: ${JSON.stringify(frontBox)}`);
+  await ada.screenshot({ path: join(ARTIFACTS, "model-1-two-planes.png") });
+
+  // 3. Select (V) the board's stroke with a click, move it with the gizmo's X handle.
+  await ada.keyboard.press("v");
+  assert.equal(await ada.evaluate(() => window.penmesh.tool), "select");
+  const mid = await ada.evaluate((id) => {
+    const s = window.penmesh.strokes.get(id);
+    const p = s.points[Math.floor(s.points.length / 2)];
+    return window.penmesh.toPage(p.x, p.y, s.placement);
+  }, board);
+  await ada.mouse.click(...mid);
+  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [board], "a click selects the stroke under it");
+  const handle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
+  assert.ok(handle, "no gizmo on the selected stroke");
+  const before = await placements(ada);
+  await drag(ada, handle, [handle[0] + 150, handle[1]], 15);
+  const moved = (await placements(ada))[board];
+  assert.ok(moved && moved[12] > 50 && moved[13] === 0 && moved[14] === 0, `the gizmo's X handle moved the stroke along x: ${JSON.stringify(moved)}`);
+  server = await agree(base, s, ada, bob, "moved with the gizmo");
+  assert.deepEqual(server[board], moved);
+
+  // 4. Duplicate (Ctrl+D): a new stroke of Ada's, offset, selected.
+  await ada.keyboard.press("Control+d");
+  await until("the copy on both pages", async () => Object.keys(await boxes(bob)).length === 3 && Object.keys(await boxes(ada)).length === 3);
+  const copy = Object.keys(await boxes(ada)).find((id) => id !== board && id !== front);
+  const listed = (await storedStrokes(base, s)).find((x) => x.id === copy);
+  assert.equal(listed.duplicate_of, board, "the copy records its source");
+  await until("the copy selected", async () => (await ada.evaluate(() => window.penmesh.selected)).includes(copy));
+  server = await agree(base, s, ada, bob, "duplicated");
+
+  // 5. Undo the duplicate, then the move: the exact placement before it.
+  await ada.keyboard.press("Control+z");
+  await until("the copy taken back", async () => !(copy in (await stored(base, s))) && !(copy in (await boxes(bob))));
+  await ada.keyboard.press("Control+z");
+  await until("the move undone", async () => (await stored(base, s))[board].every((v, i) => v === orIdentity(before[board])[i]));
+  server = await agree(base, s, ada, bob, "the move undone");
+  const history = await (await fetch(`${base}/v1/strokes/${board}/placements`, { headers: { authorization: `Bearer ${s.token}` } })).json();
+  assert.deepEqual(history.placements.map((p) => p.cause), ["begin", "set", "set"], "the move and its undo, nothing overwritten");
+  assert.deepEqual(history.placements[2].placement.matrix, history.placements[0].placement.matrix, "undo restored the placement exactly");
+
+  // 6. Redo both, then mirror the copy (selected by a box around it).
+  await ada.keyboard.press("Control+Shift+z");
+  await until("the move again", async () => (await stored(base, s))[board].every((v, i) => v === moved[i]));
+  await ada.keyboard.press("Control+Shift+z");
+  await until("the copy back", async () => copy in (await stored(base, s)) && copy in (await boxes(bob)));
+  server = await agree(base, s, ada, bob, "redone");
+  await ada.keyboard.press("Escape");
+  await ada.keyboard.press("v");
+  const copyPage = await ada.evaluate((id) => {
+    const s = window.penmesh.strokes.get(id);
+    return s.points.map((p) => window.penmesh.toPage(p.x, p.y, s.placement));
+  }, copy);
+  const xs = copyPage.map((p) => p[0]);
+  const ys = copyPage.map((p) => p[1]);
+  await drag(ada, [Math.min(...xs) - 15, Math.min(...ys) - 15], [Math.max(...xs) + 15, Math.max(...ys) + 15]);
+  assert.ok((await ada.evaluate(() => window.penmesh.selected)).includes(copy), "the box selected the copy");
+  await ada.locator("#mirror").click();
+  await until("the copy mirrored", async () => {
+    const m = (await stored(base, s))[copy];
+    return m[0] < 0;
+  });
+  server = await agree(base, s, ada, bob, "mirrored");
+
+  // 7. A late joiner: the mesh bundle with placements and the history's peer_placement.
+  const cid = await openPage(browser, url, "cid");
+  await until("Cid's meshes", async () => Object.keys(await boxes(cid)).length === Object.keys(await boxes(ada)).length);
+  assertSameBoxes(await boxes(ada), await boxes(cid), "the late joiner");
+  assertSamePlacements(await placements(cid), server, "the late joiner");
+
+  // Two angles (Bob's page): as he sees it, and turned.
+  await bob.bringToFront();
+  await bob.keyboard.press("f");
+  await bob.keyboard.press("o");
+  await drag(bob, [500, 300], [500 - 0.5 / ORBIT_PER_PX, 300 + 1.0 / ORBIT_PER_PX], 12);
+  await bob.waitForTimeout(300);
+  await bob.screenshot({ path: join(ARTIFACTS, "model-2-bob-turned.png") });
+  await drag(bob, [500, 300], [500 + 1.2 / ORBIT_PER_PX, 300 - 0.4 / ORBIT_PER_PX], 12);
+  await bob.waitForTimeout(300);
+  await bob.screenshot({ path: join(ARTIFACTS, "model-3-bob-other-side.png") });
+  log("the model agrees on every page and the proxy");
+});
