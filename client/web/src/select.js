@@ -181,8 +181,9 @@ export class Selection {
 
   /// Starts picking the plane through three points (the next three clicks of this tool).
   pickPlane() {
-    this.picking = [];
     this.editor.setTool("select");
+    this.clear(); // no handles in the way of the clicks
+    this.picking = [];
     this.editor.notice("click three points of the model: the work plane goes through them");
   }
 

@@ -1,9 +1,9 @@
 // The browser test of the page as a modelling tool (issue 37, docs/web.md "How to model"): two
 // pages of one session (Ada draws, Bob watches) and a late joiner, as a person drives them
 // (Debian's Chromium, playwright-core, a pen through CDP, the mouse on the gizmo's handle).
-// Ada draws on the board, picks the front plane, orbits 60°, draws on it (the view kept),
-// selects the board's stroke and moves it with the gizmo, duplicates it, undoes both, redoes
-// both, mirrors the copy. At each step the placements the proxy stores are the page's, bit for
+// Ada draws a chair's seat on the board, picks the front plane, moves it to the seat's edge,
+// orbits 60° and draws the back on it (the view kept), selects the back and moves it with the
+// gizmo, duplicates it, undoes both, redoes both, mirrors the copy. At each step the placements the proxy stores are the page's, bit for
 // bit, and Bob's strokes have the same world-space boxes as Ada's; the late joiner (the mesh
 // bundle with placements, PMB2) too. Screenshots from two angles go to target/web-test/model-*.png.
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
@@ -27,7 +27,28 @@ async function openPage(browser, url, name) {
   return page;
 }
 
-const line = (cdp, x0, x1, y, n = 30) => drawStroke(cdp, { x0, y0: y, dx: (x1 - x0) / n, dy: 0, n, wobble: 0 });
+/// A pen stroke through the page points `corners` ([x, y]), a sample every 6 px or so; the pen
+/// stays down when `lift` is false.
+async function polyline(cdp, corners, lift = true) {
+  const ev = (type, [x, y]) =>
+    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
+  await ev("mousePressed", corners[0]);
+  for (let i = 1; i < corners.length; i++) {
+    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
+    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
+    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
+  }
+  if (lift) await ev("mouseReleased", corners[corners.length - 1]);
+}
+
+/// Pixels drawn on the ink canvas in the 9x9 around page point (`x`, `y`).
+const inkAround = (page, [x, y]) =>
+  page.evaluate(([x, y]) => {
+    const d = document.getElementById("ink").getContext("2d").getImageData(Math.round(x) - 4, Math.round(y) - 4, 9, 9).data;
+    let n = 0;
+    for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++;
+    return n;
+  }, [x, y]);
 const placements = (page) => page.evaluate(() => window.penmesh.placements);
 const boxes = (page) => page.evaluate(() => window.penmesh.boxes());
 const orIdentity = (m) => m || IDENTITY;
@@ -89,15 +110,19 @@ browserTest(async ({ proxy, browser }) => {
   const bob = await openPage(browser, url, "bob");
   assert.equal(await ada.evaluate(() => Number(document.querySelector('meta[name="penmesh-protocol"]').content)), 5, "the page speaks protocol 5");
 
-  // 1. On the board.
-  await line(ada.cdp, 300, 500, 250);
-  await until("the board's stroke", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
-  const [board] = Object.keys(await placements(ada));
-  assert.deepEqual((await stored(base, s))[board], IDENTITY, "a stroke on the board has the identity");
+  // 1. The seat on the board.
+  await polyline(ada.cdp, [[320, 200], [480, 200], [480, 320], [320, 320], [320, 205]]);
+  await until("the seat", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
+  const [seat] = Object.keys(await placements(ada));
+  assert.deepEqual((await stored(base, s))[seat], IDENTITY, "a stroke on the board has the identity");
 
-  // 2. The front plane, seen from 60° above: the pen draws on it, and the view stays.
+  // 2. The front plane, moved to the seat's far edge (y = 200: Shift+[ four times, a grid cell
+  //    each), seen from 60° above: the pen draws the back on it, and the view stays.
   await ada.locator("#plane").selectOption("front");
-  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, FRONT, "the front plane's placement");
+  for (let i = 0; i < 4; i++) await ada.keyboard.press("Shift+BracketLeft");
+  const onEdge = [...FRONT];
+  onEdge[13] = 200;
+  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, onEdge, "the front plane moved to y = 200");
   await ada.keyboard.press("o");
   const pitch = Math.PI / 3;
   await drag(ada, [500, 200], [500, 200 + pitch / ORBIT_PER_PX], 12);
@@ -105,52 +130,79 @@ browserTest(async ({ proxy, browser }) => {
   assert.ok(Math.abs(turned.pitch - pitch) < 0.01, `orbited to ${turned.pitch} rad, not 60°`);
   await ada.keyboard.press("Escape");
   await ada.waitForTimeout(100);
+  // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height).
+  const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[330, 5], [330, 140], [470, 140], [470, 5]]);
   const inkBefore = await ada.evaluate(() => window.penmesh.inked);
-  await drawStroke(ada.cdp, { x0: 420, y0: 420, dx: 8, dy: -2, n: 25, wobble: 10, lift: false });
-  assert.equal(await ada.evaluate(() => window.penmesh.inked), inkBefore + 1, "the live stroke is on the ink");
-  const [ex, ey] = [420 + 8 * 25 + 10 * Math.sin(25 / 6), 420 - 2 * 25];
-  await ada.cdp.send("Input.dispatchMouseEvent", { type: "mouseReleased", x: ex, y: ey, button: "left", buttons: 0, clickCount: 1, pointerType: "pen" });
-  await until("the front plane's stroke", () => ada.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
+  await polyline(ada.cdp, back, false);
+  // While the pen is down, the ink shows the stroke where it is drawn on the plane: along its
+  // first side, under the pen.
+  assert.equal(await ada.evaluate(() => window.penmesh.inked), inkBefore + 1, "the back is on the ink while it is drawn");
+  const side = [(back[0][0] + back[1][0]) / 2, (back[0][1] + back[1][1]) / 2];
+  assert.ok((await inkAround(ada, side)) > 0, `no ink at ${side}, on the back's first side`);
+  const last = back[back.length - 1];
+  await ada.cdp.send("Input.dispatchMouseEvent", { type: "mouseReleased", x: last[0], y: last[1], button: "left", buttons: 0, clickCount: 1, pointerType: "pen" });
+  await until("the back", () => ada.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
   const kept = await ada.evaluate(() => window.penmesh.camera);
   assert.deepEqual(kept, turned, "drawing kept the view");
   let server = await agree(base, s, ada, bob, "drawn on two planes");
-  const front = Object.keys(server).find((id) => id !== board);
-  assert.deepEqual(server[front], FRONT, "the stroke drawn on the front plane carries its placement");
+  const front = Object.keys(server).find((id) => id !== seat);
+  assert.deepEqual(server[front], onEdge, "the stroke drawn on the front plane carries its placement");
   // Drawn where the pen was: the stroke's first point is under the pen's first sample.
   const [fx, fy] = await ada.evaluate((id) => {
     const s = window.penmesh.strokes.get(id);
     return window.penmesh.toPage(s.points[0].x, s.points[0].y, s.placement);
   }, front);
-  assert.ok(Math.hypot(fx - 420, fy - 420) < 3, `the front plane's stroke begins at (${fx}, ${fy}), not under the pen (420, 420)`);
-  const frontBox = (await boxes(ada))[front];
-  assert.ok(frontBox.max[1] - frontBox.min[1] < 20 && frontBox.max[2] - frontBox.min[2] > 20, `the front plane's stroke stands: ${JSON.stringify(frontBox)}`);
+  assert.ok(Math.hypot(fx - back[0][0], fy - back[0][1]) < 3, `the back begins at (${fx}, ${fy}), not under the pen (${back[0]})`);
+  const backBox = (await boxes(ada))[front];
+  assert.ok(Math.abs(backBox.min[1] - 200) < 10 && Math.abs(backBox.max[1] - 200) < 10 && backBox.max[2] > 130, `the back stands on the seat's edge: ${JSON.stringify(backBox)}`);
   await ada.screenshot({ path: join(ARTIFACTS, "model-1-two-planes.png") });
 
-  // 3. Select (V) the board's stroke with a click, move it with the gizmo's X handle.
+  // 3. Select (V) the back with a click, move it with the gizmo's X handle.
   await ada.keyboard.press("v");
   assert.equal(await ada.evaluate(() => window.penmesh.tool), "select");
   const mid = await ada.evaluate((id) => {
     const s = window.penmesh.strokes.get(id);
     const p = s.points[Math.floor(s.points.length / 2)];
     return window.penmesh.toPage(p.x, p.y, s.placement);
-  }, board);
+  }, front);
   await ada.mouse.click(...mid);
-  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [board], "a click selects the stroke under it");
+  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [front], "a click selects the stroke under it");
   const handle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
   assert.ok(handle, "no gizmo on the selected stroke");
   const before = await placements(ada);
   await drag(ada, handle, [handle[0] + 150, handle[1]], 15);
-  const moved = (await placements(ada))[board];
-  assert.ok(moved && moved[12] > 50 && moved[13] === 0 && moved[14] === 0, `the gizmo's X handle moved the stroke along x: ${JSON.stringify(moved)}`);
+  const moved = (await placements(ada))[front];
+  assert.ok(moved[12] > 50 && moved[13] === 200 && moved[14] === 0, `the gizmo's X handle moved the back along x: ${JSON.stringify(moved)}`);
+  assert.deepEqual(moved.slice(0, 12), onEdge.slice(0, 12), "the move did not turn the back");
   server = await agree(base, s, ada, bob, "moved with the gizmo");
-  assert.deepEqual(server[board], moved);
+  assert.deepEqual(server[front], moved);
+
+  // The work plane: the selected stroke's, then through three points clicked on its grid (the
+  // same plane, another origin), then the front plane again.
+  await ada.locator("#plane").selectOption("stroke");
+  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, moved, "the stroke's plane");
+  await ada.locator("#plane").selectOption("points");
+  for (const p of [[200, 560], [400, 560], [300, 640]]) await ada.mouse.click(...p);
+  const picked = await ada.evaluate(() => window.penmesh.workPlane);
+  assert.equal(picked.kind, "points");
+  // Its normal (third column) is the stroke plane's, up to its sign: the points were on it.
+  const dot = picked.placement[8] * moved[8] + picked.placement[9] * moved[9] + picked.placement[10] * moved[10];
+  assert.ok(Math.abs(Math.abs(dot) - 1) < 1e-6, `the plane through three points of the grid is the grid's (normal · normal = ${dot})`);
+  await ada.locator("#plane").selectOption("front");
+  const midNow = await ada.evaluate((id) => {
+    const s = window.penmesh.strokes.get(id);
+    const p = s.points[Math.floor(s.points.length / 2)];
+    return window.penmesh.toPage(p.x, p.y, s.placement);
+  }, front);
+  await ada.mouse.click(...midNow);
+  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [front], "the moved back selected again");
 
   // 4. Duplicate (Ctrl+D): a new stroke of Ada's, offset, selected.
   await ada.keyboard.press("Control+d");
   await until("the copy on both pages", async () => Object.keys(await boxes(bob)).length === 3 && Object.keys(await boxes(ada)).length === 3);
-  const copy = Object.keys(await boxes(ada)).find((id) => id !== board && id !== front);
+  const copy = Object.keys(await boxes(ada)).find((id) => id !== seat && id !== front);
   const listed = (await storedStrokes(base, s)).find((x) => x.id === copy);
-  assert.equal(listed.duplicate_of, board, "the copy records its source");
+  assert.equal(listed.duplicate_of, front, "the copy records its source");
   await until("the copy selected", async () => (await ada.evaluate(() => window.penmesh.selected)).includes(copy));
   server = await agree(base, s, ada, bob, "duplicated");
 
@@ -158,15 +210,15 @@ browserTest(async ({ proxy, browser }) => {
   await ada.keyboard.press("Control+z");
   await until("the copy taken back", async () => !(copy in (await stored(base, s))) && !(copy in (await boxes(bob))));
   await ada.keyboard.press("Control+z");
-  await until("the move undone", async () => (await stored(base, s))[board].every((v, i) => v === orIdentity(before[board])[i]));
+  await until("the move undone", async () => (await stored(base, s))[front].every((v, i) => v === orIdentity(before[front])[i]));
   server = await agree(base, s, ada, bob, "the move undone");
-  const history = await (await fetch(`${base}/v1/strokes/${board}/placements`, { headers: { authorization: `Bearer ${s.token}` } })).json();
+  const history = await (await fetch(`${base}/v1/strokes/${front}/placements`, { headers: { authorization: `Bearer ${s.token}` } })).json();
   assert.deepEqual(history.placements.map((p) => p.cause), ["begin", "set", "set"], "the move and its undo, nothing overwritten");
   assert.deepEqual(history.placements[2].placement.matrix, history.placements[0].placement.matrix, "undo restored the placement exactly");
 
   // 6. Redo both, then mirror the copy (selected by a box around it).
   await ada.keyboard.press("Control+Shift+z");
-  await until("the move again", async () => (await stored(base, s))[board].every((v, i) => v === moved[i]));
+  await until("the move again", async () => (await stored(base, s))[front].every((v, i) => v === moved[i]));
   await ada.keyboard.press("Control+Shift+z");
   await until("the copy back", async () => copy in (await stored(base, s)) && copy in (await boxes(bob)));
   server = await agree(base, s, ada, bob, "redone");
