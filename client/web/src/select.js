@@ -46,6 +46,11 @@ export class Selection {
     this.view.scene.add(this.gizmo.getHelper());
     this.boxes = new Map(); // stroke -> its BoxHelper while selected
     this.drag = null; // {pivot: matrix at its start, before: stroke -> placement}
+    // The handle under a hovering mouse or pen is lit (it only looks: the dispatcher, input.js,
+    // still owns every press).
+    document.getElementById("ink").addEventListener("pointermove", (e) => {
+      if (this.gizmo.object && !this.drag && e.buttons === 0 && e.pointerType !== "touch") this.gizmo.pointerHover(this.pointer(e.clientX, e.clientY, 0));
+    });
   }
 
   get list() {

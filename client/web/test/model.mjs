@@ -3,7 +3,7 @@
 // (Debian's Chromium, playwright-core, a pen through CDP, the mouse on the gizmo's handle).
 // Ada draws a chair's seat on the board, picks the front plane, moves it to the seat's edge,
 // orbits 60° and draws the back on it (the view kept), selects the back and moves it with the
-// gizmo, duplicates it, undoes both, redoes both, mirrors the copy. At each step the placements the proxy stores are the page's, bit for
+// gizmo, duplicates it, undoes both, redoes both, mirrors the copy and moves it with snapping. At each step the placements the proxy stores are the page's, bit for
 // bit, and Bob's strokes have the same world-space boxes as Ada's; the late joiner (the mesh
 // bundle with placements, PMB2) too. Screenshots from two angles go to target/web-test/model-*.png.
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
@@ -238,6 +238,19 @@ browserTest(async ({ proxy, browser }) => {
     return m[0] < 0;
   });
   server = await agree(base, s, ada, bob, "mirrored");
+
+  // Snap (S): a drag of the X handle puts the selection's centre on the 10-unit grid.
+  await ada.keyboard.press("s");
+  assert.equal(await ada.locator("#snap").getAttribute("aria-pressed"), "true");
+  const snapHandle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
+  await drag(ada, snapHandle, [snapHandle[0] + 37, snapHandle[1]], 8);
+  await until("the snapped move stored", async () => (await stored(base, s))[copy][12] !== server[copy][12]);
+  server = await agree(base, s, ada, bob, "moved with snapping");
+  const centreX = await ada.evaluate((id) => {
+    const b = window.penmesh.boxes()[id];
+    return (b.min[0] + b.max[0]) / 2;
+  }, copy);
+  assert.ok(Math.abs(centreX / 10 - Math.round(centreX / 10)) < 1e-3, `snapped, the copy's centre is at x = ${centreX}, not on the 10-unit grid`);
 
   // 7. A late joiner: the mesh bundle with placements and the history's peer_placement.
   const cid = await openPage(browser, url, "cid");
