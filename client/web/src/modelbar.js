@@ -15,6 +15,9 @@ export function attachModelBar(editor, { workPlane, selection }) {
   };
   workPlane.onChange = showPlane;
   showPlane();
+  const showTool = (tool) => document.body.classList.toggle("selecting", tool.id === "select");
+  editor.on("tool", showTool);
+  showTool(editor.tool);
   plane.onchange = () => {
     const kind = plane.value;
     plane.blur(); // the keys are the page's again
