@@ -160,6 +160,13 @@ browserTest(async ({ proxy, browser }) => {
   // 3. Select (V) the back with a click, move it with the gizmo's X handle.
   await ada.keyboard.press("v");
   assert.equal(await ada.evaluate(() => window.penmesh.tool), "select");
+  assert.equal(await ada.evaluate(() => getComputedStyle(document.getElementById("stage")).cursor), "default", "Select's cursor");
+  // The wheel zooms in Select as in every tool (in, then out again about the same point).
+  await ada.mouse.move(700, 500);
+  await ada.mouse.wheel(0, -100);
+  await until("zoomed in", async () => (await ada.evaluate(() => window.penmesh.camera.scale)) > turned.scale * 1.1);
+  await ada.mouse.wheel(0, 100);
+  await until("zoomed out", async () => Math.abs((await ada.evaluate(() => window.penmesh.camera.scale)) - turned.scale) < 1e-9);
   const mid = await ada.evaluate((id) => {
     const s = window.penmesh.strokes.get(id);
     const p = s.points[Math.floor(s.points.length / 2)];
@@ -223,6 +230,8 @@ browserTest(async ({ proxy, browser }) => {
   await until("the copy back", async () => copy in (await stored(base, s)) && copy in (await boxes(bob)));
   server = await agree(base, s, ada, bob, "redone");
   await ada.keyboard.press("Escape");
+  assert.equal(await ada.evaluate(() => window.penmesh.tool), "draw", "Esc goes back to drawing");
+  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [], "leaving Select lets go of the selection");
   await ada.keyboard.press("v");
   const copyPage = await ada.evaluate((id) => {
     const s = window.penmesh.strokes.get(id);
