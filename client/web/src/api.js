@@ -44,6 +44,12 @@ export class Api {
     return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes?placements=true`)).arrayBuffer());
   }
 
+  /// A stroke's current placement (the last of `GET /v1/strokes/{id}/placements`).
+  async placement(stroke) {
+    const { placements } = await (await this.request(`/v1/strokes/${stroke}/placements`)).json();
+    return placements[placements.length - 1].placement.matrix;
+  }
+
   /// Duplicates a finished stroke as a new one of ours (`id`) at `placement`; `key` is this
   /// tab's participant key. Resolves to the new stroke's id.
   async duplicate(stroke, id, placement, key) {

@@ -111,6 +111,9 @@ export function startSession(session, token) {
     get selected() { return editor.selection.list; },
     boxes: () => view.boxes(),
     gizmoHandle: (axis) => editor.selection.handleAt(axis),
+    // Places any stroke here and asks the proxy to (the tests check that it refuses another's
+    // and that the page puts the stroke back).
+    place: (stroke, placement) => editor.selection.place(new Map([[stroke, placement]])),
     // Asks the proxy to take back (`remove`) or bring back any stroke, ours or not (the tests
     // check that the proxy refuses another's).
     setRemoved: (stroke, remove) => conn.setRemoved(stroke, remove),
@@ -327,6 +330,13 @@ export function startSession(session, token) {
         break;
       case "error":
         if (m.code === "not_owner") editor.notice("that stroke is someone else's: you can take back only your own");
+        // A placement refused (not ours, still open, gone): the stroke back where the proxy has it.
+        if (["not_owner", "stroke_open", "unknown_stroke"].includes(m.code) && m.stroke && view.strokes.get(m.stroke)?.done) {
+          api.placement(m.stroke).then((p) => {
+            view.setPlacement(m.stroke, p);
+            editor.selection.refresh();
+          }, () => {});
+        }
         fail(`proxy: ${m.code}: ${m.message}`);
         break;
       case "refused":

@@ -261,6 +261,15 @@ browserTest(async ({ proxy, browser }) => {
   }, copy);
   assert.ok(Math.abs(centreX / 10 - Math.round(centreX / 10)) < 1e-3, `snapped, the copy's centre is at x = ${centreX}, not on the 10-unit grid`);
 
+  // Bob cannot move Ada's stroke: the proxy refuses, the stroke goes back on his page, nothing
+  // changes anywhere.
+  const refused = [...server[seat]];
+  refused[12] += 100;
+  await bob.evaluate(([id, m]) => window.penmesh.place(id, m), [seat, refused]);
+  await until("Bob's page puts the seat back", async () => (await placements(bob))[seat]?.[12] === server[seat][12]);
+  assert.deepEqual(await stored(base, s), server, "Bob's refused move changed nothing");
+  await agree(base, s, ada, bob, "a refused move");
+
   // 7. A late joiner: the mesh bundle with placements and the history's peer_placement.
   const cid = await openPage(browser, url, "cid");
   await until("Cid's meshes", async () => Object.keys(await boxes(cid)).length === Object.keys(await boxes(ada)).length);
