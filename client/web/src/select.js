@@ -211,15 +211,24 @@ export class Selection {
     return { x: (x / this.view.rig.width) * 2 - 1, y: -(y / this.view.rig.height) * 2 + 1, button };
   }
 
-  /// Where on the page (CSS px) the gizmo's handle for `axis` ("X", "Y", "Z", "XY", …, or
-  /// for turning "X", "Y", "Z", "E") is: its picker's middle; null without a gizmo.
+  /// Where on the page (CSS px) the gizmo's handle for `axis` is: moving ("X", "Y", "Z",
+  /// "XY", …), its picker's middle; turning ("Z" only: its ring lies in the scene's x-y), a
+  /// point of its ring. Null without a gizmo (the browser tests drag it).
   handleAt(axis) {
     if (!this.gizmo.object) return null;
     this.gizmo.getHelper().updateMatrixWorld(true);
-    const picker = this.gizmo.getHelper().children[0].picker[this.gizmo.mode].children.find((c) => c.name === axis);
+    const picker = this.gizmo._gizmo.picker[this.gizmo.mode].children.find((c) => c.name === axis);
     if (!picker) return null;
-    const centre = new THREE.Box3().setFromObject(picker, true).getCenter(new THREE.Vector3()).project(this.view.camera);
-    return [((centre.x + 1) / 2) * this.view.rig.width, ((1 - centre.y) / 2) * this.view.rig.height];
+    const box = new THREE.Box3().setFromObject(picker, true);
+    const at = box.getCenter(new THREE.Vector3());
+    if (this.gizmo.mode === "rotate") {
+      // The ring's middle radius (three.js's picker torus: 0.5 with a 0.1 tube), at 45°.
+      const r = (((box.max.x - box.min.x) / 2) * 5) / 6;
+      at.x += r * Math.SQRT1_2;
+      at.y += r * Math.SQRT1_2;
+    }
+    at.project(this.view.camera);
+    return [((at.x + 1) / 2) * this.view.rig.width, ((1 - at.y) / 2) * this.view.rig.height];
   }
 
   /// A pointer went down at (`x`, `y`): true when it is on a handle of the gizmo, whose drag it

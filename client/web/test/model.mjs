@@ -261,6 +261,19 @@ browserTest(async ({ proxy, browser }) => {
   }, copy);
   assert.ok(Math.abs(centreX / 10 - Math.round(centreX / 10)) < 1e-3, `snapped, the copy's centre is at x = ${centreX}, not on the 10-unit grid`);
 
+  // Turn (R) with Snap: a drag along the Z ring turns the copy about z by a multiple of 15°.
+  await ada.keyboard.press("r");
+  const ring = await ada.evaluate(() => window.penmesh.gizmoHandle("Z"));
+  const unturned = server[copy];
+  await drag(ada, ring, [ring[0] - 50, ring[1] - 30], 12);
+  await until("the turn stored", async () => (await stored(base, s))[copy][0] !== unturned[0]);
+  server = await agree(base, s, ada, bob, "turned with snapping");
+  // The turn about z: the angle between the copy's x axis before and after, in x-y.
+  const turnedBy = Math.atan2(server[copy][1], server[copy][0]) - Math.atan2(unturned[1], unturned[0]);
+  const steps = turnedBy / (Math.PI / 12);
+  assert.ok(Math.abs(steps) >= 0.5 && Math.abs(steps - Math.round(steps)) < 1e-6, `turned by ${(turnedBy * 180) / Math.PI}°, not a multiple of 15°`);
+  assert.ok(Math.abs(server[copy][2] - unturned[2]) < 1e-9, "the turn was about z only");
+
   // Bob cannot move Ada's stroke: the proxy refuses, the stroke goes back on his page, nothing
   // changes anywhere.
   const refused = [...server[seat]];
