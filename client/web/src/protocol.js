@@ -2,6 +2,8 @@
 // token as a subprotocol, never in the URL), Hello, Points every FLUSH_MS while the pen moves,
 // acks, and the resume of our own strokes not yet done after a dropped connection or a reload
 // (every sample of them is kept in sessionStorage as it is drawn). Reconnects with backoff.
+// Protocol 5: a stroke begins on the work plane (`stroke_begin.placement`, kept with the stroke
+// for a resume) and `set_placement` places a finished one; `peer_placement` comes to `on`.
 //
 // Every message from the proxy goes to `on(kind, message)` after this module has taken what it
 // needs from it; `retained` only for our own strokes not yet done, `stroke_done` also when a

@@ -381,6 +381,10 @@ export class SceneView {
   /// not under it.
   toStroke(clientX, clientY) {
     const rig = this.rig;
+    if (!this.workPlacement) {
+      const hit = rig.toPlane(clientX, clientY); // the board: the camera's own plane
+      return hit ? [hit.x, hit.y] : null;
+    }
     const ndc = new THREE.Vector2((clientX / rig.width) * 2 - 1, -(clientY / rig.height) * 2 + 1);
     rig.ray.setFromCamera(ndc, this.camera);
     // The ray in the plane's coordinates (the world's y flip, then the placement, undone).
@@ -393,8 +397,10 @@ export class SceneView {
   /// Where a point (`x`, `y`) of a plane (`placement`: by default the work plane) is on the page
   /// (CSS pixels).
   toPage(x, y, placement = this.workPlacement) {
-    const v = new THREE.Vector3(x, y, 0).applyMatrix4(matrixOf(placement));
-    return this.rig.toPage(v.x, v.y, v.z);
+    // Called for every ink point at every redraw: no matrix made.
+    const m = placement;
+    if (!m) return this.rig.toPage(x, y);
+    return this.rig.toPage(m[0] * x + m[4] * y + m[12], m[1] * x + m[5] * y + m[13], m[2] * x + m[6] * y + m[14]);
   }
 
   /// Resolves once what the scene holds now has been drawn on screen.

@@ -91,6 +91,8 @@ export class Selection {
   /// around the strokes where they are now.
   refresh() {
     if (this.drag) return;
+    // A stroke taken back (an undone duplicate, another page's undo) leaves the selection.
+    if (this.list.some((id) => this.view.strokes.get(id).removed)) return this.set(this.list.filter((id) => !this.view.strokes.get(id).removed));
     for (const [id, box] of this.boxes) {
       box.setFromObject(this.view.strokes.get(id).lifted);
       box.visible = this.view.strokes.get(id).lifted.visible;

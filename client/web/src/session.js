@@ -306,6 +306,7 @@ export function startSession(session, token) {
       case "stroke_restored":
         view.setRemoved(m.stroke, kind === "stroke_removed");
         if (kind === "stroke_removed") ink.remove(m.stroke);
+        editor.selection.refresh();
         break;
       case "peer_left":
         people.delete(m.participant);

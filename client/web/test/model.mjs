@@ -216,6 +216,7 @@ browserTest(async ({ proxy, browser }) => {
   // 5. Undo the duplicate, then the move: the exact placement before it.
   await ada.keyboard.press("Control+z");
   await until("the copy taken back", async () => !(copy in (await stored(base, s))) && !(copy in (await boxes(bob))));
+  await until("the copy, taken back, no longer selected", async () => (await ada.evaluate(() => window.penmesh.selected)).length === 0);
   await ada.keyboard.press("Control+z");
   await until("the move undone", async () => (await stored(base, s))[front].every((v, i) => v === orIdentity(before[front])[i]));
   server = await agree(base, s, ada, bob, "the move undone");
