@@ -33,21 +33,6 @@ export function mirrors(placement) {
   return Boolean(placement) && matrixOf(placement).determinant() < 0;
 }
 
-/// Its uniform scale (the length of its first column).
-export function scaleOf(placement) {
-  const m = placement || IDENTITY;
-  return Math.hypot(m[0], m[1], m[2]);
-}
-
-/// `placement` moved by `t` ([x, y, z], session space).
-export function translated(placement, [x, y, z]) {
-  const m = [...(placement || IDENTITY)];
-  m[12] += x;
-  m[13] += y;
-  m[14] += z;
-  return m;
-}
-
 /// `placement` mirrored across the plane x = `cx` of session space.
 export function mirroredX(placement, cx) {
   const mirror = new THREE.Matrix4().makeScale(-1, 1, 1).setPosition(2 * cx, 0, 0);
