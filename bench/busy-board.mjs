@@ -14,7 +14,11 @@
 // Usage (from the repository root, after `cargo build --release --bin penmesh --bin penmesh-proxy` and
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
-//                             [--size 140] [--json OUT.json] [--profile OUT.cpuprofile]
+//                             [--size 140] [--planes 1] [--json OUT.json] [--profile OUT.cpuprofile]
+//
+// `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
+// 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
+// (issue 37: the board's goals with strokes on three planes).
 //
 // The strokes are SVC2004 and SigComp2011 signatures from ../shared/data (read in place, split
 // at pen lifts by the rules of shared/src/formats.rs), each scaled to --size px across and put
@@ -42,6 +46,11 @@ const STROKES = Number(option("--strokes", "1000"));
 const SIZE = Number(option("--size", "140"));
 const JSON_OUT = option("--json", null);
 const PROFILE = option("--profile", null); // the first open's CPU profile (.cpuprofile, DevTools)
+const PLANES = Number(option("--planes", "1"));
+// The planes of --planes, as `penmesh draw --placement` takes them (column-major): the board,
+// the front plane through y = 350, the side plane through x = 500.
+const PLACEMENTS = [null, "1,0,0,0,0,0,1,0,0,-1,0,0,0,350,0,1", "0,1,0,0,0,0,1,0,1,0,0,0,500,0,0,1"];
+if (!(PLANES >= 1 && PLANES <= 3)) throw new Error(`--planes takes 1, 2 or 3, not ${option("--planes")}`);
 let profiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
@@ -213,7 +222,7 @@ async function measurePage(context, url, expected) {
     Object.fromEntries(
       performance
         .getEntriesByType("resource")
-        .filter((e) => /\/web\/app\.js$|\/meshes$/.test(e.name))
+        .filter((e) => /\/web\/app\.js$|\/meshes(\?placements=true)?$/.test(e.name))
         .map((e) => [e.name.endsWith("app.js") ? "script_ms" : "bundle_ms", Math.round(e.responseEnd)]),
     ),
   );
@@ -311,7 +320,8 @@ try {
     const file = join(work, `person-${k}.json`);
     writeFileSync(file, JSON.stringify(strokes.filter((_, i) => i % PEOPLE === k)));
     try {
-      await runPenmesh(["draw", "--server", proxy.base, "--session", session.session, "--token", session.token, "--input", file, "--name", `person-${k}`, "--json"], children);
+      const placement = PLACEMENTS[k % PLANES];
+      await runPenmesh(["draw", "--server", proxy.base, "--session", session.session, "--token", session.token, "--input", file, "--name", `person-${k}`, "--json", ...(placement ? ["--placement", placement] : [])], children);
     } catch (err) {
       console.error(proxy.log.split("\n").slice(-20).join("\n"));
       throw err;

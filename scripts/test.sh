@@ -45,6 +45,11 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/first-minutes.mjs
 # The mesh's width against the ink's along straight strokes (issue 36, item 6).
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/stroke-width.mjs
+# The page as a modelling tool (issue 37): a placed copy stays wound outward (a mirror flips
+# it; Node, no browser); then two planes, the gizmo, duplicate, undo, mirror: two pages, a late
+# joiner and the proxy's placements agree.
+node client/web/test/placement-bake.mjs
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/model.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

@@ -37,10 +37,28 @@ export class Api {
     return (await this.request(`/v1/strokes/${stroke}/mesh`)).arrayBuffer();
   }
 
-  /// Every stored mesh of the session in one request: `[{stroke, participant, glb}]`, `glb`
-  /// an ArrayBuffer. The browser's cache keeps the body and revalidates it with its ETag.
+  /// Every stored mesh of the session in one request, with each stroke's placement (PMB2):
+  /// `[{stroke, participant, placement, glb}]`, `glb` an ArrayBuffer. The browser's cache keeps
+  /// the body and revalidates it with its ETag.
   async meshBundle(session) {
-    return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes`)).arrayBuffer());
+    return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes?placements=true`)).arrayBuffer());
+  }
+
+  /// A stroke's current placement (the last of `GET /v1/strokes/{id}/placements`).
+  async placement(stroke) {
+    const { placements } = await (await this.request(`/v1/strokes/${stroke}/placements`)).json();
+    return placements[placements.length - 1].placement.matrix;
+  }
+
+  /// Duplicates a finished stroke as a new one of ours (`id`) at `placement`; `key` is this
+  /// tab's participant key. Resolves to the new stroke's id.
+  async duplicate(stroke, id, placement, key) {
+    const res = await this.request(`/v1/strokes/${stroke}/duplicate`, {
+      method: "POST",
+      headers: { "x-penmesh-key": key, "content-type": "application/json" },
+      body: JSON.stringify({ stroke: id, placement: { matrix: placement } }),
+    });
+    return (await res.json()).stroke;
   }
 
   /// Asks the proxy to build (and store, and announce) the mesh of one of our strokes; `key` is
@@ -52,25 +70,30 @@ export class Api {
 
 /// The mesh bundle of GET /v1/sessions/{session}/meshes (shared/src/protocol/mesh_bundle.rs):
 /// "PMB1", a u32 count, then per mesh the stroke and participant ids (16 bytes each), a u32
-/// length and the GLB; u32s little-endian.
+/// length and the GLB; u32s little-endian. "PMB2" (`?placements=true`) has the stroke's
+/// placement after the two ids: 16 f64 little-endian (null in a PMB1 entry: the identity).
 export function decodeMeshBundle(buffer) {
   const view = new DataView(buffer);
   const bytes = new Uint8Array(buffer);
   const fail = (why) => {
     throw new Error(`not a mesh bundle: ${why}`);
   };
-  if (buffer.byteLength < 8 || String.fromCharCode(...bytes.subarray(0, 4)) !== "PMB1") fail('it does not start with "PMB1"');
+  const magic = buffer.byteLength >= 8 ? String.fromCharCode(...bytes.subarray(0, 4)) : "";
+  if (magic !== "PMB1" && magic !== "PMB2") fail('it does not start with "PMB1" or "PMB2"');
+  const placed = magic === "PMB2" ? 128 : 0;
   const count = view.getUint32(4, true);
   const meshes = [];
   let at = 8;
   for (let i = 0; i < count; i++) {
-    if (at + 36 > buffer.byteLength) fail(`it ends inside mesh ${i}`);
+    if (at + 36 + placed > buffer.byteLength) fail(`it ends inside mesh ${i}`);
     const stroke = uuid(bytes, at);
     const participant = uuid(bytes, at + 16);
-    const length = view.getUint32(at + 32, true);
-    at += 36;
+    // DataView reads the f64s where they are (they are not 8-byte aligned in the body).
+    const placement = placed ? Array.from({ length: 16 }, (_, k) => view.getFloat64(at + 32 + 8 * k, true)) : null;
+    const length = view.getUint32(at + 32 + placed, true);
+    at += 36 + placed;
     if (at + length > buffer.byteLength) fail(`it ends inside mesh ${i}`);
-    meshes.push({ stroke, participant, glb: buffer.slice(at, at + length) });
+    meshes.push({ stroke, participant, placement, glb: buffer.slice(at, at + length) });
     at += length;
   }
   if (at !== buffer.byteLength) fail(`${buffer.byteLength - at} bytes follow its ${count} meshes`);

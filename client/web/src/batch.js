@@ -3,7 +3,14 @@
 // buffers double when full. Each stroke keeps its range, for the GLB export, its colour (a
 // vertex colour: a person may draw in several) and being hidden (a stroke taken back: its
 // triangles collapse to one point, and come back when it is brought back).
+//
+// A stroke's mesh is in its own plane's coordinates and never changes (range.flat keeps it);
+// its placement (placement.js) is baked into the merged copy, a render cache rewritten when the
+// placement changes. A mirroring placement flips the copy's winding, so the solid stays closed
+// and lit outward. A selected stroke is lifted out (select.js): hidden here, drawn as its own
+// object with the placement as its matrix, baked back when it is let go.
 import * as THREE from "three";
+import { matrixOf, mirrors } from "./placement.js";
 
 const FIRST_VERTICES = 4096;
 
@@ -22,35 +29,66 @@ export class MergedMeshes {
   }
 
   /// Appends a mesh given as flat `positions`, `normals` (Float32Array, 3 per vertex) and
-  /// `indices` (into its own vertices), in `colour` (a THREE.Color); returns its range.
-  add({ positions, normals, indices }, colour) {
-    const nVertices = positions.length / 3;
-    this.reserve(this.vertexCount + nVertices, this.indexCount + indices.length);
-    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: indices.length, hidden: false };
-    this.positions.set(positions, range.firstVertex * 3);
-    this.normals.set(normals, range.firstVertex * 3);
+  /// `indices` (into its own vertices), in `colour` (a THREE.Color), at `placement` (16
+  /// numbers; null: as it is); returns its range.
+  add(flat, colour, placement = null) {
+    const nVertices = flat.positions.length / 3;
+    this.reserve(this.vertexCount + nVertices, this.indexCount + flat.indices.length);
+    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: flat.indices.length, hidden: false, lifted: false, flip: false, flat };
     this.vertexCount += nVertices;
-    this.indexCount += indices.length;
-    const g = this.mesh.geometry;
-    for (const [attribute, start, count] of [
-      [g.attributes.position, range.firstVertex * 3, nVertices * 3],
-      [g.attributes.normal, range.firstVertex * 3, nVertices * 3],
-    ]) {
-      attribute.addUpdateRange(start, count);
-      attribute.needsUpdate = true;
-    }
-    range.local = indices;
-    this.writeIndices(range);
+    this.indexCount += flat.indices.length;
+    range.local = flat.indices;
+    this.setPlacement(range, placement);
     this.setColour(range, colour);
-    g.setDrawRange(0, this.indexCount);
+    this.mesh.geometry.setDrawRange(0, this.indexCount);
     return range;
   }
 
-  /// Writes a range's indices: its own triangles, or, hidden, every index at its first vertex
-  /// (triangles of no area, which draw nothing).
+  /// Bakes `placement` into one stroke's copy: its vertices moved, its normals turned, its
+  /// winding flipped where the placement mirrors.
+  setPlacement(range, placement) {
+    const { positions, normals } = range.flat;
+    const at = range.firstVertex * 3;
+    if (!placement) {
+      this.positions.set(positions, at);
+      this.normals.set(normals, at);
+    } else {
+      const m = matrixOf(placement);
+      const n = new THREE.Matrix3().getNormalMatrix(m);
+      const v = new THREE.Vector3();
+      for (let i = 0; i < range.vertexCount; i++) {
+        v.fromArray(positions, i * 3).applyMatrix4(m).toArray(this.positions, at + i * 3);
+        v.fromArray(normals, i * 3).applyMatrix3(n).normalize().toArray(this.normals, at + i * 3);
+      }
+    }
+    const g = this.mesh.geometry;
+    for (const attribute of [g.attributes.position, g.attributes.normal]) {
+      attribute.addUpdateRange(at, range.vertexCount * 3);
+      attribute.needsUpdate = true;
+    }
+    range.flip = mirrors(placement);
+    this.writeIndices(range);
+  }
+
+  /// Lifts one stroke's mesh out of the merged one (drawn on its own while selected), or
+  /// puts it back.
+  setLifted(range, lifted) {
+    if (range.lifted === lifted) return;
+    range.lifted = lifted;
+    this.writeIndices(range);
+  }
+
+  /// Writes a range's indices: its own triangles (each turned the other way round when its
+  /// placement mirrors), or, hidden or lifted out, every index at its first vertex (triangles
+  /// of no area, which draw nothing).
   writeIndices(range) {
     const { firstVertex, firstIndex, local } = range;
-    for (let i = 0; i < local.length; i++) this.indices[firstIndex + i] = range.hidden ? firstVertex : local[i] + firstVertex;
+    const gone = range.hidden || range.lifted;
+    for (let i = 0; i < local.length; i++) {
+      // In a flipped range the second and third index of each triangle swap places.
+      const from = range.flip && i % 3 !== 0 ? i + (i % 3 === 1 ? 1 : -1) : i;
+      this.indices[firstIndex + i] = gone ? firstVertex : local[from] + firstVertex;
+    }
     const index = this.mesh.geometry.index;
     index.addUpdateRange(firstIndex, local.length);
     index.needsUpdate = true;
@@ -101,12 +139,14 @@ export class MergedMeshes {
     this.mesh.geometry = g;
   }
 
-  /// One stroke's mesh on its own (for the export): copies of its range.
-  geometryOf({ firstVertex, vertexCount, local }) {
+  /// One stroke's mesh on its own, in its own plane's coordinates (for the export and for a
+  /// stroke lifted out): copies of its mesh, with its colour.
+  geometryOf({ firstVertex, vertexCount, flat }) {
     const g = new THREE.BufferGeometry();
-    g.setAttribute("position", new THREE.BufferAttribute(this.positions.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
-    g.setAttribute("normal", new THREE.BufferAttribute(this.normals.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3));
-    g.setIndex(Array.from(local));
+    g.setAttribute("position", new THREE.BufferAttribute(flat.positions.slice(), 3));
+    g.setAttribute("normal", new THREE.BufferAttribute(flat.normals.slice(), 3));
+    g.setAttribute("colour", new THREE.BufferAttribute(this.colours.slice(firstVertex * 3, (firstVertex + vertexCount) * 3), 3, true));
+    g.setIndex(Array.from(flat.indices));
     return g;
   }
 }

@@ -67,9 +67,10 @@ export class CameraRig {
     return new THREE.Vector2(hit.x, -hit.y);
   }
 
-  /// Where plane point (`x`, `y`) is on the page, in CSS pixels.
-  toPage(x, y) {
-    const v = new THREE.Vector3(x, -y, 0).project(this.camera);
+  /// Where point (`x`, `y`, `z`) of the session (stroke-like: y down) is on the page, in CSS
+  /// pixels.
+  toPage(x, y, z = 0) {
+    const v = new THREE.Vector3(x, -y, z).project(this.camera);
     return [((v.x + 1) / 2) * this.width, ((1 - v.y) / 2) * this.height];
   }
 

@@ -80,8 +80,11 @@ export class Editor {
       this.notice(this.conn.ws ? "wait a moment: your last strokes are still being stored" : "cannot draw: not connected to the proxy; trying again");
       return false;
     }
-    const stroke = this.conn.begin({ ...this.brush }, device);
+    // On the work plane (workplane.js): the stroke's placement from its begin.
+    const placement = this.view.workPlacement;
+    const stroke = this.conn.begin({ ...this.brush }, device, placement);
     this.view.stroke(stroke, this.conn.me, this.brush);
+    if (placement) this.view.setPlacement(stroke, placement);
     this.ink.begin(stroke);
     this.strokeSamples(samples, true);
     return true;

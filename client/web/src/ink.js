@@ -1,7 +1,8 @@
 // The ink: our strokes drawn at once on a 2D canvas under the pen, never waiting for the
 // network, each until its mesh replaces it (or it is taken back). Its points are kept on the
-// drawing plane (stroke coordinates) and drawn where the camera shows them, so the ink moves
-// with a zoom, a pan or an orbit as its mesh will; its width is the mesh's (ribbon.js).
+// work plane it was begun on (stroke coordinates, and that plane's placement) and drawn where
+// the camera shows them, so the ink moves with a zoom, a pan or an orbit as its mesh will; its
+// width is the mesh's (ribbon.js).
 import { radiusOf } from "./ribbon.js";
 
 export class Ink {
@@ -13,7 +14,7 @@ export class Ink {
     // screen after the clear that removed it, in about half the runs of a browser test
     // (first-minutes.mjs 6), the same calls each time; a few lines a frame cost nothing there.
     this.ctx = canvas.getContext("2d", { willReadFrequently: true });
-    this.paths = new Map(); // stroke -> {colour, points: [[x, y, pressure]]}
+    this.paths = new Map(); // stroke -> {colour, placement, points: [[x, y, pressure]]}
     this.colour = "#333";
     this.brush = brush;
     this.view = view;
@@ -35,7 +36,7 @@ export class Ink {
   }
 
   begin(stroke) {
-    this.paths.set(stroke, { colour: this.colour, points: [] });
+    this.paths.set(stroke, { colour: this.colour, placement: this.view.workPlacement, points: [] });
   }
 
   /// A point of `stroke` on the drawing plane.
@@ -59,11 +60,11 @@ export class Ink {
     ctx.clearRect(0, 0, this.canvas.width, this.canvas.height);
     ctx.lineCap = "round";
     const scale = this.view.pixelsPerUnit();
-    for (const { colour, points } of this.paths.values()) {
+    for (const { colour, placement, points } of this.paths.values()) {
       ctx.strokeStyle = colour;
       let previous = null;
       for (const [x, y, p] of points) {
-        const at = this.view.toPage(x, y);
+        const at = this.view.toPage(x, y, placement);
         ctx.lineWidth = Math.max(1, 2 * radiusOf(this.brush, p) * scale);
         ctx.beginPath();
         ctx.moveTo(...(previous || at));

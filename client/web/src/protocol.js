@@ -2,6 +2,8 @@
 // token as a subprotocol, never in the URL), Hello, Points every FLUSH_MS while the pen moves,
 // acks, and the resume of our own strokes not yet done after a dropped connection or a reload
 // (every sample of them is kept in sessionStorage as it is drawn). Reconnects with backoff.
+// Protocol 5: a stroke begins on the work plane (`stroke_begin.placement`, kept with the stroke
+// for a resume) and `set_placement` places a finished one; `peer_placement` comes to `on`.
 //
 // Every message from the proxy goes to `on(kind, message)` after this module has taken what it
 // needs from it; `retained` only for our own strokes not yet done, `stroke_done` also when a
@@ -251,7 +253,7 @@ export class Connection {
           return;
         }
         this.takeOvers.set(stroke, null);
-        this.send({ stroke_begin: { stroke, brush: p.brush, device: p.device, params: p.params } });
+        this.send({ stroke_begin: strokeBegin(p) });
       }, RETAKE_MS),
     );
   }
@@ -271,7 +273,7 @@ export class Connection {
   resumeOwn(p, r) {
     if (!r || r.status === "unknown") {
       // Never reached the proxy: begin it again with everything.
-      this.send({ stroke_begin: { stroke: p.stroke, brush: p.brush, device: p.device, params: p.params } });
+      this.send({ stroke_begin: strokeBegin(p) });
       r = { next_seq: 0, status: "open" };
     }
     if (r.status === "done") return this.strokeDone(p.stroke);
@@ -303,14 +305,21 @@ export class Connection {
     return Boolean(this.me) && !this.drawing && !(last && !last.ended) && this.unfinished.length < MAX_UNFINISHED;
   }
 
-  /// Begins our stroke; returns its id.
-  begin(brush, device) {
+  /// Begins our stroke on the work plane `placement` (16 numbers; null: the board); returns
+  /// its id.
+  begin(brush, device, placement = null) {
     const stroke = crypto.randomUUID();
     const params = this.paramsFor(brush);
-    this.unfinished.push({ stroke, brush, device, params, samples: [], sent: 0, acked: 0, ended: false });
+    this.unfinished.push({ stroke, brush, device, params, placement, samples: [], sent: 0, acked: 0, ended: false });
     this.drawing = true;
-    this.send({ stroke_begin: { stroke, brush, device, params } });
+    this.send({ stroke_begin: strokeBegin(this.unfinished[this.unfinished.length - 1]) });
     return stroke;
+  }
+
+  /// Asks the proxy to place our finished stroke at `placement` (16 numbers); it answers with
+  /// `peer_placement` (to every page), or an error. Returns whether the request went out.
+  setPlacement(stroke, placement) {
+    return this.send({ set_placement: { stroke, placement: { matrix: placement } } });
   }
 
   /// The ACUTS parameters of a stroke drawn with `brush`: the proxy's, with a pressure
@@ -370,4 +379,10 @@ export class Connection {
     this.flush(true);
     if (!this.awaitingTakeOver(p.stroke)) this.send({ stroke_end: { stroke: p.stroke, n_points: p.samples.length } });
   }
+}
+
+/// The `stroke_begin` of one of our strokes (`unfinished`'s entry): its placement only when it
+/// has one (a stroke kept by an older page has none: the board).
+function strokeBegin({ stroke, brush, device, params, placement }) {
+  return { stroke, brush, device, params, ...(placement ? { placement: { matrix: placement } } : {}) };
 }

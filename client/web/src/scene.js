@@ -4,12 +4,17 @@
 // or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
 // stroke taken back is hidden until it is brought back. It renders only when something
 // changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
-// coordinates are screen-like (y down); the scene flips y.
+// coordinates are screen-like (y down); the scene flips y. Each stroke stands where its
+// placement (placement.js) puts it: the node matrix of its ribbon or of its mesh lifted out,
+// baked into its person's merged copy otherwise (batch.js); its mesh never changes. The pen
+// draws on the work plane (`workPlacement`, workplane.js): `toStroke` and `toPage` are in its
+// coordinates.
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { MergedMeshes, flatten } from "./batch.js";
+import { matrixOf } from "./placement.js";
 import { CameraRig } from "./camera.js";
 import { ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
@@ -109,12 +114,14 @@ export class SceneView {
     this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
     this.rig = new CameraRig(this.camera, innerWidth, innerHeight);
     // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
-    // line: its live ribbon, mesh: its range in its person's merged meshes}
+    // line: its live ribbon, mesh: its range in its person's merged meshes, placement: 16
+    // numbers or null (the board), lifted: its own object while selected}
     this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
     this.hiddenMeshCount = 0; // meshes of strokes taken back
     this.people = new Map(); // participant -> MergedMeshes
+    this.workPlacement = null; // the plane the pen draws on (null: the board)
     this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { viewportHeight: { value: 1 } } });
     // A live ribbon is one face: seen from either side.
     this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
@@ -158,7 +165,12 @@ export class SceneView {
   /// margin), never closer than one to one.
   fitToDrawing() {
     const box = new THREE.Box2();
-    for (const s of this.strokes.values()) if (!s.removed) for (const p of s.points) box.expandByPoint(p);
+    const v = new THREE.Vector3();
+    for (const s of this.strokes.values()) {
+      if (s.removed) continue;
+      const m = matrixOf(s.placement);
+      for (const p of s.points) box.expandByPoint(v.copy(p).applyMatrix4(m));
+    }
     this.rig.fit(box);
     this.requestRender();
   }
@@ -173,7 +185,7 @@ export class SceneView {
   stroke(id, participant, brush) {
     let s = this.strokes.get(id);
     if (!s) {
-      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null };
+      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null, placement: null, lifted: null };
       this.strokes.set(id, s);
     } else if (brush) {
       s.colour = strokeColour(participant, brush);
@@ -197,6 +209,65 @@ export class SceneView {
       this.person(s.participant).setHidden(s.mesh, removed);
     }
     if (s.line) s.line.visible = !removed;
+    if (s.lifted) s.lifted.visible = !removed;
+    this.requestRender();
+  }
+
+  /// Places stroke `id` (16 numbers, as the proxy said or as a gesture goes): its ribbon's or
+  /// lifted object's matrix, its baked copy rewritten.
+  setPlacement(id, placement) {
+    const s = this.strokes.get(id);
+    if (!s) return;
+    s.placement = placement;
+    const m = matrixOf(placement);
+    if (s.line) s.line.matrix.copy(m);
+    if (s.lifted) s.lifted.matrix.copy(m);
+    if (s.mesh) this.person(s.participant).setPlacement(s.mesh, placement);
+    this.requestRender();
+  }
+
+  /// Each shown stroke's box with a mesh in session space (its mesh at its placement), by id:
+  /// `{min: [x, y, z], max: [x, y, z]}` (the browser tests compare pages by them).
+  boxes() {
+    const boxes = {};
+    const v = new THREE.Vector3();
+    for (const [id, s] of this.strokes) {
+      if (!s.mesh || s.removed) continue;
+      const m = matrixOf(s.placement);
+      const box = new THREE.Box3();
+      const { positions } = s.mesh.flat;
+      for (let i = 0; i < positions.length; i += 3) box.expandByPoint(v.fromArray(positions, i).applyMatrix4(m));
+      boxes[id] = { min: box.min.toArray(), max: box.max.toArray() };
+    }
+    return boxes;
+  }
+
+  /// Lifts stroke `id`'s mesh out of its person's merged meshes as its own object, its
+  /// placement its matrix (what a gizmo moves); null when it has no mesh.
+  liftOut(id) {
+    const s = this.strokes.get(id);
+    if (!s || !s.mesh) return null;
+    if (!s.lifted) {
+      this.person(s.participant).setLifted(s.mesh, true);
+      s.lifted = new THREE.Mesh(this.person(s.participant).geometryOf(s.mesh), this.material);
+      s.lifted.matrixAutoUpdate = false;
+      s.lifted.matrix.copy(matrixOf(s.placement));
+      s.lifted.visible = !s.removed;
+      s.lifted.name = id;
+      this.world.add(s.lifted);
+      this.requestRender();
+    }
+    return s.lifted;
+  }
+
+  /// Puts a lifted stroke back into its person's merged meshes (baked at its placement).
+  putBack(id) {
+    const s = this.strokes.get(id);
+    if (!s || !s.lifted) return;
+    this.world.remove(s.lifted);
+    s.lifted.geometry.dispose();
+    s.lifted = null;
+    this.person(s.participant).setLifted(s.mesh, false);
     this.requestRender();
   }
 
@@ -210,15 +281,22 @@ export class SceneView {
   }
 
   /// The shown, finished strokes that pass within `radius` of the point (`x`, `y`) of the
-  /// drawing plane (their retained points joined by segments), for the eraser.
+  /// work plane (their retained points joined by segments, in their own planes: a stroke on
+  /// another plane only where it crosses this one), for the eraser.
   strokesAt(x, y, radius) {
-    const p = { x, y };
+    const at = new THREE.Vector3(x, y, 0).applyMatrix4(matrixOf(this.workPlacement));
+    const local = new THREE.Vector3();
+    const inverse = new THREE.Matrix4();
     const hits = [];
     for (const [id, s] of this.strokes) {
       if (s.removed || !s.done) continue;
+      local.copy(at).applyMatrix4(inverse.copy(matrixOf(s.placement)).invert());
+      const r = radius / Math.hypot(...(s.placement || [1]).slice(0, 3));
+      if (Math.abs(local.z) > r) continue;
+      const p = local;
       const pts = s.points;
       for (let i = 0; i < pts.length; i++) {
-        if (segmentDistance(p, pts[i], pts[Math.min(i + 1, pts.length - 1)]) <= radius) {
+        if (segmentDistance(p, pts[i], pts[Math.min(i + 1, pts.length - 1)]) <= r) {
           hits.push(id);
           break;
         }
@@ -263,6 +341,8 @@ export class SceneView {
     if (s.mesh || s.points.length === 0) return;
     s.line = new THREE.Mesh(ribbonGeometry(s.points, s.pressures, s.brush, s.colour), this.ribbonMaterial);
     s.line.visible = !s.removed;
+    s.line.matrixAutoUpdate = false;
+    s.line.matrix.copy(matrixOf(s.placement));
     this.world.add(s.line);
   }
 
@@ -285,7 +365,7 @@ export class SceneView {
     const s = this.stroke(id, participant);
     if (s.mesh) return false;
     const merged = this.person(participant);
-    s.mesh = merged.add(flat, s.colour);
+    s.mesh = merged.add(flat, s.colour, s.placement);
     if (s.removed) {
       merged.setHidden(s.mesh, true);
       this.hiddenMeshCount += 1;
@@ -296,16 +376,31 @@ export class SceneView {
     return true;
   }
 
-  /// Where on the drawing plane (stroke coordinates) a point of the page is, whatever the view;
-  /// null when the plane is not under it.
+  /// Where on the work plane (its own coordinates, those of a stroke drawn on it) a point of
+  /// the page is, whatever the view: the pointer's ray onto the plane; null when the plane is
+  /// not under it.
   toStroke(clientX, clientY) {
-    const hit = this.rig.toPlane(clientX, clientY);
+    const rig = this.rig;
+    if (!this.workPlacement) {
+      const hit = rig.toPlane(clientX, clientY); // the board: the camera's own plane
+      return hit ? [hit.x, hit.y] : null;
+    }
+    const ndc = new THREE.Vector2((clientX / rig.width) * 2 - 1, -(clientY / rig.height) * 2 + 1);
+    rig.ray.setFromCamera(ndc, this.camera);
+    // The ray in the plane's coordinates (the world's y flip, then the placement, undone).
+    const toLocal = new THREE.Matrix4().makeScale(1, -1, 1).multiply(matrixOf(this.workPlacement)).invert();
+    const ray = rig.ray.ray.clone().applyMatrix4(toLocal);
+    const hit = ray.intersectPlane(new THREE.Plane(new THREE.Vector3(0, 0, 1), 0), new THREE.Vector3());
     return hit ? [hit.x, hit.y] : null;
   }
 
-  /// Where a point of the drawing plane is on the page (CSS pixels).
-  toPage(x, y) {
-    return this.rig.toPage(x, y);
+  /// Where a point (`x`, `y`) of a plane (`placement`: by default the work plane) is on the page
+  /// (CSS pixels).
+  toPage(x, y, placement = this.workPlacement) {
+    // Called for every ink point at every redraw: no matrix made.
+    const m = placement;
+    if (!m) return this.rig.toPage(x, y);
+    return this.rig.toPage(m[0] * x + m[4] * y + m[12], m[1] * x + m[5] * y + m[13], m[2] * x + m[6] * y + m[14]);
   }
 
   /// Resolves once what the scene holds now has been drawn on screen.
@@ -324,8 +419,11 @@ export class SceneView {
       if (!s.mesh || s.removed) continue;
       const hex = s.colour.getHex();
       if (!materials.has(hex)) materials.set(hex, new THREE.MeshStandardMaterial({ color: s.colour }));
-      const mesh = new THREE.Mesh(this.person(s.participant).geometryOf(s.mesh), materials.get(hex));
+      const geometry = this.person(s.participant).geometryOf(s.mesh);
+      geometry.deleteAttribute("colour");
+      const mesh = new THREE.Mesh(geometry, materials.get(hex));
       mesh.name = id;
+      mesh.applyMatrix4(matrixOf(s.placement));
       root.add(mesh);
     }
     try {

@@ -9,10 +9,13 @@ import { attachControls } from "./controls.js";
 import { Editor } from "./editor.js";
 import { Ink } from "./ink.js";
 import { attachInput } from "./input.js";
+import { attachModelBar } from "./modelbar.js";
 import { Connection } from "./protocol.js";
 import { PALETTE, SceneView, colourOf, strokeColour } from "./scene.js";
 import { colourApart, saveBrush, savedBrush, savedName } from "./settings.js";
+import { Selection } from "./select.js";
 import { TakeBack } from "./takeback.js";
+import { WorkPlane } from "./workplane.js";
 
 // A mesh build that fails for a reason that may pass (no answer, the proxy busy or failing:
 // 429, 5xx) is tried again after each of these waits (ms); any other refusal is reported.
@@ -73,8 +76,13 @@ export function startSession(session, token) {
   const ink = new Ink($("ink"), brush, view);
   const takeBack = new TakeBack((stroke, remove) => conn.setRemoved(stroke, remove));
   const editor = new Editor({ conn, view, ink, takeBack, brush, people });
+  // The model: the plane the pen draws on, and the strokes selected to move (select.js).
+  const workPlane = new WorkPlane(view);
+  editor.selection = new Selection(editor, { api, workPlane });
+  editor.on("camera", () => workPlane.follow());
   attachInput($("ink"), editor);
   const controls = attachControls(editor, { session, name, askName, fail });
+  attachModelBar(editor, { workPlane, selection: editor.selection });
 
   // For the browser tests and the curious.
   window.penmesh = {
@@ -95,7 +103,17 @@ export function startSession(session, token) {
     get inked() { return ink.count; }, // strokes on the ink
     get camera() { const r = view.rig; return { x: r.target.x, y: r.target.y, scale: r.scale, yaw: r.yaw, pitch: r.pitch }; },
     toStroke: (x, y) => view.toStroke(x, y),
-    toPage: (x, y) => view.toPage(x, y),
+    toPage: (x, y, placement) => view.toPage(x, y, placement),
+    // The model (protocol 5): each stroke's placement (null: the board), the work plane's, the
+    // selection, and each shown stroke's box in session space (its mesh at its placement).
+    get placements() { return Object.fromEntries([...view.strokes].map(([id, s]) => [id, s.placement])); },
+    get workPlane() { return { kind: workPlane.kind, offset: workPlane.offset, placement: workPlane.placement }; },
+    get selected() { return editor.selection.list; },
+    boxes: () => view.boxes(),
+    gizmoHandle: (axis) => editor.selection.handleAt(axis),
+    // Places any stroke here and asks the proxy to (the tests check that it refuses another's
+    // and that the page puts the stroke back).
+    place: (stroke, placement) => editor.selection.place(new Map([[stroke, placement]])),
     // Asks the proxy to take back (`remove`) or bring back any stroke, ours or not (the tests
     // check that the proxy refuses another's).
     setRemoved: (stroke, remove) => conn.setRemoved(stroke, remove),
@@ -178,7 +196,10 @@ export function startSession(session, token) {
       const meshes = await bundleRequest;
       await Promise.all(
         meshes.map(async (m) => {
-          if (view.addMesh(m.stroke, m.participant, await view.parse(m.glb))) meshShown(m.stroke);
+          const flat = await view.parse(m.glb);
+          // The bundle's placement, unless the connection said a newer one already.
+          if (m.placement && !view.stroke(m.stroke, m.participant).placement) view.setPlacement(m.stroke, m.placement);
+          if (view.addMesh(m.stroke, m.participant, flat)) meshShown(m.stroke);
         }),
       );
     } catch (err) {
@@ -285,6 +306,7 @@ export function startSession(session, token) {
       case "stroke_restored":
         view.setRemoved(m.stroke, kind === "stroke_removed");
         if (kind === "stroke_removed") ink.remove(m.stroke);
+        editor.selection.refresh();
         break;
       case "peer_left":
         people.delete(m.participant);
@@ -303,8 +325,19 @@ export function startSession(session, token) {
       case "peer_mesh":
         meshAnnounced(m.stroke, m.participant);
         break;
+      case "peer_placement":
+        view.setPlacement(m.stroke, m.placement.matrix);
+        editor.selection.refresh();
+        break;
       case "error":
         if (m.code === "not_owner") editor.notice("that stroke is someone else's: you can take back only your own");
+        // A placement refused (not ours, still open, gone): the stroke back where the proxy has it.
+        if (["not_owner", "stroke_open", "unknown_stroke"].includes(m.code) && m.stroke && view.strokes.get(m.stroke)?.done) {
+          api.placement(m.stroke).then((p) => {
+            view.setPlacement(m.stroke, p);
+            editor.selection.refresh();
+          }, () => {});
+        }
         fail(`proxy: ${m.code}: ${m.message}`);
         break;
       case "refused":

@@ -3,6 +3,8 @@
 // erased one brought back), redo does it again. Only our own strokes: the proxy refuses the
 // others' (docs/web.md). The proxy's answers (`stroke_removed`, `stroke_restored`) change the
 // view, not this history; a request that cannot be sent (no connection) leaves it unchanged.
+// Moves and duplicates (select.js) are steps of the same history: a command with `undo()` and
+// `redo()`, each returning whether it could be sent.
 
 export class TakeBack {
   /// `send(stroke, remove)` asks the proxy to take back (`remove`) or bring back a stroke; it
@@ -30,6 +32,13 @@ export class TakeBack {
     return true;
   }
 
+  /// A command done (a move, a duplicate): undo calls its `undo`, redo its `redo`.
+  done(command) {
+    this.undone.push({ command });
+    this.redone.length = 0;
+    this.onChange();
+  }
+
   undo() {
     return this.step(this.undone, this.redone);
   }
@@ -42,6 +51,12 @@ export class TakeBack {
   /// cannot be sent.
   step(from, to) {
     const last = from[from.length - 1];
+    if (last?.command) {
+      if (!(from === this.undone ? last.command.undo() : last.command.redo())) return false;
+      to.push(from.pop());
+      this.onChange();
+      return true;
+    }
     if (!last || !this.send(last.stroke, last.remove)) return false;
     from.pop();
     to.push({ stroke: last.stroke, remove: !last.remove });

@@ -6,8 +6,11 @@
 //   move(editor, pointer, samples)     it moved (every coalesced sample)
 //   up(editor, pointer)                it lifted
 //   interrupt(editor)                  a second finger landed: the gesture is the camera's now
-// plus `id`, `label`, `keys` (its shortcuts) and `cursor`. Adding a tool is adding one here.
+// plus `id`, `label`, `keys` (its shortcuts) and `cursor`. Adding a tool is adding one here
+// (Select, V, is select.js's).
 // A sample is {clientX, clientY, t, p}, `t` in ms since the pointer went down.
+
+import { selectTool } from "./select.js";
 
 // A finger moves this far (CSS px) before it draws: until then a second finger makes it a
 // pinch, and nothing is drawn.
@@ -124,5 +127,5 @@ function orbitTool() {
 
 /// A fresh set of the tools, by id, in the toolbar's order.
 export function createTools() {
-  return { draw: drawTool(), erase: eraseTool(), orbit: orbitTool() };
+  return { draw: drawTool(), select: selectTool(), erase: eraseTool(), orbit: orbitTool() };
 }

@@ -1,0 +1,422 @@
+// Select: the tool (V) and the selection it makes. A click picks the stroke under the pointer
+// (shift adds or drops it), a drag on nothing draws a box and picks every stroke inside it. The
+// selected strokes are lifted out of their person's merged meshes (scene.js `liftOut`) and a
+// three.js TransformControls gizmo moves or turns them about their centre, snapping to the grid
+// and to 15° steps when snapping is on. The gizmo gets its pointer from this tool (input.js's
+// one dispatcher, so the camera's gestures stay the camera's), never from the DOM. A drag
+// applies at once; at its end every stroke it moved is sent (`set_placement`) and the drag is
+// one command of the page's one history (takeback.js): undo sends each placement it had before,
+// exactly, redo the one after. Duplicate (Ctrl/Cmd+D) copies the selection over HTTP, offset in
+// each stroke's own plane; its undo takes the copies back. Mirror reflects the selection across
+// the plane through its centre across the work plane's x axis. Only one's own strokes move:
+// the proxy refuses the others' (`not_owner`), and the page says so first.
+import * as THREE from "three";
+import { TransformControls } from "three/examples/jsm/controls/TransformControls.js";
+import { IDENTITY, matrixOf, placementOf, planeThrough } from "./placement.js";
+import { GRID_SNAP } from "./workplane.js";
+
+// A click picks a stroke that passes this near (CSS px) beyond its own width.
+const PICK_PX = 6;
+// A pointer that moves this far (CSS px) before it lifts draws a box instead of clicking.
+const BOX_SLOP_PX = 4;
+// Turns snap to this step when snapping is on.
+const ROTATION_SNAP = THREE.MathUtils.degToRad(15);
+// A duplicate is offset by this much in its own plane (x and y, plane units).
+const DUPLICATE_OFFSET = 30;
+// The session's y is down, the scene's up (scene.js `world`).
+const FLIP = new THREE.Matrix4().makeScale(1, -1, 1);
+
+export class Selection {
+  /// `editor` (editor.js: its view, connection, history); `api` (api.js: duplicate);
+  /// `workPlane` (workplane.js).
+  constructor(editor, { api, workPlane }) {
+    this.editor = editor;
+    this.view = editor.view;
+    this.api = api;
+    this.workPlane = workPlane;
+    this.ids = new Set();
+    this.snap = false;
+    this.onChange = () => {}; // the selection or the snap changed
+    this.picking = null; // the points picked so far of a plane through three points, or null
+    this.pivot = new THREE.Object3D(); // the gizmo's object, at the selection's centre
+    this.view.scene.add(this.pivot);
+    this.gizmo = new TransformControls(this.view.camera);
+    this.gizmo.addEventListener("change", () => this.view.requestRender());
+    this.gizmo.addEventListener("objectChange", () => this.dragged());
+    this.view.scene.add(this.gizmo.getHelper());
+    this.boxes = new Map(); // stroke -> its BoxHelper while selected
+    this.drag = null; // {pivot: matrix at its start, before: stroke -> placement}
+    // The handle under a hovering mouse or pen is lit (it only looks: the dispatcher, input.js,
+    // still owns every press).
+    document.getElementById("ink").addEventListener("pointermove", (e) => {
+      if (this.gizmo.object && !this.drag && e.buttons === 0 && e.pointerType !== "touch") this.gizmo.pointerHover(this.pointer(e.clientX, e.clientY, 0));
+    });
+  }
+
+  get list() {
+    return [...this.ids];
+  }
+
+  /// The selection becomes `ids`: strokes no longer in it are put back, new ones lifted out.
+  set(ids) {
+    const next = new Set(ids.filter((id) => this.view.liftOut(id)));
+    for (const id of this.ids) {
+      if (next.has(id)) continue;
+      this.view.putBack(id);
+      this.view.scene.remove(this.boxes.get(id));
+      this.boxes.get(id).dispose();
+      this.boxes.delete(id);
+    }
+    for (const id of next) {
+      if (this.boxes.has(id)) continue;
+      const box = new THREE.BoxHelper(this.view.strokes.get(id).lifted, 0xf0a000);
+      this.boxes.set(id, box);
+      this.view.scene.add(box);
+    }
+    this.ids = next;
+    this.refresh();
+    this.onChange(this);
+  }
+
+  clear() {
+    this.set([]);
+  }
+
+  /// Our own strokes among the selected (the only ones that can move).
+  own() {
+    return this.list.filter((id) => this.view.strokes.get(id).participant === this.editor.conn.me);
+  }
+
+  /// The gizmo at the selection's centre, shown when the selection is ours to move; the boxes
+  /// around the strokes where they are now.
+  refresh() {
+    if (this.drag) return;
+    // A stroke taken back (an undone duplicate, another page's undo) leaves the selection.
+    if (this.list.some((id) => this.view.strokes.get(id).removed)) return this.set(this.list.filter((id) => !this.view.strokes.get(id).removed));
+    for (const [id, box] of this.boxes) {
+      box.setFromObject(this.view.strokes.get(id).lifted);
+      box.visible = this.view.strokes.get(id).lifted.visible;
+    }
+    const centre = this.centre();
+    if (!centre) {
+      this.gizmo.detach();
+      this.view.requestRender();
+      return;
+    }
+    this.pivot.position.copy(centre).applyMatrix4(FLIP);
+    this.pivot.quaternion.identity();
+    this.pivot.scale.set(1, 1, 1);
+    this.pivot.updateMatrixWorld(true);
+    if (this.own().length === this.ids.size) this.gizmo.attach(this.pivot);
+    else this.gizmo.detach();
+    this.gizmo.setTranslationSnap(this.snap ? GRID_SNAP : null);
+    this.gizmo.setRotationSnap(this.snap ? ROTATION_SNAP : null);
+    this.view.requestRender();
+  }
+
+  /// The centre of the selected strokes' boxes, in session space (null when nothing is).
+  centre() {
+    const box = new THREE.Box3();
+    for (const id of this.ids) {
+      const s = this.view.strokes.get(id);
+      if (s.lifted) box.expandByObject(s.lifted);
+    }
+    return box.isEmpty() ? null : box.getCenter(new THREE.Vector3()).applyMatrix4(FLIP);
+  }
+
+  setSnap(on) {
+    this.snap = on;
+    this.refresh();
+    this.onChange(this);
+  }
+
+  setMode(mode) {
+    this.gizmo.setMode(mode);
+    this.view.requestRender();
+  }
+
+  // --- picking ---------------------------------------------------------------------------------
+  /// The shown, finished stroke with a mesh nearest to page point (`x`, `y`) within its width
+  /// and PICK_PX, or null: its retained points projected through its placement.
+  pick(x, y) {
+    let best = null;
+    let bestDistance = Infinity;
+    const scale = this.view.pixelsPerUnit();
+    for (const [id, s] of this.view.strokes) {
+      if (s.removed || !s.mesh) continue;
+      const reach = PICK_PX + (s.brush ? s.brush.size / 2 : 4) * scale;
+      const page = s.points.map((p) => this.view.toPage(p.x, p.y, s.placement));
+      for (let i = 0; i < page.length; i++) {
+        const d = segmentDistance([x, y], page[i], page[Math.min(i + 1, page.length - 1)]);
+        if (d <= reach && d < bestDistance) {
+          best = id;
+          bestDistance = d;
+        }
+      }
+    }
+    return best;
+  }
+
+  /// Every shown stroke with a mesh whose retained points are all inside the page rectangle.
+  inBox(x0, y0, x1, y1) {
+    const [left, right, top, bottom] = [Math.min(x0, x1), Math.max(x0, x1), Math.min(y0, y1), Math.max(y0, y1)];
+    const inside = ([x, y]) => x >= left && x <= right && y >= top && y <= bottom;
+    const ids = [];
+    for (const [id, s] of this.view.strokes) {
+      if (s.removed || !s.mesh || s.points.length === 0) continue;
+      if (s.points.every((p) => inside(this.view.toPage(p.x, p.y, s.placement)))) ids.push(id);
+    }
+    return ids;
+  }
+
+  /// The point of the model under page point (`x`, `y`), in session space: on a stroke's mesh,
+  /// else on the work plane; null when neither is there.
+  pointAt(x, y) {
+    const ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
+    const meshes = [];
+    for (const merged of this.view.people.values()) {
+      merged.mesh.geometry.boundingSphere = null; // it grew since: worked out again
+      meshes.push(merged.mesh);
+    }
+    for (const s of this.view.strokes.values()) if (s.lifted) meshes.push(s.lifted);
+    const hit = ray.intersectObjects(meshes, false)[0];
+    if (hit) return hit.point.applyMatrix4(FLIP);
+    const at = this.view.toStroke(x, y);
+    return at ? new THREE.Vector3(at[0], at[1], 0).applyMatrix4(matrixOf(this.view.workPlacement)) : null;
+  }
+
+  /// Starts picking the plane through three points (the next three clicks of this tool).
+  pickPlane() {
+    this.editor.setTool("select");
+    this.clear(); // no handles in the way of the clicks
+    this.picking = [];
+    this.editor.notice("click three points of the model: the work plane goes through them");
+  }
+
+  /// One point of the plane through three points picked at page point (`x`, `y`).
+  pickPoint(x, y) {
+    const p = this.pointAt(x, y);
+    if (!p) return this.editor.notice("nothing there to pick: click on a stroke or the grid");
+    this.picking.push(p);
+    if (this.picking.length < 3) return this.editor.notice(`point ${this.picking.length} of 3`);
+    const placement = planeThrough(...this.picking);
+    this.picking = null;
+    if (!placement) return this.editor.notice("those three points are on one line: no plane through them");
+    this.workPlane.set("points", placement);
+    this.editor.notice("the work plane goes through your three points");
+  }
+
+  // --- the gizmo -------------------------------------------------------------------------------
+  /// The gizmo's pointer, from page point (`x`, `y`): normalised device coordinates.
+  pointer(x, y, button) {
+    return { x: (x / this.view.rig.width) * 2 - 1, y: -(y / this.view.rig.height) * 2 + 1, button };
+  }
+
+  /// Where on the page (CSS px) the gizmo's handle for `axis` is: moving ("X", "Y", "Z",
+  /// "XY", …), its picker's middle; turning ("Z" only: its ring lies in the scene's x-y), a
+  /// point of its ring. Null without a gizmo (the browser tests drag it).
+  handleAt(axis) {
+    if (!this.gizmo.object) return null;
+    this.gizmo.getHelper().updateMatrixWorld(true);
+    const picker = this.gizmo._gizmo.picker[this.gizmo.mode].children.find((c) => c.name === axis);
+    if (!picker) return null;
+    const box = new THREE.Box3().setFromObject(picker, true);
+    const at = box.getCenter(new THREE.Vector3());
+    if (this.gizmo.mode === "rotate") {
+      // The ring's middle radius (three.js's picker torus: 0.5 with a 0.1 tube), at 45°.
+      const r = (((box.max.x - box.min.x) / 2) * 5) / 6;
+      at.x += r * Math.SQRT1_2;
+      at.y += r * Math.SQRT1_2;
+    }
+    at.project(this.view.camera);
+    return [((at.x + 1) / 2) * this.view.rig.width, ((1 - at.y) / 2) * this.view.rig.height];
+  }
+
+  /// A pointer went down at (`x`, `y`): true when it is on a handle of the gizmo, whose drag it
+  /// begins (the placements before it recorded).
+  grab(x, y) {
+    if (!this.gizmo.object) return false;
+    this.gizmo.pointerHover(this.pointer(x, y, 0));
+    // The gizmo's drag plane turned to the handle hovered before the drag starts on it (three.js
+    // does this in the frame between a hover and a press).
+    this.gizmo.getHelper().updateMatrixWorld(true);
+    this.gizmo.pointerDown(this.pointer(x, y, 0));
+    if (!this.gizmo.dragging) return false;
+    this.drag = { pivot: this.pivot.matrixWorld.clone(), before: new Map(this.list.map((id) => [id, this.view.strokes.get(id).placement])) };
+    return true;
+  }
+
+  moveGrab(x, y) {
+    this.gizmo.pointerMove(this.pointer(x, y, -1));
+  }
+
+  /// The gizmo moved the pivot: each stroke by the same motion, at once on this page.
+  dragged() {
+    if (!this.drag) return;
+    this.pivot.updateMatrixWorld(true);
+    // The pivot's motion in the scene, as a motion of session space: FLIP·D·FLIP.
+    const motion = this.pivot.matrixWorld.clone().multiply(this.drag.pivot.clone().invert());
+    const session = FLIP.clone().multiply(motion).multiply(FLIP);
+    for (const [id, before] of this.drag.before) this.view.setPlacement(id, placementOf(session.clone().multiply(matrixOf(before))));
+    for (const [id, box] of this.boxes) box.setFromObject(this.view.strokes.get(id).lifted);
+  }
+
+  /// The drag ended: its placements sent, one command in the history.
+  letGo() {
+    this.gizmo.pointerUp(this.pointer(0, 0, 0));
+    const drag = this.drag;
+    this.drag = null;
+    if (!drag) return;
+    const after = new Map([...drag.before.keys()].map((id) => [id, this.view.strokes.get(id).placement]));
+    if ([...after].every(([id, m]) => same(m, drag.before.get(id)))) return this.refresh();
+    this.place(after);
+    this.editor.takeBack.done({ undo: () => this.place(drag.before), redo: () => this.place(after) });
+    this.refresh();
+  }
+
+  /// Sends and shows placements (stroke -> 16 numbers or null, the board): false when the
+  /// connection is down (nothing changes then).
+  place(placements) {
+    if (!this.editor.conn.ws) return false;
+    for (const [id, placement] of placements) {
+      this.editor.conn.setPlacement(id, placement || [...IDENTITY]);
+      this.view.setPlacement(id, placement);
+    }
+    this.refresh();
+    return true;
+  }
+
+  // --- mirror and duplicate -------------------------------------------------------------------
+  /// Mirrors the selection across the plane through its centre perpendicular to the work
+  /// plane's x axis; one command.
+  mirror() {
+    if (!this.ids.size) return this.editor.notice("select strokes first (V, then click or drag a box)");
+    if (this.own().length !== this.ids.size) return this.editor.notice("you can mirror only your own strokes");
+    const centre = this.centre();
+    const axis = new THREE.Vector3().setFromMatrixColumn(matrixOf(this.view.workPlacement), 0).normalize();
+    // A reflection: I - 2·u·uᵀ about the centre.
+    const u = axis;
+    const r = new THREE.Matrix4().set(
+      1 - 2 * u.x * u.x, -2 * u.x * u.y, -2 * u.x * u.z, 0,
+      -2 * u.y * u.x, 1 - 2 * u.y * u.y, -2 * u.y * u.z, 0,
+      -2 * u.z * u.x, -2 * u.z * u.y, 1 - 2 * u.z * u.z, 0,
+      0, 0, 0, 1,
+    );
+    const about = new THREE.Matrix4().makeTranslation(centre.x, centre.y, centre.z).multiply(r).multiply(new THREE.Matrix4().makeTranslation(-centre.x, -centre.y, -centre.z));
+    const before = new Map(this.list.map((id) => [id, this.view.strokes.get(id).placement]));
+    const after = new Map([...before].map(([id, m]) => [id, placementOf(about.clone().multiply(matrixOf(m)))]));
+    if (!this.place(after)) return this.editor.notice("cannot mirror: not connected to the proxy; try again");
+    this.editor.takeBack.done({ undo: () => this.place(before), redo: () => this.place(after) });
+  }
+
+  /// Duplicates the selection (anyone's strokes): each copy a new stroke of ours, offset in its
+  /// own plane; the copies are selected once they are shown. One command: undo takes them back.
+  async duplicate() {
+    if (!this.ids.size) return this.editor.notice("select strokes first (V, then click or drag a box)");
+    const conn = this.editor.conn;
+    const copies = [];
+    try {
+      for (const id of this.list) {
+        const offset = new THREE.Matrix4().makeTranslation(DUPLICATE_OFFSET, DUPLICATE_OFFSET, 0);
+        const placement = placementOf(matrixOf(this.view.strokes.get(id).placement).multiply(offset));
+        copies.push(await this.api.duplicate(id, crypto.randomUUID(), placement, conn.participantKey()));
+      }
+    } catch (err) {
+      this.editor.notice(`cannot duplicate: ${err.message}`);
+    }
+    if (!copies.length) return;
+    const remove = (removed) => copies.every((id) => conn.setRemoved(id, removed));
+    this.editor.takeBack.done({ undo: () => remove(true), redo: () => remove(false) });
+    // Selected when their meshes are shown (they come over the connection as any stroke).
+    const shown = () => copies.every((id) => this.view.hasMesh(id));
+    for (let i = 0; i < 100 && !shown(); i++) await new Promise((r) => setTimeout(r, 50));
+    this.set(copies.filter((id) => this.view.hasMesh(id)));
+  }
+}
+
+/// Whether two placements are the same, bit for bit (null: the identity).
+function same(a, b) {
+  const [x, y] = [a || IDENTITY, b || IDENTITY];
+  return x.every((v, i) => Object.is(v, y[i]));
+}
+
+/// The distance from page point `p` to the segment `a`-`b` (each [x, y]).
+function segmentDistance([px, py], [ax, ay], [bx, by]) {
+  const [dx, dy] = [bx - ax, by - ay];
+  const length2 = dx * dx + dy * dy;
+  const t = length2 > 0 ? Math.max(0, Math.min(1, ((px - ax) * dx + (py - ay) * dy) / length2)) : 0;
+  return Math.hypot(px - (ax + t * dx), py - (ay + t * dy));
+}
+
+/// The Select tool (V): click, shift-click and box select; drag the gizmo's handles.
+export function selectTool() {
+  let state = "idle"; // idle | pointing | boxing | dragging
+  let start = null; // the sample where the pointer went down
+  let shift = false;
+  let box = null; // the box's element on the page while boxing
+  addEventListener("keydown", (e) => (shift = e.shiftKey));
+  addEventListener("keyup", (e) => (shift = e.shiftKey));
+  const showBox = (a, b) => {
+    if (!box) {
+      box = document.createElement("div");
+      box.id = "select-box";
+      box.style.cssText = "position:fixed;border:1px dashed #1d6fd6;background:#1d6fd622;pointer-events:none";
+      document.body.append(box);
+    }
+    Object.assign(box.style, {
+      left: `${Math.min(a.clientX, b.clientX)}px`,
+      top: `${Math.min(a.clientY, b.clientY)}px`,
+      width: `${Math.abs(b.clientX - a.clientX)}px`,
+      height: `${Math.abs(b.clientY - a.clientY)}px`,
+    });
+  };
+  const stop = (editor) => {
+    if (state === "dragging") editor.selection.letGo();
+    box?.remove();
+    box = null;
+    state = "idle";
+  };
+  return {
+    id: "select",
+    label: "Select",
+    keys: ["v"],
+    cursor: "default",
+    get state() {
+      return state;
+    },
+    onEnter() {},
+    onExit(editor) {
+      stop(editor);
+      editor.selection.picking = null;
+      editor.selection.clear();
+    },
+    down(editor, pointer, sample) {
+      start = sample;
+      state = editor.selection.grab(sample.clientX, sample.clientY) ? "dragging" : "pointing";
+    },
+    move(editor, pointer, samples) {
+      const s = samples[samples.length - 1];
+      if (state === "dragging") return editor.selection.moveGrab(s.clientX, s.clientY);
+      if (state === "pointing" && Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY) >= BOX_SLOP_PX) state = "boxing";
+      if (state === "boxing") showBox(start, s);
+    },
+    up(editor) {
+      const selection = editor.selection;
+      if (state === "pointing" && selection.picking) selection.pickPoint(start.clientX, start.clientY);
+      else if (state === "pointing") {
+        const id = selection.pick(start.clientX, start.clientY);
+        if (shift) selection.set(id === null ? selection.list : selection.ids.has(id) ? selection.list.filter((x) => x !== id) : [...selection.list, id]);
+        else selection.set(id === null ? [] : [id]);
+      } else if (state === "boxing" && box) {
+        const r = box.getBoundingClientRect();
+        const ids = selection.inBox(r.left, r.top, r.right, r.bottom);
+        selection.set(shift ? [...new Set([...selection.list, ...ids])] : ids);
+      }
+      stop(editor);
+    },
+    interrupt(editor) {
+      stop(editor);
+    },
+  };
+}

@@ -1,0 +1,94 @@
+// The work plane: the plane the pen draws on, shown as a grid. The board (the identity, z = 0),
+// the two planes standing on it (front, side), the plane of a picked stroke, or the plane
+// through three picked points; moved along its normal by `offset`. Its placement is what a
+// stroke begun on it carries (`stroke_begin.placement`); the view draws the pen's pointer ray
+// onto it (scene.js `toStroke`). The grid follows the camera's target along the plane, and is
+// hidden on the plain board seen from the front, where the page itself is the board.
+import * as THREE from "three";
+import { FRONT, IDENTITY, SIDE, isIdentity, matrixOf } from "./placement.js";
+
+/// A grid cell, in plane units (one CSS pixel at one to one); the gizmo snaps to GRID_SNAP.
+export const GRID_CELL = 50;
+export const GRID_SNAP = 10;
+const GRID_CELLS = 40;
+
+export const PLANES = { board: IDENTITY, front: FRONT, side: SIDE };
+
+export class WorkPlane {
+  /// `view`: the 3D view (scene.js), whose `workPlacement` this sets.
+  constructor(view) {
+    this.view = view;
+    this.kind = "board"; // board | front | side | stroke | points
+    this.base = IDENTITY;
+    this.offset = 0; // along the normal, plane units
+    this.onChange = () => {};
+    this.grid = gridLines();
+    this.grid.matrixAutoUpdate = false;
+    this.grid.frustumCulled = false;
+    view.world.add(this.grid);
+    this.apply();
+  }
+
+  /// The plane's placement (16 numbers; null: the board itself).
+  get placement() {
+    if (this.offset === 0) return isIdentity(this.base) ? null : [...this.base];
+    const m = [...this.base];
+    const n = Math.hypot(m[8], m[9], m[10]);
+    for (let k = 0; k < 3; k++) m[12 + k] += (m[8 + k] / n) * this.offset;
+    return m;
+  }
+
+  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points").
+  set(kind, base = PLANES[kind]) {
+    this.kind = kind;
+    this.base = base || IDENTITY;
+    this.offset = 0;
+    this.apply();
+  }
+
+  /// Moves the plane along its normal by `d` plane units.
+  move(d) {
+    this.offset += d;
+    this.apply();
+  }
+
+  apply() {
+    this.view.workPlacement = this.placement;
+    this.follow();
+    this.onChange(this);
+  }
+
+  /// The grid under the camera's target: its centre the cell of the plane nearest to it.
+  follow() {
+    const rig = this.view.rig;
+    const m = matrixOf(this.placement);
+    const target = new THREE.Vector3(rig.target.x, rig.target.y, 0).applyMatrix4(m.clone().invert());
+    const snap = (v) => Math.round(v / GRID_CELL) * GRID_CELL;
+    this.grid.matrix.copy(m.multiply(new THREE.Matrix4().makeTranslation(snap(target.x), snap(target.y), 0)));
+    this.grid.visible = this.placement !== null || !rig.front;
+    this.view.requestRender();
+  }
+}
+
+/// The grid: GRID_CELLS cells a side in the plane's x-y, centred on its origin, its two middle
+/// lines darker. Each line is cut at every cell: a line that passes behind the camera was not
+/// drawn at all in software WebGL (SwiftShader), whole.
+function gridLines() {
+  const half = (GRID_CELL * GRID_CELLS) / 2;
+  const positions = [];
+  const colours = [];
+  const [dark, light] = [new THREE.Color(0x8a8a80), new THREE.Color(0xc8c7bf)];
+  for (let i = 0; i <= GRID_CELLS; i++) {
+    const k = -half + i * GRID_CELL;
+    const c = i === GRID_CELLS / 2 ? dark : light;
+    for (let j = 0; j < GRID_CELLS; j++) {
+      const [a, b] = [-half + j * GRID_CELL, -half + (j + 1) * GRID_CELL];
+      positions.push(a, k, 0, b, k, 0, k, a, 0, k, b, 0);
+      for (let v = 0; v < 4; v++) colours.push(c.r, c.g, c.b);
+    }
+  }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute("position", new THREE.Float32BufferAttribute(positions, 3));
+  g.setAttribute("color", new THREE.Float32BufferAttribute(colours, 3));
+  return new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true, transparent: true, opacity: 0.8, depthWrite: false }));
+}
