@@ -3,6 +3,7 @@
 //! 3MF. Its own crate because it links Manifold's C++ (built from the source the crate vendors,
 //! with cmake and ninja): the pure core `penmesh` stays pure Rust.
 
+mod pieces;
 mod solid;
 mod stl;
 mod threemf;
