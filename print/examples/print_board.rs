@@ -51,36 +51,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!(
         "open edges once welded by position (as an STL reader sees it): {}",
-        open_edges(&mesh)
+        mesh.open_edges()
     );
     if let Some(out) = out {
         std::fs::write(&out, if out.ends_with(".3mf") { threemf } else { stl })?;
     }
     Ok(())
-}
-
-/// The edges an STL reader finds open: vertices welded by their exact `f32` position, then every
-/// directed edge that has not exactly one opposite twin.
-fn open_edges(mesh: &penmesh_print::PrintMesh) -> usize {
-    use std::collections::HashMap;
-    let mut ids: HashMap<[u32; 3], u32> = HashMap::new();
-    let welded: Vec<u32> = mesh
-        .positions
-        .iter()
-        .map(|p| {
-            let next = ids.len() as u32;
-            *ids.entry(p.map(f32::to_bits)).or_insert(next)
-        })
-        .collect();
-    let mut directed: HashMap<(u32, u32), i32> = HashMap::new();
-    for [a, b, c] in mesh.triangles() {
-        let [a, b, c] = [a, b, c].map(|i| welded[i as usize]);
-        for (from, to) in [(a, b), (b, c), (c, a)] {
-            *directed.entry((from, to)).or_default() += 1;
-        }
-    }
-    directed
-        .iter()
-        .filter(|&(&(from, to), &count)| count != 1 || directed.get(&(to, from)) != Some(&1))
-        .count()
 }

@@ -7,6 +7,7 @@ mod pieces;
 mod solid;
 mod stl;
 mod threemf;
+mod weld;
 
 pub use crate::solid::{
     DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, IDENTITY, MAX_SIZE_MM, PrintError, PrintMesh,

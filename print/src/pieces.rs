@@ -45,8 +45,9 @@ pub(crate) fn pieces(outline: &Outline) -> Vec<Piece> {
             && fits(&[], &edges)
             && fits(&edges, &end_edges(outline, from + 1));
         if !first_fits {
-            pieces.push(Piece { outline: part(outline, from, from + 1), hull: true });
-            from += 1;
+            let to = hull_run_end(outline, from);
+            pieces.push(Piece { outline: part(outline, from, to), hull: true });
+            from = to;
             continue;
         }
         let mut to = from + 1;
@@ -72,6 +73,28 @@ pub(crate) fn pieces(outline: &Outline) -> Vec<Piece> {
 }
 
 type Edge = (DVec2, DVec2);
+
+/// Where the hull piece that starts with the segment at `from` ends: the folded segments that
+/// follow join it while the centreline turns by at most half a turn across them. A fold is a
+/// bend tighter than the radius, so the stroke already covers the inside of the bend and the
+/// convex hull of a bend of at most half a turn adds almost nothing to it.
+fn hull_run_end(outline: &Outline, from: usize) -> usize {
+    let n = outline.n_samples();
+    let mut to = from + 1;
+    let mut turning = 0.0;
+    while to < n - 1 && !segment_turns_left(outline, to) {
+        let (a, b) = (
+            outline.centres[to] - outline.centres[to - 1],
+            outline.centres[to + 1] - outline.centres[to],
+        );
+        turning += a.perp_dot(b).atan2(a.dot(b)).abs();
+        if turning > std::f64::consts::PI {
+            break;
+        }
+        to += 1;
+    }
+    to
+}
 
 /// The outline of centres `from..=to`, with the stroke's start cap if `from` is its start and
 /// its end cap if `to` is its end; a cut end is the flat rung.

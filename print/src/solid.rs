@@ -20,16 +20,20 @@
 use glam::{DMat4, DVec3};
 use manifold_rs::{Manifold, Mesh};
 use penmesh::{
-    Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, Sample, SolidOptions, StrokeMesh,
-    fitted_outline, solid_mesh, visible_centres,
+    Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, PIXEL_TOLERANCE, Sample,
+    SolidOptions, StrokeMesh, fitted_outline, solid_mesh, visible_centres,
 };
 
 use crate::pieces::pieces;
+use crate::weld::apart;
 
 /// Default longest side of the print (mm).
 pub const DEFAULT_SIZE_MM: f64 = 100.0;
 /// Default smallest thickness of any part of the print (mm): a usual 0.4 mm nozzle lays two lines.
 pub const DEFAULT_MIN_THICKNESS_MM: f64 = 0.8;
+/// The print's detail (mm): the solid leaves out what lies closer than this to its outline
+/// (an eighth of a usual 0.4 mm nozzle's line; never finer than the screen's 0.25 px).
+pub const PRINT_TOLERANCE_MM: f64 = 0.05;
 /// Largest accepted `size_mm`: beyond any printer's bed.
 pub const MAX_SIZE_MM: f64 = 10_000.0;
 
@@ -153,18 +157,27 @@ pub fn print_mesh(
     }
     let t = options.min_thickness_mm;
     let floor_world = t * longest / (thickness * options.size_mm - 2.0 * t);
+    // At most this far (mm) from the stroke's exact outline: the same scale estimate, which the
+    // floors only make coarser.
+    let tolerance_world = PRINT_TOLERANCE_MM * longest / options.size_mm;
 
     let n = strokes.len();
     let total = 2 * n - 1;
     let mut solids = Vec::with_capacity(n);
+    let t0 = std::time::Instant::now();
     for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
         let mut brush = stroke.brush;
         brush.min_radius = brush.min_radius.max(floor_world / place.scale);
-        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &outline_options)
+        // The print's detail in the stroke's own units, never finer than the screen's.
+        let tolerance = (tolerance_world / place.scale).max(PIXEL_TOLERANCE);
+        let options = outline_options.cap_tolerance(tolerance);
+        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &options)
             .map_err(|error| PrintError::Stroke { index, error })?;
-        solids.extend(stroke_solids(index, &outline, place)?);
+        solids.extend(stroke_solids(index, &outline, tolerance, place)?);
         progress(index + 1, total);
     }
+    eprintln!("TIMING meshing {:?}, {} solids", t0.elapsed(), solids.len());
+    let t0 = std::time::Instant::now();
     // The unions' share of the steps: `n - 1` whatever the number of pieces.
     let unions = solids.len() - 1;
     let mut united_count = 0;
@@ -177,7 +190,10 @@ pub fn print_mesh(
             progress(done, total);
         }
     });
+    eprintln!("TIMING union {:?}", t0.elapsed());
+    let t0 = std::time::Instant::now();
     let mesh = united.to_mesh();
+    eprintln!("TIMING to_mesh {:?}", t0.elapsed());
     to_millimetres(&mesh, options.size_mm)
 }
 
@@ -228,15 +244,24 @@ fn placement(index: usize, m: &[f64; 16]) -> Result<Placement, PrintError> {
 fn stroke_solids(
     index: usize,
     outline: &Outline,
+    tolerance: f64,
     place: &Placement,
 ) -> Result<Vec<Solid>, PrintError> {
     let options = SolidOptions::default();
-    // The centreline points the stroke's own mesh keeps; the pieces are cut from those.
-    let keep = visible_centres(outline, options.tolerance, options.thickness);
+    // The centreline points the solid keeps at this tolerance; the pieces are cut from those.
+    let keep = visible_centres(outline, tolerance, options.thickness);
     let kept = kept_outline(outline, &keep);
     let exact = options.tolerance(0.0);
-    pieces(&kept)
-        .iter()
+    let cut = pieces(&kept);
+    if std::env::var_os("PIECES").is_some() {
+        eprintln!(
+            "PIECES {} hull {} of {} centres",
+            cut.len(),
+            cut.iter().filter(|p| p.hull).count(),
+            kept.n_samples()
+        );
+    }
+    cut.iter()
         .map(|piece| {
             let solid = to_manifold(index, &solid_mesh(&piece.outline, &exact), place)?;
             Ok(if piece.hull { Solid { manifold: solid.manifold.hull(), ..solid } } else { solid })
@@ -313,12 +338,20 @@ fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
         2
     };
     solids.sort_by(|a, b| a.centre[axis].total_cmp(&b.centre[axis]));
+    let n_all = solids.len();
     let right = solids.split_off(solids.len() / 2);
     let a = unite(solids, step);
     let b = unite(right, step);
+    let t0 = std::time::Instant::now();
     let united = a.union(&b);
     // Evaluates the union now (Manifold builds a lazy tree until its result is asked for).
-    let _ = united.is_empty();
+    let g: usize = std::env::var("GROUP").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
+    if n_all >= g {
+        let _ = united.is_empty();
+    }
+    if std::env::var_os("LEVELS").is_some() {
+        eprintln!("LEVEL {} {}", n_all, t0.elapsed().as_secs_f64());
+    }
     step();
     united
 }
@@ -346,5 +379,5 @@ fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
             [q.x as f32, q.y as f32, q.z as f32]
         })
         .collect();
-    Ok(PrintMesh { positions, indices: mesh.indices() })
+    Ok(PrintMesh { positions: apart(positions), indices: mesh.indices() })
 }
