@@ -28,8 +28,10 @@ pub(crate) struct Piece {
 }
 
 /// The pieces of `outline`, in order along the centreline; one piece, the outline itself, when
-/// its solid is embedded.
-pub(crate) fn pieces(outline: &Outline) -> Vec<Piece> {
+/// its solid is embedded. From each cut, the longer of two runs is taken: the embedded run (its
+/// solid as it is) or the hull run (its convex hull, while the hull stays within `tolerance` of
+/// the stroke's own shape, or while its segments fold); the embedded one on a tie.
+pub(crate) fn pieces(outline: &Outline, tolerance: f64) -> Vec<Piece> {
     let n = outline.n_samples();
     if n <= 1 {
         // Empty, or a dot: a convex disc.
@@ -38,38 +40,98 @@ pub(crate) fn pieces(outline: &Outline) -> Vec<Piece> {
     let mut pieces = Vec::new();
     let mut from = 0;
     while from < n - 1 {
-        let mut edges = Vec::new();
-        edges.extend(start_edges(outline, from));
-        edges.extend(segment_edges(outline, from));
-        let first_fits = segment_turns_left(outline, from)
-            && fits(&[], &edges)
-            && fits(&edges, &end_edges(outline, from + 1));
-        if !first_fits {
-            let to = hull_run_end(outline, from);
-            pieces.push(Piece { outline: part(outline, from, to), hull: true });
-            from = to;
-            continue;
+        let embedded = embedded_run_end(outline, from);
+        let mut hull = if embedded.is_none() { hull_run_end(outline, from) } else { from };
+        while hull < n - 1 && hull_fits(outline, from, hull + 1, tolerance) {
+            hull += 1;
         }
-        let mut to = from + 1;
-        while to < n - 1 && segment_turns_left(outline, to) {
-            let new = segment_edges(outline, to);
-            if !fits(&edges, &new) {
-                break;
-            }
-            let with_new: Vec<Edge> = edges.iter().chain(&new).copied().collect();
-            if !fits(&with_new, &end_edges(outline, to + 1)) {
-                break;
-            }
-            edges = with_new;
-            to += 1;
-        }
-        pieces.push(Piece { outline: part(outline, from, to), hull: false });
+        let (to, is_hull) = match embedded {
+            Some(to) if to >= hull => (to, false),
+            _ => (hull, true),
+        };
+        pieces.push(Piece { outline: part(outline, from, to), hull: is_hull });
         from = to;
     }
     if pieces.len() == 1 {
         return vec![Piece { outline: outline.clone(), hull: pieces[0].hull }];
     }
     pieces
+}
+
+/// Where the embedded piece that starts at centre `from` ends: it grows while its solid stays
+/// embedded. `None` when its first segment alone is not.
+fn embedded_run_end(outline: &Outline, from: usize) -> Option<usize> {
+    let n = outline.n_samples();
+    let mut edges = Vec::new();
+    edges.extend(start_edges(outline, from));
+    edges.extend(segment_edges(outline, from));
+    let first_fits = segment_turns_left(outline, from)
+        && fits(&[], &edges)
+        && fits(&edges, &end_edges(outline, from + 1));
+    if !first_fits {
+        return None;
+    }
+    let mut to = from + 1;
+    while to < n - 1 && segment_turns_left(outline, to) {
+        let new = segment_edges(outline, to);
+        if !fits(&edges, &new) {
+            break;
+        }
+        let with_new: Vec<Edge> = edges.iter().chain(&new).copied().collect();
+        if !fits(&with_new, &end_edges(outline, to + 1)) {
+            break;
+        }
+        edges = with_new;
+        to += 1;
+    }
+    Some(to)
+}
+
+/// Whether the convex hull of the piece `from..=to` adds at most `tolerance` to the stroke: every
+/// point sampled on the hull's outline is within the stroke's radius plus `tolerance` of the
+/// piece's centreline (the radius interpolated along each segment).
+fn hull_fits(outline: &Outline, from: usize, to: usize, tolerance: f64) -> bool {
+    const SAMPLES_PER_EDGE: usize = 8;
+    let hull = convex_hull(part(outline, from, to).closed());
+    let excess = |x: DVec2| {
+        (from..to)
+            .map(|k| {
+                let (a, b) = (outline.centres[k], outline.centres[k + 1]);
+                let ab = b - a;
+                let t = ((x - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                let r = outline.radii[k] + t * (outline.radii[k + 1] - outline.radii[k]);
+                x.distance(a + t * ab) - r
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    (0..hull.len()).all(|i| {
+        let (p, q) = (hull[i], hull[(i + 1) % hull.len()]);
+        (0..SAMPLES_PER_EDGE)
+            .all(|j| excess(p.lerp(q, j as f64 / SAMPLES_PER_EDGE as f64)) <= tolerance)
+    })
+}
+
+/// The convex hull of `points`, counter-clockwise (Andrew's monotone chain).
+fn convex_hull(mut points: Vec<DVec2>) -> Vec<DVec2> {
+    points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    points.dedup();
+    if points.len() < 3 {
+        return points;
+    }
+    let mut hull: Vec<DVec2> = Vec::with_capacity(2 * points.len());
+    for pass in [points.clone(), points.into_iter().rev().collect()] {
+        let start = hull.len();
+        for p in pass {
+            while hull.len() >= start + 2
+                && orient(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
 }
 
 type Edge = (DVec2, DVec2);
@@ -219,7 +281,7 @@ mod tests {
     fn a_straight_stroke_is_one_piece() {
         let line: Vec<(f64, f64)> = (0..20).map(|i| (i as f64 * 10.0, 0.0)).collect();
         let o = stroke_outline(&line, 10.0);
-        assert_eq!(pieces(&o), vec![Piece { outline: o.clone(), hull: false }]);
+        assert_eq!(pieces(&o, 0.25), vec![Piece { outline: o.clone(), hull: false }]);
     }
 
     #[test]
@@ -232,7 +294,7 @@ mod tests {
             })
             .collect();
         let o = stroke_outline(&points, 8.0);
-        let cut = pieces(&o);
+        let cut = pieces(&o, 0.25);
         assert!(cut.len() >= 2, "{} pieces", cut.len());
         assert!(cut.iter().all(|p| !p.hull));
         // Consecutive pieces share their rung; together they cover every centre once more per cut.
@@ -248,7 +310,7 @@ mod tests {
         let mut points: Vec<(f64, f64)> = (0..10).map(|i| (i as f64 * 10.0, 0.0)).collect();
         points.extend((0..10).rev().map(|i| (i as f64 * 10.0, 4.0)));
         let o = stroke_outline(&points, 40.0);
-        let cut = pieces(&o);
+        let cut = pieces(&o, 0.25);
         assert!(cut.len() >= 2, "{} pieces", cut.len());
         assert!(cut.iter().any(|p| p.hull));
     }

@@ -24,8 +24,8 @@ use penmesh::{
     SolidOptions, StrokeMesh, fitted_outline, solid_mesh, visible_centres,
 };
 
+use crate::apart::apart;
 use crate::pieces::pieces;
-use crate::weld::apart;
 
 /// Default longest side of the print (mm).
 pub const DEFAULT_SIZE_MM: f64 = 100.0;
@@ -252,7 +252,7 @@ fn stroke_solids(
     let keep = visible_centres(outline, tolerance, options.thickness);
     let kept = kept_outline(outline, &keep);
     let exact = options.tolerance(0.0);
-    let cut = pieces(&kept);
+    let cut = pieces(&kept, tolerance);
     if std::env::var_os("PIECES").is_some() {
         eprintln!(
             "PIECES {} hull {} of {} centres",

@@ -60,3 +60,45 @@ impl PrintMesh {
             .count()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two closed tetrahedra that touch at one point: vertices 3 and 4 are distinct but at one
+    /// position, as Manifold leaves two sheets that touch.
+    fn touching_tetrahedra() -> PrintMesh {
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 2.0],
+            [0.0, 1.0, 2.0],
+            [0.0, 0.0, 2.0],
+        ];
+        let tetrahedron = |[a, b, c, d]: [u32; 4]| [a, c, b, a, b, d, b, c, d, c, a, d];
+        let indices = [tetrahedron([0, 1, 2, 3]), tetrahedron([7, 6, 5, 4])].concat();
+        PrintMesh { positions, indices }
+    }
+
+    #[test]
+    fn every_vertex_gets_a_position_of_its_own_so_the_joined_mesh_stays_closed() {
+        let mesh = touching_tetrahedra();
+        // Joined at the one point, every edge still has its twin.
+        assert_eq!(mesh.open_edges(), 0);
+        // Vertex 7 moved onto vertex 1: the edge 1-3 of one and 7-4 of the other lie on one
+        // line, and an STL reader joins them into an edge of four triangles.
+        let mut pinched = mesh.clone();
+        pinched.positions[7] = [1.0, 0.0, 0.0];
+        assert!(pinched.open_edges() > 0);
+        let apart = PrintMesh { positions: apart(pinched.positions.clone()), ..pinched.clone() };
+        assert_eq!(apart.open_edges(), 0);
+        // Only the repeats moved (4 and 7), by one f32 step.
+        let moved: Vec<usize> =
+            (0..8).filter(|&i| apart.positions[i] != pinched.positions[i]).collect();
+        assert_eq!(moved, [4, 7]);
+        assert_eq!(apart.positions[7][0], f32::from_bits(1.0f32.to_bits() + 1));
+    }
+}
