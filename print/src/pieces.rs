@@ -11,10 +11,13 @@
 //! A piece's solid is embedded when its closed outline is a simple polygon and every triangle
 //! of its top face turns counter-clockwise: then the top is a valid triangulation of the
 //! polygon, a graph `z = thickness * r > 0` over it, the bottom its mirror and the walls
-//! vertical. Pieces grow greedily from the start: a centreline segment joins the piece while
-//! the piece stays embedded. Two pieces share the rung (`upper[k]` to `lower[k]`) where one ends
-//! and the next begins, so they touch face to face and their union has no gap. A segment whose
-//! own strip folds (its two rungs cross) is a piece of its own, replaced by its convex hull.
+//! vertical. A piece can also be replaced by its convex hull (always embedded) where the hull
+//! adds at most the print's tolerance to the stroke, or where its segments fold (a bend tighter
+//! than the radius: the stroke already covers the inside of the bend). Pieces grow greedily
+//! from the start, the longer of the two kinds of run at each cut, so a fat, curly stroke is a
+//! few hulls rather than dozens of short pieces (Manifold's cost is per union). Two pieces
+//! share the rung (`upper[k]` to `lower[k]`) where one ends and the next begins, so their union
+//! has no gap.
 
 use glam::DVec2;
 use penmesh::Outline;

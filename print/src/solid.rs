@@ -11,11 +11,13 @@
 //! (centres with their radii), `w = t * L0 / (c * size - 2 * t)` (`c` the thickness factor)
 //! keeps `c * w * size / (L0 + 2 * w) >= t` whatever the floored bounds turn out to be.
 //!
-//! Manifold's booleans are robust on closed, consistently wound inputs, coplanar overlaps
-//! included. A stroke that crosses itself (a loop, a figure-eight) is a closed input that
-//! overlaps itself: the union stays a closed indexed manifold (its 3MF reads as manifold), but
-//! Manifold leaves distinct vertices at one position there, which STL, having no indices,
-//! cannot keep apart (docs/print.md, "Known limits").
+//! Manifold's booleans are robust on closed, consistently wound inputs that do not pass through
+//! themselves, coplanar overlaps included. A stroke's solid can (a loop, a figure-eight, a bend
+//! tighter than its radius), so each stroke is cut into pieces that do not (`crate::pieces`),
+//! and the pieces are united like strokes. The solid leaves out detail finer than
+//! [`PRINT_TOLERANCE_MM`]. Manifold's output is a closed manifold on its indices; an STL has
+//! none, so every vertex is given its own `f32` position (`crate::apart`) and a reader that
+//! joins corners by position gets the same mesh back.
 
 use glam::{DMat4, DVec3};
 use manifold_rs::{Manifold, Mesh};
@@ -164,20 +166,17 @@ pub fn print_mesh(
     let n = strokes.len();
     let total = 2 * n - 1;
     let mut solids = Vec::with_capacity(n);
-    let t0 = std::time::Instant::now();
     for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
         let mut brush = stroke.brush;
         brush.min_radius = brush.min_radius.max(floor_world / place.scale);
         // The print's detail in the stroke's own units, never finer than the screen's.
         let tolerance = (tolerance_world / place.scale).max(PIXEL_TOLERANCE);
-        let options = outline_options.cap_tolerance(tolerance);
-        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &options)
+        let stroke_options = outline_options.cap_tolerance(tolerance);
+        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &stroke_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
         solids.extend(stroke_solids(index, &outline, tolerance, place)?);
         progress(index + 1, total);
     }
-    eprintln!("TIMING meshing {:?}, {} solids", t0.elapsed(), solids.len());
-    let t0 = std::time::Instant::now();
     // The unions' share of the steps: `n - 1` whatever the number of pieces.
     let unions = solids.len() - 1;
     let mut united_count = 0;
@@ -190,10 +189,7 @@ pub fn print_mesh(
             progress(done, total);
         }
     });
-    eprintln!("TIMING union {:?}", t0.elapsed());
-    let t0 = std::time::Instant::now();
     let mesh = united.to_mesh();
-    eprintln!("TIMING to_mesh {:?}", t0.elapsed());
     to_millimetres(&mesh, options.size_mm)
 }
 
@@ -253,14 +249,6 @@ fn stroke_solids(
     let kept = kept_outline(outline, &keep);
     let exact = options.tolerance(0.0);
     let cut = pieces(&kept, tolerance);
-    if std::env::var_os("PIECES").is_some() {
-        eprintln!(
-            "PIECES {} hull {} of {} centres",
-            cut.len(),
-            cut.iter().filter(|p| p.hull).count(),
-            kept.n_samples()
-        );
-    }
     cut.iter()
         .map(|piece| {
             let solid = to_manifold(index, &solid_mesh(&piece.outline, &exact), place)?;
@@ -338,20 +326,12 @@ fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
         2
     };
     solids.sort_by(|a, b| a.centre[axis].total_cmp(&b.centre[axis]));
-    let n_all = solids.len();
     let right = solids.split_off(solids.len() / 2);
     let a = unite(solids, step);
     let b = unite(right, step);
-    let t0 = std::time::Instant::now();
     let united = a.union(&b);
     // Evaluates the union now (Manifold builds a lazy tree until its result is asked for).
-    let g: usize = std::env::var("GROUP").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
-    if n_all >= g {
-        let _ = united.is_empty();
-    }
-    if std::env::var_os("LEVELS").is_some() {
-        eprintln!("LEVEL {} {}", n_all, t0.elapsed().as_secs_f64());
-    }
+    let _ = united.is_empty();
     step();
     united
 }

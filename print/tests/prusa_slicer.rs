@@ -358,8 +358,17 @@ fn real_signatures_whose_strokes_cross_themselves_give_a_manifold_stl() {
     let crossing = board.iter().filter(|s| crosses_itself(&s.raw)).count();
     assert!(crossing >= 3, "only {crossing} of {} strokes cross themselves", board.len());
     let dir = tempfile::tempdir().unwrap();
-    let mesh = print(&board, &PrintOptions::default());
+    let mut seen = Vec::new();
+    let mesh = print_mesh(&board, &PrintOptions::default(), &mut |done, total| {
+        seen.push((done, total));
+    })
+    .unwrap();
+    // Strokes cut into pieces still report 2n - 1 steps, rising to the end.
+    let total = 2 * board.len() - 1;
+    assert!(seen.windows(2).all(|w| w[0].0 < w[1].0) && seen.iter().all(|s| s.1 == total));
+    assert_eq!(seen.last(), Some(&(total, total)));
     let ours = mesh.volume();
+    assert_eq!(mesh.open_edges(), 0);
     let info = stl_info(dir.path(), "signatures.stl", &mesh);
     assert_eq!(info_value(&info, "manifold"), "yes", "{info:?}");
     let volume: f64 = info_value(&info, "volume").parse().unwrap();
