@@ -43,7 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let threemf = write_3mf(&mesh)?;
     let threemf_s = start.elapsed().as_secs_f64();
     println!(
-        "{n} strokes: union {print_s:.2} s, STL {stl_s:.3} s ({} bytes), 3MF {threemf_s:.3} s ({} bytes), {} triangles, {:.0} mm³",
+        "{n} strokes: print (solids and union) {print_s:.2} s, STL {stl_s:.3} s ({} bytes), 3MF {threemf_s:.3} s ({} bytes), {} triangles, {:.0} mm³",
         stl.len(),
         threemf.len(),
         mesh.indices.len() / 3,
