@@ -45,7 +45,10 @@ pub(crate) fn pieces(outline: &Outline, tolerance: f64) -> Vec<Piece> {
     while from < n - 1 {
         let embedded = embedded_run_end(outline, from);
         let mut hull = if embedded.is_none() { hull_run_end(outline, from) } else { from };
-        while hull < n - 1 && hull_fits(outline, from, hull + 1, tolerance) {
+        while hull < n - 1
+            && hull + 1 - from <= MAX_HULL_SEGMENTS
+            && hull_fits(outline, from, hull + 1, tolerance)
+        {
             hull += 1;
         }
         let (to, is_hull) = match embedded {
@@ -60,6 +63,10 @@ pub(crate) fn pieces(outline: &Outline, tolerance: f64) -> Vec<Piece> {
     }
     pieces
 }
+
+/// Most segments one hull piece within the tolerance spans: the check's work grows with the
+/// square of the run, and a run this long is nearly straight, where an embedded piece serves.
+const MAX_HULL_SEGMENTS: usize = 64;
 
 /// Where the embedded piece that starts at centre `from` ends: it grows while its solid stays
 /// embedded. `None` when its first segment alone is not.
