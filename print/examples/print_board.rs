@@ -43,11 +43,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let threemf = write_3mf(&mesh)?;
     let threemf_s = start.elapsed().as_secs_f64();
     println!(
-        "{n} strokes: union {print_s:.2} s, STL {stl_s:.3} s ({} bytes), 3MF {threemf_s:.3} s ({} bytes), {} triangles, {:.0} mm³",
+        "{n} strokes: print (solids and union) {print_s:.2} s, STL {stl_s:.3} s ({} bytes), 3MF {threemf_s:.3} s ({} bytes), {} triangles, {:.0} mm³",
         stl.len(),
         threemf.len(),
         mesh.indices.len() / 3,
         mesh.volume()
+    );
+    println!(
+        "open edges once welded by position (as an STL reader sees it): {}",
+        mesh.open_edges()
     );
     if let Some(out) = out {
         std::fs::write(&out, if out.ends_with(".3mf") { threemf } else { stl })?;

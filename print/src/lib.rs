@@ -3,13 +3,15 @@
 //! 3MF. Its own crate because it links Manifold's C++ (built from the source the crate vendors,
 //! with cmake and ninja): the pure core `penmesh` stays pure Rust.
 
+mod apart;
+mod pieces;
 mod solid;
 mod stl;
 mod threemf;
 
 pub use crate::solid::{
-    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, IDENTITY, MAX_SIZE_MM, PrintError, PrintMesh,
-    PrintOptions, PrintStroke, Progress, print_mesh,
+    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, IDENTITY, MAX_SIZE_MM, PRINT_TOLERANCE_MM,
+    PrintError, PrintMesh, PrintOptions, PrintStroke, Progress, print_mesh,
 };
 pub use crate::stl::write_stl;
 pub use crate::threemf::{MODEL_PATH, model_xml, write_3mf};

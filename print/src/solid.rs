@@ -11,23 +11,31 @@
 //! (centres with their radii), `w = t * L0 / (c * size - 2 * t)` (`c` the thickness factor)
 //! keeps `c * w * size / (L0 + 2 * w) >= t` whatever the floored bounds turn out to be.
 //!
-//! Manifold's booleans are robust on closed, consistently wound inputs, coplanar overlaps
-//! included. A stroke that crosses itself (a loop, a figure-eight) is a closed input that
-//! overlaps itself: the union stays a closed indexed manifold (its 3MF reads as manifold), but
-//! Manifold leaves distinct vertices at one position there, which STL, having no indices,
-//! cannot keep apart (docs/print.md, "Known limits").
+//! Manifold's booleans are robust on closed, consistently wound inputs that do not pass through
+//! themselves, coplanar overlaps included. A stroke's solid can (a loop, a figure-eight, a bend
+//! tighter than its radius), so each stroke is cut into pieces that do not (`crate::pieces`),
+//! and the pieces are united like strokes. The solid leaves out detail finer than
+//! [`PRINT_TOLERANCE_MM`]. Manifold's output is a closed manifold on its indices; an STL has
+//! none, so every vertex is given its own `f32` position (`crate::apart`) and a reader that
+//! joins corners by position gets the same mesh back.
 
 use glam::{DMat4, DVec3};
 use manifold_rs::{Manifold, Mesh};
 use penmesh::{
-    Brush, DEFAULT_THICKNESS, KeptError, OutlineOptions, Sample, SolidOptions, StrokeMesh,
-    fitted_outline, solid_mesh,
+    Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, PIXEL_TOLERANCE, Sample,
+    SolidOptions, StrokeMesh, fitted_outline, solid_mesh, visible_centres,
 };
+
+use crate::apart::apart;
+use crate::pieces::pieces;
 
 /// Default longest side of the print (mm).
 pub const DEFAULT_SIZE_MM: f64 = 100.0;
 /// Default smallest thickness of any part of the print (mm): a usual 0.4 mm nozzle lays two lines.
 pub const DEFAULT_MIN_THICKNESS_MM: f64 = 0.8;
+/// The print's detail (mm): the solid leaves out what lies closer than this to its outline
+/// (an eighth of a usual 0.4 mm nozzle's line; never finer than the screen's 0.25 px).
+pub const PRINT_TOLERANCE_MM: f64 = 0.05;
 /// Largest accepted `size_mm`: beyond any printer's bed.
 pub const MAX_SIZE_MM: f64 = 10_000.0;
 
@@ -111,7 +119,8 @@ pub enum PrintError {
     Empty,
 }
 
-/// Where the print is: `done` of `total` steps (one per stroke meshed, one per union).
+/// Where the print is: `done` of `total` steps, `2n - 1` for `n` strokes: one per stroke meshed,
+/// then `n - 1` shared out over the unions (a stroke that crosses itself is several pieces).
 pub type Progress<'a> = &'a mut dyn FnMut(usize, usize);
 
 /// The print of `strokes`: see the module docs.
@@ -150,23 +159,35 @@ pub fn print_mesh(
     }
     let t = options.min_thickness_mm;
     let floor_world = t * longest / (thickness * options.size_mm - 2.0 * t);
+    // At most this far (mm) from the stroke's exact outline: the same scale estimate, which the
+    // floors only make coarser.
+    let tolerance_world = PRINT_TOLERANCE_MM * longest / options.size_mm;
 
-    let total = 2 * strokes.len() - 1;
-    let mut done = 0;
-    let mut solids = Vec::with_capacity(strokes.len());
+    let n = strokes.len();
+    let total = 2 * n - 1;
+    let mut solids = Vec::with_capacity(n);
     for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
         let mut brush = stroke.brush;
         brush.min_radius = brush.min_radius.max(floor_world / place.scale);
-        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &outline_options)
+        // The print's detail in the stroke's own units, never finer than the screen's.
+        let tolerance = (tolerance_world / place.scale).max(PIXEL_TOLERANCE);
+        let stroke_options = outline_options.cap_tolerance(tolerance);
+        let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &stroke_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
-        let mesh = solid_mesh(&outline, &SolidOptions::default());
-        solids.push(to_manifold(index, &mesh, place)?);
-        done += 1;
-        progress(done, total);
+        solids.extend(stroke_solids(index, &outline, tolerance, place)?);
+        progress(index + 1, total);
     }
-    let united = union_all(solids, &mut |_| {
-        done += 1;
-        progress(done, total);
+    // The unions' share of the steps: `n - 1` whatever the number of pieces.
+    let unions = solids.len() - 1;
+    let mut united_count = 0;
+    let mut reported = n;
+    let united = unite(solids, &mut || {
+        united_count += 1;
+        let done = n + united_count * (n - 1) / unions;
+        if done > reported {
+            reported = done;
+            progress(done, total);
+        }
     });
     let mesh = united.to_mesh();
     to_millimetres(&mesh, options.size_mm)
@@ -214,9 +235,44 @@ fn placement(index: usize, m: &[f64; 16]) -> Result<Placement, PrintError> {
     Ok(Placement { matrix, scale: det.abs().cbrt(), mirrored: det < 0.0 })
 }
 
+/// The stroke's solid as Manifolds that each are embedded (`crate::pieces`), placed: the solid
+/// itself when it does not pass through itself.
+fn stroke_solids(
+    index: usize,
+    outline: &Outline,
+    tolerance: f64,
+    place: &Placement,
+) -> Result<Vec<Solid>, PrintError> {
+    let options = SolidOptions::default();
+    // The centreline points the solid keeps at this tolerance; the pieces are cut from those.
+    let keep = visible_centres(outline, tolerance, options.thickness);
+    let kept = kept_outline(outline, &keep);
+    let exact = options.tolerance(0.0);
+    let cut = pieces(&kept, tolerance);
+    cut.iter()
+        .map(|piece| {
+            let solid = to_manifold(index, &solid_mesh(&piece.outline, &exact), place)?;
+            Ok(if piece.hull { Solid { manifold: solid.manifold.hull(), ..solid } } else { solid })
+        })
+        .collect()
+}
+
+/// The outline with only the centreline points `keep` (increasing indices), caps unchanged.
+fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
+    let pick = |values: &[glam::DVec2]| keep.iter().map(|&k| values[k]).collect();
+    Outline {
+        centres: pick(&outline.centres),
+        radii: keep.iter().map(|&k| outline.radii[k]).collect(),
+        normals: pick(&outline.normals),
+        upper: pick(&outline.upper),
+        lower: pick(&outline.lower),
+        ..outline.clone()
+    }
+}
+
 /// The placed solid as a Manifold; a mirror turns the triangles inside out, so their winding
 /// is flipped back.
-fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Manifold, PrintError> {
+fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Solid, PrintError> {
     let vertices: Vec<f32> = mesh
         .positions
         .iter()
@@ -236,27 +292,48 @@ fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Man
     if manifold.is_empty() {
         return Err(PrintError::NotManifold { index, triangles });
     }
-    Ok(manifold)
+    let (lo, hi) =
+        vertices.chunks_exact(3).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+            let v = DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
+            (lo.min(v), hi.max(v))
+        });
+    Ok(Solid { manifold, centre: (lo + hi) / 2.0 })
 }
 
-/// Unites the solids pairwise as a balanced tree (each union's inputs of similar size), calling
-/// `step` after each union.
-fn union_all(mut solids: Vec<Manifold>, step: &mut dyn FnMut(usize)) -> Manifold {
-    while solids.len() > 1 {
-        let mut next = Vec::with_capacity(solids.len().div_ceil(2));
-        let mut pairs = solids.into_iter();
-        while let Some(a) = pairs.next() {
-            match pairs.next() {
-                Some(b) => {
-                    next.push(a.union(&b));
-                    step(1);
-                }
-                None => next.push(a),
-            }
-        }
-        solids = next;
+/// A placed solid and the centre of its bounds.
+struct Solid {
+    manifold: Manifold,
+    centre: DVec3,
+}
+
+/// Unites the solids as a balanced tree of compact regions: split at the median centre across
+/// the longer side, each half united, then the two. Each union meets only its neighbours' faces
+/// and has inputs of similar size. Manifold's booleans are lazy; each is evaluated at once so
+/// that `step` (called after each union) tracks the work.
+fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
+    if solids.len() <= 1 {
+        return solids.pop().map_or_else(Manifold::empty, |s| s.manifold);
     }
-    solids.pop().unwrap_or_else(Manifold::empty)
+    let (lo, hi) = solids.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), s| {
+        (lo.min(s.centre), hi.max(s.centre))
+    });
+    let extent = hi - lo;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    solids.sort_by(|a, b| a.centre[axis].total_cmp(&b.centre[axis]));
+    let right = solids.split_off(solids.len() / 2);
+    let a = unite(solids, step);
+    let b = unite(right, step);
+    let united = a.union(&b);
+    // Evaluates the union now (Manifold builds a lazy tree until its result is asked for).
+    let _ = united.is_empty();
+    step();
+    united
 }
 
 /// Manifold's output mesh scaled so its longest side is `size_mm`, its lowest corner moved to
@@ -282,5 +359,5 @@ fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
             [q.x as f32, q.y as f32, q.z as f32]
         })
         .collect();
-    Ok(PrintMesh { positions, indices: mesh.indices() })
+    Ok(PrintMesh { positions: apart(positions), indices: mesh.indices() })
 }

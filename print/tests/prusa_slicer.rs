@@ -303,3 +303,74 @@ fn strokes_floored_to_one_thickness_still_unite_into_a_manifold_stl() {
     let thickness: f64 = info_value(&info, "size_z").parse().unwrap();
     assert!(thickness >= 6.0 - 1e-4, "{thickness} mm");
 }
+
+/// Whether the polyline through `samples` crosses itself (two segments that are not neighbours
+/// meet).
+fn crosses_itself(samples: &[Sample]) -> bool {
+    let points: Vec<glam::DVec2> = samples.iter().map(Sample::pos).collect();
+    let orient = |a: glam::DVec2, b: glam::DVec2, c: glam::DVec2| (b - a).perp_dot(c - a);
+    let segments: Vec<_> = points.windows(2).map(|w| (w[0], w[1])).collect();
+    segments.iter().enumerate().any(|(i, &(p1, p2))| {
+        segments.iter().skip(i + 2).any(|&(q1, q2)| {
+            orient(q1, q2, p1) * orient(q1, q2, p2) < 0.0
+                && orient(p1, p2, q1) * orient(p1, p2, q2) < 0.0
+        })
+    })
+}
+
+/// The strokes of the first `files` SigComp2011 Dutch signatures (real pen data, read in place
+/// from ../shared/data), in px, one signature beside the next, simplified by ACUTS.
+fn signatures_board(files: usize) -> Vec<PrintStroke> {
+    use penmesh::data_sets::SIGCOMP2011_DUTCH;
+    let recordings = SIGCOMP2011_DUTCH.read().expect("the SigComp2011 Dutch data set");
+    let scale = SIGCOMP2011_DUTCH.px_per_unit;
+    let mut strokes = Vec::new();
+    for (column, recording) in recordings.iter().take(files).enumerate() {
+        let lo = recording
+            .strokes
+            .iter()
+            .flat_map(|s| s.samples())
+            .fold(glam::DVec2::INFINITY, |lo, s| lo.min(s.pos()));
+        for stroke in &recording.strokes {
+            let raw: Vec<Sample> = stroke
+                .samples()
+                .iter()
+                .map(|s| {
+                    let p = (s.pos() - lo) * scale + glam::DVec2::new(column as f64 * 600.0, 0.0);
+                    Sample::new(p.x, p.y, s.t, s.p)
+                })
+                .collect();
+            let kept = penmesh::acuts(
+                &raw,
+                penmesh::DEFAULT_RESAMPLE_DISTANCE,
+                &penmesh::AcutsParams::default(),
+            )
+            .kept;
+            strokes.push(PrintStroke { raw, kept, brush: Brush::default(), placement: IDENTITY });
+        }
+    }
+    strokes
+}
+
+#[test]
+fn real_signatures_whose_strokes_cross_themselves_give_a_manifold_stl() {
+    let board = signatures_board(3);
+    let crossing = board.iter().filter(|s| crosses_itself(&s.raw)).count();
+    assert!(crossing >= 3, "only {crossing} of {} strokes cross themselves", board.len());
+    let dir = tempfile::tempdir().unwrap();
+    let mut seen = Vec::new();
+    let mesh = print_mesh(&board, &PrintOptions::default(), &mut |done, total| {
+        seen.push((done, total));
+    })
+    .unwrap();
+    // Strokes cut into pieces still report 2n - 1 steps, rising to the end.
+    let total = 2 * board.len() - 1;
+    assert!(seen.windows(2).all(|w| w[0].0 < w[1].0) && seen.iter().all(|s| s.1 == total));
+    assert_eq!(seen.last(), Some(&(total, total)));
+    let ours = mesh.volume();
+    assert_eq!(mesh.open_edges(), 0);
+    let info = stl_info(dir.path(), "signatures.stl", &mesh);
+    assert_eq!(info_value(&info, "manifold"), "yes", "{info:?}");
+    let volume: f64 = info_value(&info, "volume").parse().unwrap();
+    assert!((volume - ours).abs() < 1e-3 * ours, "prusa-slicer {volume} mm³ vs ours {ours} mm³");
+}
