@@ -7,7 +7,6 @@
 // coordinates are screen-like (y down); the scene flips y.
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
-import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { MergedMeshes, flatten } from "./batch.js";
 import { CameraRig } from "./camera.js";
@@ -312,26 +311,5 @@ export class SceneView {
   drawn() {
     this.requestRender();
     return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
-  }
-
-  /// Every mesh on screen in one GLB (strokes taken back left out), each stroke a node named by
-  /// its id, in its colour.
-  async exportGlb() {
-    const root = new THREE.Group();
-    root.scale.set(1, -1, 1);
-    const materials = new Map(); // colour as hex -> material
-    for (const [id, s] of this.strokes) {
-      if (!s.mesh || s.removed) continue;
-      const hex = s.colour.getHex();
-      if (!materials.has(hex)) materials.set(hex, new THREE.MeshStandardMaterial({ color: s.colour }));
-      const mesh = new THREE.Mesh(this.person(s.participant).geometryOf(s.mesh), materials.get(hex));
-      mesh.name = id;
-      root.add(mesh);
-    }
-    try {
-      return await new Promise((ok, err) => new GLTFExporter().parse(root, ok, err, { binary: true }));
-    } finally {
-      root.traverse((o) => o.geometry && o.geometry.dispose());
-    }
   }
 }

@@ -7,6 +7,7 @@ import { Api } from "./api.js";
 import { blocked } from "./landing.js";
 import { attachControls } from "./controls.js";
 import { Editor } from "./editor.js";
+import { attachExport } from "./export.js";
 import { Ink } from "./ink.js";
 import { attachInput } from "./input.js";
 import { Connection } from "./protocol.js";
@@ -75,6 +76,7 @@ export function startSession(session, token) {
   const editor = new Editor({ conn, view, ink, takeBack, brush, people });
   attachInput($("ink"), editor);
   const controls = attachControls(editor, { session, name, askName, fail });
+  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail });
 
   // For the browser tests and the curious.
   window.penmesh = {
