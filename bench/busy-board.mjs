@@ -15,13 +15,14 @@
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--json OUT.json] [--profile OUT.cpuprofile]
+//                             [--exports N [--export-formats glb,stl] [--no-page]]
 //
 // The strokes are SVC2004 and SigComp2011 signatures from ../shared/data (read in place, split
 // at pen lifts by the rules of shared/src/formats.rs), each scaled to --size px across and put
 // at a seeded random place on a 1000x700 board, reused in turn until there are --strokes; person
 // k draws every tenth with `penmesh draw --input` against a `penmesh-proxy` on a fresh
 // SQLite file. Needs Debian's Chromium (/usr/bin/chromium, or PENMESH_CHROMIUM).
-import { mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
+import { mkdtempSync, readdirSync, readFileSync, statSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
 import { gzipSync } from "node:zlib";
@@ -42,6 +43,11 @@ const STROKES = Number(option("--strokes", "1000"));
 const SIZE = Number(option("--size", "140"));
 const JSON_OUT = option("--json", null);
 const PROFILE = option("--profile", null); // the first open's CPU profile (.cpuprofile, DevTools)
+// Issue 39: time this many exports of the board through `penmesh export` (GLB, and STL with
+// --export-formats glb,stl), and with --no-page stop there.
+const EXPORTS = Number(option("--exports", "0"));
+const EXPORT_FORMATS = option("--export-formats", "glb").split(",");
+const NO_PAGE = args.includes("--no-page");
 let profiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
@@ -351,6 +357,25 @@ try {
     log("meshes:", JSON.stringify(meshes));
   }
 
+  // The board taken out through the CLI, as a user does: wall time of each `penmesh export`.
+  const exportTimes = {};
+  for (const format of EXPORTS > 0 ? EXPORT_FORMATS : []) {
+    const out = join(work, `board.${format}`);
+    const times = [];
+    for (let i = 0; i < EXPORTS; i++) {
+      const t = performance.now();
+      await runPenmesh(["export", "--server", proxy.base, "--session", session.session, "--token", session.token, "--format", format, "--out", out], children);
+      times.push(Math.round(performance.now() - t));
+    }
+    exportTimes[format] = { ms: times, bytes: statSync(out).size, file: out };
+    log(`export ${format}: ${times.join(", ")} ms, ${statSync(out).size} bytes (${out})`);
+  }
+  if (NO_PAGE) {
+    if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, exports: exportTimes }, null, 2));
+    for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
+    process.exit(0);
+  }
+
   browser = await launch();
   const context = await browser.newContext({ viewport: { width: BOARD.width, height: BOARD.height }, deviceScaleFactor: 1 });
   const url = `${proxy.base}/s/${session.session}#token=${session.token}`;
@@ -369,7 +394,7 @@ try {
   ];
   console.log("\n| what | measured | goal | met |\n|---|---|---|---|");
   for (const [what, value, met, goal] of goals) console.log(`| ${what} | ${value} | ${goal} | ${met ? "yes" : "no"} |`);
-  if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, first, again }, null, 2));
+  if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, exports: exportTimes, first, again }, null, 2));
   log(`screenshots: ${work}/busy-board-{open,orbited}.png`);
 } finally {
   for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");

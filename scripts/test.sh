@@ -45,6 +45,9 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/first-minutes.mjs
 # The mesh's width against the ink's along straight strokes (issue 36, item 6).
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/stroke-width.mjs
+# The Export menu (issue 39): the scene valid to the glTF-Validator and its extras to
+# docs/model-format.schema.json, the STL whole, a GLB dropped on a new session imported.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/export.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)
