@@ -137,7 +137,7 @@ async fn a_3d_session_exported_imported_and_exported_again_has_the_same_pen_data
     assert_eq!(imported.len(), 5);
     let mut done = 0;
     while done < 5 {
-        match watcher.recv().await {
+        match watcher.recv_any().await {
             ServerMessage::PeerStrokeDone(_) => done += 1,
             ServerMessage::PeerStrokes(whole) => done += whole.strokes.len(),
             _ => {}
