@@ -68,7 +68,7 @@ const bed = new THREE.Mesh(new THREE.PlaneGeometry(size.x + 10, size.y + 10),
 bed.position.set(centre.x, centre.y, box.min.z - 0.01); scene.add(bed);
 scene.add(object);
 const camera = new THREE.PerspectiveCamera(30, 1.6, 1, 10000);
-const d = Math.max(size.x, size.y) * 1.55;
+const d = Math.max(size.x, size.y, size.z * 1.6) * 1.55;
 camera.up.set(0, 0, 1);
 camera.position.set(centre.x, centre.y - d * 0.75, centre.z + d * 0.8);
 camera.lookAt(centre);

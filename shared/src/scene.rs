@@ -323,9 +323,11 @@ fn srgb_to_linear(channel: u32) -> f64 {
     if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
 
-/// A short, readable name for a stroke: its author and the first 8 digits of its id.
+/// A short, readable name for a stroke: its author and the last 8 hex digits of its id (the
+/// first ones of a UUID v7 are its time, the same for strokes drawn together).
 pub fn stroke_label(extras: &StrokeExtras) -> String {
-    let short: String = extras.stroke.simple().to_string().chars().take(8).collect();
+    let hex = extras.stroke.simple().to_string();
+    let short = &hex[hex.len() - 8..];
     let author = extras.author.name.trim();
     if author.is_empty() {
         format!("stroke {short}")
