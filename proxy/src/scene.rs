@@ -16,6 +16,8 @@ use crate::store::StrokeRow;
 pub const MAX_SCENE_MESH_BYTES: u64 = 256 * 1024 * 1024;
 /// Meshes read from the store per query.
 const MESHES_PER_READ: usize = 64;
+/// Simplified strokes read per query (bound parameters: SQLite allows 32,766).
+const SIMPLIFIED_PER_READ: usize = 500;
 
 /// The name shown for `participant`: the latest it went by in the session, else the name its
 /// imports gave, else none.
@@ -39,6 +41,7 @@ pub async fn scene_file(
     rows: &[StrokeRow],
     size_mm: f64,
 ) -> Result<Vec<u8>, AppError> {
+    let started = std::time::Instant::now();
     let names = state.store.participant_names(session).await?;
     let imports = state.store.session_imports(session).await?;
     // Which mesh row each stroke shows, and how large it is.
@@ -67,9 +70,14 @@ pub async fn scene_file(
     for chunk in mesh_order.chunks(MESHES_PER_READ) {
         glbs.extend(state.store.mesh_glbs(chunk).await?);
     }
+    let ids: Vec<Uuid> = rows.iter().map(|r| r.id).collect();
+    let mut simplified = HashMap::with_capacity(ids.len());
+    for chunk in ids.chunks(SIMPLIFIED_PER_READ) {
+        simplified.extend(state.store.simplified_many(chunk).await?);
+    }
     let mut extras = Vec::with_capacity(rows.len());
     for row in rows {
-        let Some(simplified) = state.store.simplified(row.id).await? else {
+        let Some(simplified) = simplified.remove(&row.id) else {
             return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
         };
         extras.push(StrokeExtras {
@@ -99,6 +107,7 @@ pub async fn scene_file(
             (*row.placement.matrix(), mesh)
         })
         .collect();
+    let read = started.elapsed();
     let file = tokio::task::spawn_blocking(move || {
         let input = SceneInput {
             meshes: meshes.iter().map(Vec::as_slice).collect(),
@@ -115,5 +124,12 @@ pub async fn scene_file(
     .map_err(anyhow::Error::from)?
     // The stored meshes were checked on upload: one the scene cannot merge is the proxy's fault.
     .map_err(|e| anyhow::anyhow!("no scene: {e}"))?;
+    tracing::info!(
+        strokes = rows.len(),
+        read_ms = read.as_millis() as u64,
+        total_ms = started.elapsed().as_millis() as u64,
+        bytes = file.len(),
+        "scene exported"
+    );
     Ok(file)
 }

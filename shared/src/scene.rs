@@ -496,7 +496,7 @@ impl Merger {
                     &mut bounds,
                     0,
                 )
-                .map_err(|why| bad(why))?,
+                .map_err(&bad)?,
             );
         }
         Ok(MergedMesh {
