@@ -3,6 +3,7 @@
 //! brush and placement, drawn by this participant (`--key`, a new one by default), the
 //! original author kept. All or nothing: the proxy stores every stroke or none.
 
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -67,9 +68,11 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
         }
         serde_json::from_str::<Imported>(&body).context("the proxy's answer is not an import")
     })?;
-    println!("imported {} strokes from {}", imported.strokes.len(), args.file.display());
+    // Written, not printed: a closed pipe (`| head`) is an error to report, not a panic.
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "imported {} strokes from {}", imported.strokes.len(), args.file.display())?;
     for stroke in &imported.strokes {
-        println!("{} (was {})", stroke.stroke, stroke.source);
+        writeln!(out, "{} (was {})", stroke.stroke, stroke.source)?;
     }
     Ok(())
 }
