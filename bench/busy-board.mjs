@@ -15,6 +15,7 @@
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--planes 1] [--json OUT.json] [--profile OUT.cpuprofile]
+//                             [--exports N [--export-formats glb,stl] [--no-page]]
 //
 // `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
 // 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
@@ -25,7 +26,7 @@
 // at a seeded random place on a 1000x700 board, reused in turn until there are --strokes; person
 // k draws every tenth with `penmesh draw --input` against a `penmesh-proxy` on a fresh
 // SQLite file. Needs Debian's Chromium (/usr/bin/chromium, or PENMESH_CHROMIUM).
-import { mkdtempSync, readdirSync, readFileSync, writeFileSync } from "node:fs";
+import { mkdtempSync, readdirSync, readFileSync, statSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
 import { gzipSync } from "node:zlib";
@@ -51,6 +52,11 @@ const PLANES = Number(option("--planes", "1"));
 // the front plane through y = 350, the side plane through x = 500.
 const PLACEMENTS = [null, "1,0,0,0,0,0,1,0,0,-1,0,0,0,350,0,1", "0,1,0,0,0,0,1,0,1,0,0,0,500,0,0,1"];
 if (!(PLANES >= 1 && PLANES <= 3)) throw new Error(`--planes takes 1, 2 or 3, not ${option("--planes")}`);
+// Issue 39: time this many exports of the board through `penmesh export` (GLB, and STL with
+// --export-formats glb,stl), and with --no-page stop there.
+const EXPORTS = Number(option("--exports", "0"));
+const EXPORT_FORMATS = option("--export-formats", "glb").split(",");
+const NO_PAGE = args.includes("--no-page");
 let profiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
@@ -361,6 +367,25 @@ try {
     log("meshes:", JSON.stringify(meshes));
   }
 
+  // The board taken out through the CLI, as a user does: wall time of each `penmesh export`.
+  const exportTimes = {};
+  for (const format of EXPORTS > 0 ? EXPORT_FORMATS : []) {
+    const out = join(work, `board.${format}`);
+    const times = [];
+    for (let i = 0; i < EXPORTS; i++) {
+      const t = performance.now();
+      await runPenmesh(["export", "--server", proxy.base, "--session", session.session, "--token", session.token, "--format", format, "--out", out], children);
+      times.push(Math.round(performance.now() - t));
+    }
+    exportTimes[format] = { ms: times, bytes: statSync(out).size, file: out };
+    log(`export ${format}: ${times.join(", ")} ms, ${statSync(out).size} bytes (${out})`);
+  }
+  if (NO_PAGE) {
+    if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, exports: exportTimes }, null, 2));
+    for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
+    process.exit(0);
+  }
+
   browser = await launch();
   const context = await browser.newContext({ viewport: { width: BOARD.width, height: BOARD.height }, deviceScaleFactor: 1 });
   const url = `${proxy.base}/s/${session.session}#token=${session.token}`;
@@ -379,7 +404,7 @@ try {
   ];
   console.log("\n| what | measured | goal | met |\n|---|---|---|---|");
   for (const [what, value, met, goal] of goals) console.log(`| ${what} | ${value} | ${goal} | ${met ? "yes" : "no"} |`);
-  if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, first, again }, null, 2));
+  if (JSON_OUT) writeFileSync(JSON_OUT, JSON.stringify({ bin: BIN, people: PEOPLE, strokes: STROKES, size: SIZE, meshes, exports: exportTimes, first, again }, null, 2));
   log(`screenshots: ${work}/busy-board-{open,orbited}.png`);
 } finally {
   for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");

@@ -1,9 +1,12 @@
-// A picture of an exported print: the STL (penmesh-print's output, millimetres) rendered with
-// three.js's STLLoader in headless Chromium, seen from above at an angle, with its size.
+// A picture of an exported model: a print's STL (penmesh-print's output, millimetres) rendered
+// with three.js's STLLoader, or a scene's GLB (`export?format=glb`, metres, Y up, meshopt) with
+// its GLTFLoader and MeshoptDecoder, in its strokes' colours, in headless Chromium, seen from
+// above at an angle, with its size.
 //
 // Usage (from the repository root, after `npm ci --prefix bench`):
 //   cargo run --release -p penmesh-print --example print_board -- 30 /tmp/board.stl
 //   node bench/render-print.mjs /tmp/board.stl docs/figures/print-board.png
+//   node bench/render-print.mjs /tmp/board.glb docs/figures/scene-board.png
 // Needs Debian's Chromium (/usr/bin/chromium, or CHROMIUM=path); three.js is served from
 // bench/node_modules, nothing is fetched.
 
@@ -16,10 +19,11 @@ import { chromium } from 'playwright-core';
 const here = dirname(fileURLToPath(import.meta.url));
 const [input, output] = process.argv.slice(2);
 if (!input || !output) {
-  console.error('usage: node bench/render-print.mjs IN.stl OUT.png');
+  console.error('usage: node bench/render-print.mjs IN.stl|IN.glb OUT.png');
   process.exit(2);
 }
 const stl = readFileSync(input).toString('base64');
+const kind = input.toLowerCase().endsWith('.glb') ? 'glb' : 'stl';
 
 const page = `<!doctype html><html><head><meta charset="utf-8"><style>
 body { margin: 0; background: #fff; font: 14px sans-serif; } #t { padding: 6px 8px; color: #333; }
@@ -29,14 +33,30 @@ canvas { width: 1200px; height: 750px; display: block; }
 </head><body><div id="t"></div><canvas id="c" width="2400" height="1500"></canvas><script type="module">
 import * as THREE from 'three';
 import { STLLoader } from 'three/addons/loaders/STLLoader.js';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 const bytes = Uint8Array.from(atob(window.STL), (ch) => ch.charCodeAt(0));
-const geometry = new STLLoader().parse(bytes.buffer);
-geometry.computeBoundingBox();
-const box = geometry.boundingBox, size = new THREE.Vector3(), centre = new THREE.Vector3();
+let object, label;
+if (window.KIND === 'glb') {
+  // The scene is in metres with Y up: turned Z up and scaled to mm, for the same camera.
+  const gltf = await new GLTFLoader().setMeshoptDecoder(MeshoptDecoder).parseAsync(bytes.buffer, '');
+  object = new THREE.Group();
+  object.rotation.x = Math.PI / 2;
+  object.scale.setScalar(1000);
+  object.add(gltf.scene);
+  let strokes = 0;
+  gltf.scene.traverse((o) => { if (o.userData.penmesh) strokes += 1; });
+  label = 'exported scene (GLB, ' + strokes + ' strokes with their pen data): ';
+} else {
+  const geometry = new STLLoader().parse(bytes.buffer);
+  object = new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color: 0xe07a2f, roughness: 0.5, flatShading: true }));
+  label = 'exported print (STL, ' + geometry.attributes.position.count / 3 + ' triangles): ';
+}
+object.updateMatrixWorld(true);
+const box = new THREE.Box3().setFromObject(object), size = new THREE.Vector3(), centre = new THREE.Vector3();
 box.getSize(size); box.getCenter(centre);
-document.getElementById('t').textContent = 'exported print (STL, mm): ' +
-  size.x.toFixed(1) + ' × ' + size.y.toFixed(1) + ' × ' + size.z.toFixed(2) + ' mm, ' +
-  geometry.attributes.position.count / 3 + ' triangles';
+document.getElementById('t').textContent = label +
+  size.x.toFixed(1) + ' × ' + size.y.toFixed(1) + ' × ' + size.z.toFixed(2) + ' mm';
 const renderer = new THREE.WebGLRenderer({ canvas: document.getElementById('c'), antialias: true, preserveDrawingBuffer: true });
 renderer.setSize(2400, 1500, false); renderer.setClearColor(0xffffff);
 const scene = new THREE.Scene();
@@ -46,10 +66,9 @@ const light = new THREE.DirectionalLight(0xffffff, 2.4); light.position.set(-0.5
 const bed = new THREE.Mesh(new THREE.PlaneGeometry(size.x + 10, size.y + 10),
   new THREE.MeshStandardMaterial({ color: 0xe8e8e8 }));
 bed.position.set(centre.x, centre.y, box.min.z - 0.01); scene.add(bed);
-const mesh = new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color: 0xe07a2f, roughness: 0.5, flatShading: true }));
-scene.add(mesh);
+scene.add(object);
 const camera = new THREE.PerspectiveCamera(30, 1.6, 1, 10000);
-const d = Math.max(size.x, size.y) * 1.55;
+const d = Math.max(size.x, size.y, size.z * 1.6) * 1.55;
 camera.up.set(0, 0, 1);
 camera.position.set(centre.x, centre.y - d * 0.75, centre.z + d * 0.8);
 camera.lookAt(centre);
@@ -79,7 +98,7 @@ const browser = await chromium.launch({
 try {
   const tab = await browser.newPage({ viewport: { width: 1200, height: 790 } });
   tab.on('pageerror', (e) => console.error('page error:', e.message));
-  await tab.addInitScript((s) => { window.STL = s; }, stl);
+  await tab.addInitScript(([s, k]) => { window.STL = s; window.KIND = k; }, [stl, kind]);
   await tab.goto(`http://127.0.0.1:${server.address().port}/`);
   await tab.waitForFunction(() => window.DONE === true, null, { timeout: 60_000 });
   await tab.screenshot({ path: output, fullPage: true });

@@ -50,6 +50,9 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # joiner and the proxy's placements agree.
 node client/web/test/placement-bake.mjs
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/model.mjs
+# The Export menu (issue 39): the scene valid to the glTF-Validator and its extras to
+# docs/model-format.schema.json, the STL whole, a GLB dropped on a new session imported.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/export.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

@@ -19,6 +19,16 @@ pub fn session_strokes(session: Uuid) -> String {
     format!("{SESSIONS}/{session}/strokes")
 }
 
+/// `GET`: the session's model (`?format=glb|stl|3mf`).
+pub fn session_export(session: Uuid) -> String {
+    format!("{SESSIONS}/{session}/export")
+}
+
+/// `POST` (with the participant key): a GLB penmesh exported, its strokes re-created.
+pub fn session_import(session: Uuid) -> String {
+    format!("{SESSIONS}/{session}/import")
+}
+
 /// `GET`: a stroke's simplified samples (`StrokeSamples`).
 pub fn stroke_simplified(stroke: Uuid) -> String {
     format!("/v1/strokes/{stroke}/simplified")

@@ -23,6 +23,10 @@ pub enum Command {
     Synth(commands::synth::SynthArgs),
     /// Draw into a proxy session live: resample, stream, reconstruct, upload the meshes.
     Draw(commands::draw::DrawArgs),
+    /// Take a session's model out: the scene as GLB, or the print as STL or 3MF.
+    Export(commands::export::ExportArgs),
+    /// Bring a GLB penmesh exported back into a session (all strokes or none).
+    Import(commands::import::ImportArgs),
 }
 
 /// Runs the parsed command.
@@ -32,6 +36,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Synth(args) => commands::synth::run(&args),
         Command::Draw(args) => commands::draw::run(&args),
+        Command::Export(args) => commands::export::run(&args),
+        Command::Import(args) => commands::import::run(&args),
     }
 }
 

@@ -1,8 +1,10 @@
-//! The print of a session (issue 39, `docs/print.md`): `GET /v1/sessions/{session}/export`
-//! answers the union of its strokes' solids as one STL or 3MF file, made by `penmesh-print`
-//! from the stored drawn samples, kept indices and brushes. A bounded job like a mesh build:
-//! at most [`MAX_EXPORTS`] at once on a replica (the next is answered 503 `busy`), at most
-//! [`MAX_EXPORT_STROKES`] strokes, on the blocking pool.
+//! A session's model taken out (issue 39): `GET /v1/sessions/{session}/export` answers the
+//! print, the union of its strokes' solids as one STL or 3MF file made by `penmesh-print` from
+//! the stored drawn samples, kept indices, brushes and placements (`docs/print.md`), or the
+//! scene, one GLB of its stored meshes and pen data (`crate::scene`, `docs/model-format.md`).
+//! A bounded job like a mesh build: at most [`MAX_EXPORTS`] at once on a replica (the next is
+//! answered 503 `busy`), at most [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking
+//! pool.
 
 use std::collections::HashSet;
 
@@ -15,6 +17,7 @@ use uuid::Uuid;
 
 use crate::http::{AppError, authorize_session};
 use crate::state::AppState;
+use crate::store::StrokeRow;
 
 /// Prints made at once on one replica: each keeps a core busy for up to seconds.
 pub const MAX_EXPORTS: usize = 1;
@@ -24,7 +27,7 @@ pub const MAX_EXPORT_STROKES: usize = 5_000;
 /// What to export.
 #[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
 pub struct ExportQuery {
-    /// `stl` or `3mf`.
+    /// `glb` (the scene), `stl` or `3mf` (the print).
     format: String,
     /// Stroke ids, comma-separated: only these (each done and in the session); all the
     /// session's done strokes when absent.
@@ -35,16 +38,17 @@ pub struct ExportQuery {
     min_thickness_mm: Option<f64>,
 }
 
-/// The print of a session's done strokes (or of `strokes`): one closed manifold, in
-/// millimetres, as binary STL or 3MF.
+/// The model of a session's done strokes (or of `strokes`): the scene as GLB (a node per
+/// stroke with its placement, stored mesh and pen data in `extras`, in metres, the longest
+/// side `size_mm`), or the print, one closed manifold in millimetres, as binary STL or 3MF.
 #[utoipa::path(get, path = "/v1/sessions/{session}/export", tag = "export",
     params(("session" = Uuid, Path), ExportQuery), security(("bearer" = [])),
-    responses((status = 200, description = "the STL (model/stl) or 3MF (model/3mf) file"),
+    responses((status = 200, description = "the GLB (model/gltf-binary), STL (model/stl) or 3MF (model/3mf) file"),
         (status = 400, body = crate::http::ErrorBody), (status = 401, body = crate::http::ErrorBody),
         (status = 404, description = "a chosen stroke is not in the session", body = crate::http::ErrorBody),
-        (status = 409, description = "nothing done to print", body = crate::http::ErrorBody),
+        (status = 409, description = "nothing done to export", body = crate::http::ErrorBody),
         (status = 413, description = "too many strokes", body = crate::http::ErrorBody),
-        (status = 503, description = "busy: another print is being made", body = crate::http::ErrorBody)))]
+        (status = 503, description = "busy: another export is being made", body = crate::http::ErrorBody)))]
 pub async fn export_print(
     State(state): State<AppState>,
     Path(session): Path<String>,
@@ -55,9 +59,11 @@ pub async fn export_print(
     let (content_type, extension) = match query.format.as_str() {
         "stl" => ("model/stl", "stl"),
         "3mf" => ("model/3mf", "3mf"),
+        "glb" => ("model/gltf-binary", "glb"),
         other => {
             return Err(AppError::BadRequest(format!(
-                "format={other:?}: a print is exported as `stl` or `3mf`"
+                "format={other:?}: a model is exported as `glb` (the scene), `stl` or `3mf` (the \
+                 print)"
             )));
         }
     };
@@ -66,7 +72,36 @@ pub async fn export_print(
         min_thickness_mm: query.min_thickness_mm.unwrap_or(penmesh_print::DEFAULT_MIN_THICKNESS_MM),
     };
     options.validate().map_err(|e| AppError::BadRequest(e.to_string()))?;
-    let chosen = query.strokes.as_deref().map(parse_ids).transpose()?;
+    let rows = chosen_rows(&state, session, query.strokes.as_deref()).await?;
+    let Some(_permit) = state.export_permit() else {
+        return Err(AppError::Busy(format!(
+            "{MAX_EXPORTS} export(s) are being made, the limit; try again shortly"
+        )));
+    };
+    let file = if extension == "glb" {
+        crate::scene::scene_file(&state, session, &rows, options.size_mm).await?
+    } else {
+        print_file(&state, &rows, options, extension).await?
+    };
+    let disposition = format!("attachment; filename=\"penmesh-{session}.{extension}\"");
+    Ok((
+        [
+            (header::CONTENT_TYPE, content_type.to_string()),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        file,
+    )
+        .into_response())
+}
+
+/// The session's done strokes not taken back, oldest first, or the chosen ones (each done
+/// and in the session), at most [`MAX_EXPORT_STROKES`].
+async fn chosen_rows(
+    state: &AppState,
+    session: Uuid,
+    strokes: Option<&str>,
+) -> Result<Vec<StrokeRow>, AppError> {
+    let chosen = strokes.map(parse_ids).transpose()?;
     let rows = state.store.list_strokes(session, false).await?;
     let rows: Vec<_> = match &chosen {
         None => rows.into_iter().filter(|r| r.status == StrokeStatus::Done).collect(),
@@ -80,7 +115,7 @@ pub async fn export_print(
                     }
                     Some(r) if r.status != StrokeStatus::Done => {
                         return Err(AppError::Conflict(format!(
-                            "stroke {id} is {}: only done strokes are printed",
+                            "stroke {id} is {}: only done strokes are exported",
                             r.status.as_str()
                         )));
                     }
@@ -91,21 +126,26 @@ pub async fn export_print(
         }
     };
     if rows.is_empty() {
-        return Err(AppError::Conflict("the session has no done stroke to print".into()));
+        return Err(AppError::Conflict("the session has no done stroke to export".into()));
     }
     if rows.len() > MAX_EXPORT_STROKES {
         return Err(AppError::TooLarge(format!(
-            "{} strokes: a print takes at most {MAX_EXPORT_STROKES}; choose some with `strokes`",
+            "{} strokes: an export takes at most {MAX_EXPORT_STROKES}; choose some with `strokes`",
             rows.len()
         )));
     }
-    let Some(_permit) = state.export_permit() else {
-        return Err(AppError::Busy(format!(
-            "{MAX_EXPORTS} print(s) are being made, the limit; try again shortly"
-        )));
-    };
+    Ok(rows)
+}
+
+/// The print of `rows` as STL or 3MF (`extension`), on the blocking pool.
+async fn print_file(
+    state: &AppState,
+    rows: &[StrokeRow],
+    options: PrintOptions,
+    extension: &'static str,
+) -> Result<Vec<u8>, AppError> {
     let mut strokes = Vec::with_capacity(rows.len());
-    for row in &rows {
+    for row in rows {
         let Some(simplified) = state.store.simplified(row.id).await? else {
             return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
         };
@@ -132,15 +172,7 @@ pub async fn export_print(
     .map_err(anyhow::Error::from)?
     .map_err(|e| AppError::Conflict(format!("no print: {e}")))?
     .map_err(anyhow::Error::from)?;
-    let disposition = format!("attachment; filename=\"penmesh-{session}.{extension}\"");
-    Ok((
-        [
-            (header::CONTENT_TYPE, content_type.to_string()),
-            (header::CONTENT_DISPOSITION, disposition),
-        ],
-        file,
-    )
-        .into_response())
+    Ok(file)
 }
 
 /// `strokes=id,id,…` as ids, refusing one that is not a UUID by name.

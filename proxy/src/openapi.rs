@@ -3,7 +3,7 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{export, http, mesh_build, placement, removal, session_meshes};
+use crate::{export, http, import, mesh_build, placement, removal, session_meshes};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
@@ -11,12 +11,13 @@ use crate::{export, http, mesh_build, placement, removal, session_meshes};
     info(title = "penmesh proxy", description = "Sessions, strokes, simplified trajectories and meshes. \
         The WebSocket ingest is GET /v1/sessions/{session}/ws (bearer token, or for browsers the `penmesh.token.TOKEN` \
         WebSocket subprotocol). Reads need the session's token; storing or building a stroke's mesh, and taking \
-        a stroke back or bringing it back, or placing it (PUT /v1/strokes/{id}/placement), also need its drawer's participant key (the `key` of its WebSocket \
+        a stroke back or bringing it back, or placing it (PUT /v1/strokes/{id}/placement), and importing a model (POST /v1/sessions/{session}/import), also need its drawer's participant key (the `key` of its WebSocket \
         `Hello`) in the `x-penmesh-key` header."),
     paths(
         http::create_session,
         http::list_strokes,
         export::export_print,
+        import::import_scene,
         http::simplified,
         http::raw,
         http::put_mesh,
@@ -44,7 +45,9 @@ use crate::{export, http, mesh_build, placement, removal, session_meshes};
         penmesh::protocol::PlacementChange,
         penmesh::protocol::PlacementHistory,
         penmesh::protocol::DuplicateRequest,
-        penmesh::protocol::Duplicated
+        penmesh::protocol::Duplicated,
+        penmesh::protocol::Imported,
+        penmesh::protocol::ImportedStroke
     )),
     modifiers(&BearerAuth)
 )]

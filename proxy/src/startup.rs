@@ -32,7 +32,8 @@ use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
 use crate::{
-    export, http, mesh_build, metrics, placement, removal, send_deadline, session_meshes, web, ws,
+    export, http, import, mesh_build, metrics, placement, removal, send_deadline, session_meshes,
+    web, ws,
 };
 
 /// A bound, ready-to-run proxy.
@@ -316,6 +317,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/sessions/{session}/strokes", get(http::list_strokes))
         .route("/v1/sessions/{session}/meshes", get(session_meshes::session_meshes))
         .route("/v1/sessions/{session}/export", get(export::export_print))
+        .route("/v1/sessions/{session}/import", post(import::import_scene))
         .route("/v1/strokes/{id}/simplified", get(http::simplified))
         .route("/v1/strokes/{id}/raw", get(http::raw))
         .route("/v1/strokes/{id}/mesh", put(http::put_mesh).get(http::get_mesh))

@@ -21,6 +21,7 @@ mod metrics;
 mod model;
 mod placement;
 pub mod protocol;
+mod scene;
 mod svg;
 
 pub use crate::acuts::{
@@ -66,5 +67,10 @@ pub use crate::metrics::{
 };
 pub use crate::placement::{
     IDENTITY_MATRIX, MAX_SCALE, MIN_SCALE, Placement, PlacementError, SIMILARITY_TOLERANCE,
+};
+pub use crate::scene::{
+    Author, EXTRAS_KEY, ImportedFrom, ReadStroke, SCENE_EXTRAS_KEY, SCENE_FORMAT_VERSION,
+    SceneError, SceneExtras, SceneInput, SceneStroke, StrokeExtras, read_scene, scene_glb,
+    stroke_label,
 };
 pub use crate::svg::{SvgStroke, simplification_svg, strokes_svg};

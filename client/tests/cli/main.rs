@@ -8,6 +8,7 @@
 mod draw;
 mod errors;
 mod evdev;
+mod export;
 mod helpers;
 mod mesh;
 mod resume;

@@ -2,7 +2,7 @@
 // what its signals say (the active tool pressed and its cursor, undo and redo greyed out when
 // there is nothing to take back, a notice for an action that did nothing). Shortcuts: each
 // tool's keys (D draw, E erase, O orbit), Esc back to drawing, F fit, Ctrl+Z / Ctrl+Shift+Z /
-// Ctrl+Y. Also the brush, the name, the link to share, a new session (asked first), the GLB.
+// Ctrl+Y. Also the brush, the name, the link to share, a new session (asked first).
 import { newSession } from "./landing.js";
 import { colourOf, strokeColour } from "./scene.js";
 import { cleanName, colourOf as colourNumber, hexOf, saveBrush, saveName } from "./settings.js";
@@ -127,7 +127,7 @@ export function attachControls(editor, { session, name, askName, fail }) {
     $("toggle-more").setAttribute("aria-expanded", String(open));
   };
 
-  // --- sharing, a new session, the camera, the GLB ---------------------------------------------
+  // --- sharing, a new session, the camera (the Export menu: export.js) ---------------------------------------------
   $("copy-link").onclick = async () => {
     try {
       await navigator.clipboard.writeText(location.href);
@@ -144,17 +144,5 @@ export function attachControls(editor, { session, name, askName, fail }) {
     newSession(fail);
   };
   $("fit").onclick = () => editor.fit();
-  $("download").onclick = async () => {
-    try {
-      const glb = await editor.view.exportGlb();
-      const a = document.createElement("a");
-      a.href = URL.createObjectURL(new Blob([glb], { type: "model/gltf-binary" }));
-      a.download = `penmesh-${session}.glb`;
-      a.click();
-      setTimeout(() => URL.revokeObjectURL(a.href), 10000);
-    } catch (err) {
-      fail(`cannot export: ${err.message}`);
-    }
-  };
   return controls;
 }

@@ -11,7 +11,6 @@
 // coordinates.
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
-import { GLTFExporter } from "three/examples/jsm/exporters/GLTFExporter.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { MergedMeshes, flatten } from "./batch.js";
 import { matrixOf } from "./placement.js";
@@ -407,29 +406,5 @@ export class SceneView {
   drawn() {
     this.requestRender();
     return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
-  }
-
-  /// Every mesh on screen in one GLB (strokes taken back left out), each stroke a node named by
-  /// its id, in its colour.
-  async exportGlb() {
-    const root = new THREE.Group();
-    root.scale.set(1, -1, 1);
-    const materials = new Map(); // colour as hex -> material
-    for (const [id, s] of this.strokes) {
-      if (!s.mesh || s.removed) continue;
-      const hex = s.colour.getHex();
-      if (!materials.has(hex)) materials.set(hex, new THREE.MeshStandardMaterial({ color: s.colour }));
-      const geometry = this.person(s.participant).geometryOf(s.mesh);
-      geometry.deleteAttribute("colour");
-      const mesh = new THREE.Mesh(geometry, materials.get(hex));
-      mesh.name = id;
-      mesh.applyMatrix4(matrixOf(s.placement));
-      root.add(mesh);
-    }
-    try {
-      return await new Promise((ok, err) => new GLTFExporter().parse(root, ok, err, { binary: true }));
-    } finally {
-      root.traverse((o) => o.geometry && o.geometry.dispose());
-    }
   }
 }

@@ -7,6 +7,7 @@ import { Api } from "./api.js";
 import { blocked } from "./landing.js";
 import { attachControls } from "./controls.js";
 import { Editor } from "./editor.js";
+import { attachExport } from "./export.js";
 import { Ink } from "./ink.js";
 import { attachInput } from "./input.js";
 import { attachModelBar } from "./modelbar.js";
@@ -83,6 +84,7 @@ export function startSession(session, token) {
   attachInput($("ink"), editor);
   const controls = attachControls(editor, { session, name, askName, fail });
   attachModelBar(editor, { workPlane, selection: editor.selection });
+  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail });
 
   // For the browser tests and the curious.
   window.penmesh = {

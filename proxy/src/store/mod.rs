@@ -7,7 +7,8 @@
 //!
 //! One file per job: `connect.rs` (the pool, the SQLite settings, the migrations: [`Store`]),
 //! `rows.rs` (the rows handed out), `blob.rs` (the sample blob layouts), `sessions.rs`,
-//! `reads.rs` (strokes, simplified strokes, meshes), `raw.rs` (a stroke's raw samples, chunks
+//! `reads.rs` (strokes, simplified strokes, meshes), `imports.rs` (participants' names and
+//! imported strokes' origins, for a scene export), `raw.rs` (a stroke's raw samples, chunks
 //! and log together), `replay.rs`, `history.rs` (a session's history), `recover.rs` (the log a
 //! stopped process left behind), `notify.rs` (events as PostgreSQL notifications),
 //! `checkpoint.rs` (SQLite's checkpointer), `log.rs` (the append log) and `writer/` (the group
@@ -17,6 +18,7 @@ mod blob;
 mod checkpoint;
 mod connect;
 mod history;
+mod imports;
 pub(crate) mod log;
 mod meshes;
 mod notify;
@@ -33,6 +35,7 @@ pub use blob::decode_samples;
 pub(crate) use blob::{encode_indices, encode_samples};
 pub use checkpoint::start_checkpointer;
 pub use connect::{Backend, Store};
+pub use imports::ImportRow;
 pub use meshes::BundleEntry;
 pub use notify::EVENTS_CHANNEL;
 pub(crate) use notify::notify;

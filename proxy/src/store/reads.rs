@@ -76,6 +76,38 @@ impl Store {
         Ok(Some(Simplified { indices: decode_indices(&indices), samples }))
     }
 
+    /// The simplified strokes of `strokes` (done ones; others are absent), in one query: a
+    /// scene export reads a thousand at once.
+    pub async fn simplified_many(
+        &self,
+        strokes: &[Uuid],
+    ) -> anyhow::Result<std::collections::HashMap<Uuid, Simplified>> {
+        if strokes.is_empty() {
+            return Ok(Default::default());
+        }
+        let places: Vec<String> = (1..=strokes.len()).map(|i| format!("${i}")).collect();
+        let sql = format!(
+            "SELECT stroke_id, indices, layout, data FROM simplified \
+             WHERE upto IS NULL AND stroke_id IN ({})",
+            places.join(", ")
+        );
+        let mut query = sqlx::query(&sql);
+        for stroke in strokes {
+            query = query.bind(stroke.to_string());
+        }
+        let rows = query.fetch_all(&self.pool).await?;
+        rows.iter()
+            .map(|row| {
+                let stroke = super::parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+                let indices: Vec<u8> = row.try_get("indices")?;
+                let data: Vec<u8> = row.try_get("data")?;
+                let samples = decode_samples(row.try_get("layout")?, &data)
+                    .with_context(|| format!("stroke {stroke}: simplified samples"))?;
+                Ok((stroke, Simplified { indices: decode_indices(&indices), samples }))
+            })
+            .collect()
+    }
+
     /// The size in bytes of a stroke's mesh (a duplicate's: its source's), without reading it.
     pub async fn mesh_bytes(&self, stroke: Uuid) -> anyhow::Result<Option<u64>> {
         let bytes: Option<i64> = sqlx::query_scalar(

@@ -98,6 +98,21 @@ pub struct Duplicated {
     pub source: Uuid,
 }
 
+/// One stroke re-created by `POST /v1/sessions/{id}/import`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ImportedStroke {
+    /// Its id in the session.
+    pub stroke: Uuid,
+    /// Its id in the file (`extras.penmesh.stroke`).
+    pub source: Uuid,
+}
+
+/// What an import re-created, in the file's order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Imported {
+    pub strokes: Vec<ImportedStroke>,
+}
+
 /// Who took a stroke back, and when.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 pub struct Removal {

@@ -10,6 +10,7 @@ mod export;
 mod http;
 mod identity;
 mod limits;
+mod model_roundtrip;
 mod old_database;
 mod postgres;
 mod protocol_doc;

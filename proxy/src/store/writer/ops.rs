@@ -48,6 +48,9 @@ pub enum WriteOp {
     Place { stroke: Uuid, placement: Placement, by: Uuid, at: i64, cause: &'static str },
     /// Records that `stroke` is a duplicate of `source`, showing the mesh of `mesh_of`.
     MarkDuplicate { stroke: Uuid, source: Uuid, mesh_of: Uuid },
+    /// Records where an imported stroke came from (`stroke_imports`), and the name its
+    /// importer gave.
+    MarkImported { stroke: Uuid, from: Box<penmesh::ImportedFrom>, importer_name: String },
 }
 
 impl WriteOp {

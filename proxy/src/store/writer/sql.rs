@@ -283,6 +283,21 @@ pub(super) async fn apply(
                 .execute(&mut *conn)
                 .await?;
         }
+        WriteOp::MarkImported { stroke, from, importer_name } => {
+            sqlx::query(
+                "INSERT INTO stroke_imports (stroke_id, source_stroke, author_id, author_name, \
+                 drawn_at, imported_at, importer_name) VALUES ($1, $2, $3, $4, $5, $6, $7)",
+            )
+            .bind(stroke.to_string())
+            .bind(from.stroke.to_string())
+            .bind(from.author.participant.to_string())
+            .bind(from.author.name.clone())
+            .bind(from.drawn_at)
+            .bind(from.imported_at)
+            .bind(importer_name.clone())
+            .execute(&mut *conn)
+            .await?;
+        }
         WriteOp::SetRemoved { stroke, removed: None } => {
             sqlx::query("UPDATE strokes SET removed_at = NULL, removed_by = NULL WHERE id = $1")
                 .bind(stroke.to_string())

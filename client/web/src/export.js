@@ -1,0 +1,149 @@
+// The Export menu and the GLB import (issue 39, docs/model-format.md, docs/print.md): the model
+// taken out through the proxy's one export path, GET /v1/sessions/{id}/export?format=glb|stl|3mf
+// (the scene with every stroke's pen data, or the print as one closed solid in millimetres),
+// with progress while the proxy makes the file (the time so far) and while it arrives (bytes of
+// its length); and a GLB penmesh exported brought back, chosen in the menu or dropped on the
+// page (POST /v1/sessions/{id}/import with this tab's participant key: its strokes come back as
+// this tab's, and arrive live as any new stroke). Builds its own menu; needs only a button.
+
+const FORMATS = [
+  ["glb", "GLB scene", "every stroke as a node with its pen data: Blender, three.js, back into penmesh"],
+  ["stl", "STL print", "one closed solid in millimetres, for a slicer"],
+  ["3mf", "3MF print", "the same solid as a 3MF package (unit mm)"],
+];
+
+/// Wires the Export menu to `button`. `token` opens the session, `key()` is this tab's
+/// participant key, `name()` its display name; `notice` and `fail` report to the person.
+/// Returns `{ exportModel(format, sizeMm), importFile(file) }` for the tests and the curious.
+export function attachExport({ button, session, token, key, name, notice, fail }) {
+  const dialog = document.createElement("dialog");
+  dialog.id = "export-menu";
+  dialog.innerHTML = `
+    <form method="dialog">
+      <p><label>longest side <input id="export-size" type="number" min="1" max="10000" step="1" value="100"> mm</label></p>
+      <div class="actions" id="export-formats"></div>
+      <p><progress id="export-progress" hidden></progress> <span id="export-status" role="status"></span></p>
+      <p><label>Import a penmesh GLB <input id="import-file" type="file" accept=".glb,model/gltf-binary"></label></p>
+      <div class="actions"><button id="export-close" value="close">Close</button></div>
+    </form>`;
+  document.body.append(dialog);
+  const $ = (id) => dialog.querySelector(`#${id}`);
+  const progress = $("export-progress");
+  const status = $("export-status");
+  let busy = false;
+
+  const show = (text, value, max) => {
+    status.textContent = text;
+    progress.hidden = value === undefined;
+    if (max) {
+      progress.max = max;
+      progress.value = value;
+    } else {
+      progress.removeAttribute("value"); // indeterminate while the proxy works
+    }
+  };
+
+  /// Fetches the model, reporting progress; resolves to a Blob.
+  async function exportModel(format, sizeMm) {
+    const started = performance.now();
+    const seconds = () => ((performance.now() - started) / 1000).toFixed(1);
+    show(`the proxy is making the ${format.toUpperCase()}… 0.0 s`, 0);
+    const ticker = setInterval(() => show(`the proxy is making the ${format.toUpperCase()}… ${seconds()} s`, 0), 200);
+    let res;
+    try {
+      res = await fetch(`/v1/sessions/${session}/export?format=${format}&size_mm=${sizeMm}`, {
+        headers: { authorization: `Bearer ${token}` },
+      });
+    } finally {
+      clearInterval(ticker);
+    }
+    if (!res.ok) {
+      let detail = "";
+      try {
+        detail = (await res.json()).message;
+      } catch {}
+      throw new Error(`HTTP ${res.status} ${detail}`);
+    }
+    const total = Number(res.headers.get("content-length")) || 0;
+    const reader = res.body.getReader();
+    const parts = [];
+    let received = 0;
+    for (;;) {
+      const { done, value } = await reader.read();
+      if (done) break;
+      parts.push(value);
+      received += value.length;
+      show(`receiving ${(received / 1024).toFixed(0)} KB${total ? ` of ${(total / 1024).toFixed(0)}` : ""}`, received, total);
+    }
+    show(`${format.toUpperCase()} ready: ${(received / 1024).toFixed(0)} KB in ${seconds()} s`);
+    return new Blob(parts, { type: res.headers.get("content-type") || "application/octet-stream" });
+  }
+
+  async function download(format) {
+    if (busy) return;
+    busy = true;
+    try {
+      const size = Number($("export-size").value) || 100;
+      const blob = await exportModel(format, size);
+      const a = document.createElement("a");
+      a.href = URL.createObjectURL(blob);
+      a.download = `penmesh-${session}.${format}`;
+      a.click();
+      setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+    } catch (err) {
+      show("");
+      fail(`cannot export: ${err.message}`);
+    } finally {
+      busy = false;
+    }
+  }
+
+  /// Sends a GLB to the proxy's import; resolves to the strokes it re-created.
+  async function importFile(file) {
+    show(`importing ${file.name}…`, 0);
+    const res = await fetch(`/v1/sessions/${session}/import?name=${encodeURIComponent(name())}`, {
+      method: "POST",
+      headers: { authorization: `Bearer ${token}`, "x-penmesh-key": key(), "content-type": "model/gltf-binary" },
+      body: file,
+    });
+    const body = await res.json().catch(() => ({}));
+    if (!res.ok) {
+      show("");
+      throw new Error(`${file.name}: ${body.message || `HTTP ${res.status}`}`);
+    }
+    show(`imported ${body.strokes.length} strokes from ${file.name}`);
+    notice(`imported ${body.strokes.length} strokes from ${file.name}`);
+    return body.strokes;
+  }
+
+  const importChosen = (file) => importFile(file).catch((err) => fail(`cannot import: ${err.message}`));
+
+  for (const [format, label, title] of FORMATS) {
+    const b = document.createElement("button");
+    b.type = "button";
+    b.id = `export-${format}`;
+    b.textContent = label;
+    b.title = title;
+    b.onclick = () => download(format);
+    $("export-formats").append(b);
+  }
+  $("import-file").onchange = (e) => {
+    const file = e.target.files[0];
+    if (file) importChosen(file);
+    e.target.value = "";
+  };
+  button.textContent = "Export";
+  button.title = "take the model out (GLB, STL, 3MF), or bring a GLB back";
+  button.onclick = () => dialog.showModal();
+  // A GLB dropped anywhere on the page is imported.
+  document.addEventListener("dragover", (e) => {
+    if ([...(e.dataTransfer?.items || [])].some((i) => i.kind === "file")) e.preventDefault();
+  });
+  document.addEventListener("drop", (e) => {
+    const file = [...(e.dataTransfer?.files || [])].find((f) => f.name.toLowerCase().endsWith(".glb"));
+    if (!file) return;
+    e.preventDefault();
+    importChosen(file);
+  });
+  return { exportModel, importFile };
+}

@@ -1,0 +1,281 @@
+//! Bringing a model back (issue 39, `docs/model-format.md`): `POST /v1/sessions/{session}/import`
+//! takes a GLB that penmesh exported (`format=glb`) and re-creates each of its strokes in the
+//! session through the writer, as a duplicate is written (`crate::placement::duplicate`):
+//! the same simplified samples, exactly (they become the stroke's drawn samples, all kept: no
+//! simplification runs again), its brush and its node's matrix as its placement. The importer
+//! (the participant of `x-penmesh-key`) is every new stroke's drawer; the original author,
+//! stroke id and time are kept beside it (`stroke_imports`), since an import cannot act as
+//! another participant.
+//!
+//! **All or nothing**: every check runs and every mesh is built before anything is written,
+//! then every stroke is written in one request to the writer, which commits it in one
+//! transaction. The meshes (built as `crate::mesh_build` builds them for the page) are stored
+//! after that commit, each as an upload is (`http::store_mesh`); the session's mesh quota is
+//! checked for all of them before the strokes are written. Others in the session see the
+//! strokes arrive live, as any new stroke.
+
+use axum::Json;
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use penmesh::protocol::{Imported, ImportedStroke, KEY_HEADER, quantize_sample};
+use penmesh::{
+    AcutsParams, GlbMeta, GlbOptions, ImportedFrom, Kept, OutlineOptions, Placement, ReadStroke,
+    SceneError,
+};
+use uuid::Uuid;
+
+use crate::events::{EventKind, SessionEvent};
+use crate::http::{AppError, ErrorBody, authorize_session, store_mesh};
+use crate::mesh_build::PROXY_UPLOADER;
+use crate::state::AppState;
+use crate::store::{WriteError, WriteOp, now_ms};
+
+/// Most strokes one import re-creates.
+pub const MAX_IMPORT_STROKES: usize = 5_000;
+/// The device an imported stroke is stored with.
+pub const IMPORT_DEVICE: &str = "import";
+
+/// Who imports.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+pub struct ImportQuery {
+    /// The importer's display name, shown as the drawer's where the importer never joined the
+    /// session live (as `hello.name`; cleaned the same way).
+    name: Option<String>,
+}
+
+/// A stroke of the file, checked, and its mesh built.
+struct Checked {
+    read: ReadStroke,
+    placement: Placement,
+    glb: Vec<u8>,
+    counts: crate::glb::MeshCounts,
+}
+
+fn scene_error(err: SceneError) -> AppError {
+    AppError::BadRequest(format!("cannot import the file: {err}"))
+}
+
+/// Checks one stroke read from the file: its placement, brush and samples, each refusal naming
+/// the stroke (its id in the file and its node).
+fn check(read: &ReadStroke, max_samples: usize) -> Result<Placement, AppError> {
+    let what = format!("stroke {} (node {})", read.extras.stroke, read.node);
+    let bad = |why: String| AppError::BadRequest(format!("cannot import {what}: {why}"));
+    let placement =
+        Placement::new(read.placement).map_err(|e| bad(format!("its node's matrix: {e}")))?;
+    read.extras.brush.validate().map_err(|e| bad(format!("its brush: {e}")))?;
+    let samples = &read.extras.samples;
+    if samples.is_empty() {
+        return Err(bad("it has no samples".into()));
+    }
+    if samples.len() > max_samples {
+        return Err(bad(format!(
+            "{} samples, a stroke holds at most {max_samples}",
+            samples.len()
+        )));
+    }
+    penmesh::validate_samples(samples, None, 0).map_err(|e| bad(e.to_string()))?;
+    // Stored samples are on the codec's grid; one off it would not be stored exactly.
+    if let Some((index, s)) = samples.iter().enumerate().find(|(_, s)| quantize_sample(s) != **s) {
+        return Err(bad(format!(
+            "sample {index} ({}, {}, {}, {}) is not on penmesh's grid (x and y in 1/16 px, t in \
+             1/8 ms, p in 1/1024): it was not exported by penmesh",
+            s.x, s.y, s.t, s.p
+        )));
+    }
+    Ok(placement)
+}
+
+/// Re-creates the strokes of a penmesh GLB (`export?format=glb`) in the session: the same
+/// simplified samples (exact), brushes and placements, drawn by the participant of
+/// `x-penmesh-key`, the original author kept. All or nothing: a file that is not a penmesh
+/// scene, truncated, too large, or with one bad stroke stores nothing.
+#[utoipa::path(post, path = "/v1/sessions/{session}/import", tag = "export",
+    params(("session" = Uuid, Path), ImportQuery,
+        ("x-penmesh-key" = String, Header, description = "the importer's participant key (its hello.key)")),
+    request_body(content = Vec<u8>, content_type = "model/gltf-binary",
+        description = "a GLB exported by penmesh (`GET /v1/sessions/{id}/export?format=glb`)"),
+    security(("bearer" = [])),
+    responses((status = 201, description = "the strokes re-created, in the file's order", body = Imported),
+        (status = 400, description = "not a penmesh GLB, truncated, or a bad stroke (naming it and what is wrong); nothing stored", body = ErrorBody),
+        (status = 401, body = ErrorBody),
+        (status = 413, description = "the file, its strokes or the session's mesh quota is too large; nothing stored", body = ErrorBody),
+        (status = 503, description = "busy: too many large bodies at once", body = ErrorBody)))]
+pub async fn import_scene(
+    State(state): State<AppState>,
+    Path(session): Path<String>,
+    Query(query): Query<ImportQuery>,
+    headers: HeaderMap,
+    body: axum::body::Body,
+) -> Result<(StatusCode, Json<Imported>), AppError> {
+    let session = authorize_session(&state, &headers, None, &session).await?;
+    let by = match crate::identity::request_participant(session, &headers) {
+        Ok(by) => by,
+        Err(crate::identity::KeyError::Missing) => {
+            return Err(AppError::BadRequest(format!(
+                "an import needs a drawer: send your participant key (your hello.key) in the \
+                 {KEY_HEADER} header"
+            )));
+        }
+        Err(crate::identity::KeyError::Malformed(why)) => return Err(AppError::BadRequest(why)),
+    };
+    let importer_name = match query.name.as_deref() {
+        None => String::new(),
+        Some(name) => crate::identity::clean_name(name).ok_or_else(|| {
+            AppError::BadRequest(format!("name={name:?} is not a name that can be shown"))
+        })?,
+    };
+    let limit = state.config.max_body_bytes;
+    let length = headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse().ok());
+    if let Some(length) = length.filter(|&l: &u64| l > limit as u64) {
+        return Err(AppError::TooLarge(format!(
+            "the file is {length} bytes, an import takes at most {limit} (--max-body-bytes)"
+        )));
+    }
+    let _permit =
+        state.large_body(length.unwrap_or(limit as u64).min(limit as u64)).ok_or_else(|| {
+            AppError::Busy(
+                "too many large bodies are being sent or received; try again shortly".into(),
+            )
+        })?;
+    let body = axum::body::to_bytes(body, limit).await.map_err(|err| {
+        if std::error::Error::source(&err)
+            .is_some_and(|e| e.is::<http_body_util::LengthLimitError>())
+        {
+            AppError::TooLarge(format!(
+                "the file is larger than the limit of {limit} bytes (--max-body-bytes)"
+            ))
+        } else {
+            AppError::BadRequest(format!("cannot read the body: {err}"))
+        }
+    })?;
+    let strokes = penmesh::read_scene(&body).map_err(scene_error)?;
+    if strokes.len() > MAX_IMPORT_STROKES {
+        return Err(AppError::TooLarge(format!(
+            "{} strokes in the file, an import takes at most {MAX_IMPORT_STROKES}",
+            strokes.len()
+        )));
+    }
+    let max_samples = state.config.max_stroke_retained;
+    let mut placements = Vec::with_capacity(strokes.len());
+    for read in &strokes {
+        placements.push(check(read, max_samples)?);
+    }
+    // The new strokes' ids, chosen now so their meshes carry them.
+    let ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    let max_decoded = limit;
+    let checked = tokio::task::spawn_blocking(move || {
+        strokes
+            .into_iter()
+            .zip(placements)
+            .zip(&ids)
+            .map(|((read, placement), &id)| {
+                let samples = &read.extras.samples;
+                let kept: Vec<usize> = (0..samples.len()).collect();
+                let meta =
+                    GlbMeta { stroke: id, author: PROXY_UPLOADER.into(), brush: read.extras.brush };
+                let meshed = penmesh::mesh_drawn_stroke(
+                    samples,
+                    &kept,
+                    &meta,
+                    &OutlineOptions::default(),
+                    &GlbOptions::default(),
+                )
+                .map_err(|e| {
+                    AppError::BadRequest(format!(
+                        "cannot import stroke {} (node {}): it makes no mesh: {e}",
+                        read.extras.stroke, read.node
+                    ))
+                })?;
+                let counts = crate::glb::inspect(&meshed.glb, max_decoded).map_err(|e| {
+                    anyhow::anyhow!("the proxy built an invalid GLB for an import: {e}")
+                })?;
+                Ok((id, Checked { read, placement, glb: meshed.glb, counts }))
+            })
+            .collect::<Result<Vec<_>, AppError>>()
+    })
+    .await
+    .map_err(anyhow::Error::from)??;
+    // The session's mesh quota, for every mesh at once, before anything is written.
+    let quota = state.config.max_session_mesh_bytes;
+    let stored = state.store.session_mesh_bytes(session).await?;
+    let adding: u64 = checked.iter().map(|(_, c)| c.glb.len() as u64).sum();
+    if stored + adding > quota {
+        return Err(AppError::QuotaExceeded(format!(
+            "the imported strokes' meshes ({adding} bytes) would take the session's meshes to \
+             {} bytes, past its quota of {quota} (--max-session-mesh-bytes); nothing imported",
+            stored + adding
+        )));
+    }
+    let now = now_ms();
+    let mut ops = Vec::with_capacity(5 * checked.len());
+    let mut events = Vec::with_capacity(4 * checked.len());
+    let event = |kind| SessionEvent::new(session, kind);
+    for (stroke, c) in &checked {
+        let (stroke, extras) = (*stroke, &c.read.extras);
+        let kept: Vec<Kept> = extras
+            .samples
+            .iter()
+            .enumerate()
+            .map(|(index, &sample)| Kept { index, sample })
+            .collect();
+        ops.push(WriteOp::BeginStroke {
+            stroke,
+            session,
+            participant: by,
+            brush: extras.brush,
+            params: AcutsParams::default(),
+            device: Some(IMPORT_DEVICE.into()),
+        });
+        ops.push(WriteOp::Append { stroke, seq: 0, samples: extras.samples.clone() });
+        ops.push(WriteOp::Finish { stroke, kept });
+        // Where it came from: an imported stroke imported again keeps its first origin.
+        let from = extras.imported_from.clone().unwrap_or_else(|| ImportedFrom {
+            stroke: extras.stroke,
+            author: extras.author.clone(),
+            drawn_at: extras.drawn_at,
+            imported_at: now,
+        });
+        ops.push(WriteOp::MarkImported {
+            stroke,
+            from: Box::new(from),
+            importer_name: importer_name.clone(),
+        });
+        events.push(event(EventKind::StrokeBegin { participant: by, stroke, brush: extras.brush }));
+        events.push(event(EventKind::Retained {
+            participant: by,
+            stroke,
+            first: 0,
+            points: extras.samples.clone(),
+        }));
+        events.push(event(EventKind::StrokeDone {
+            participant: by,
+            stroke,
+            n_retained: extras.samples.len() as u64,
+        }));
+        if !c.placement.is_identity() {
+            let (place, placed) =
+                crate::placement::request((session, by, stroke), c.placement, "begin", None);
+            ops.push(place);
+            events.push(placed);
+        }
+    }
+    state.writer.write_with(ops, events).await.map_err(|err| match err {
+        WriteError::Closed => AppError::ShuttingDown,
+        WriteError::Refused(why) => AppError::Conflict(why),
+        WriteError::Quota(why) => AppError::QuotaExceeded(why),
+        err => AppError::Internal(err.into()),
+    })?;
+    metrics::counter!("penmesh_strokes_total", "event" => "imported")
+        .increment(checked.len() as u64);
+    let mut answer = Vec::with_capacity(checked.len());
+    for (stroke, c) in checked {
+        let row = state
+            .store
+            .stroke(stroke)
+            .await?
+            .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
+        store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await?;
+        answer.push(ImportedStroke { stroke, source: c.read.extras.stroke });
+    }
+    Ok((StatusCode::CREATED, Json(Imported { strokes: answer })))
+}
