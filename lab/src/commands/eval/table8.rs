@@ -240,18 +240,21 @@ pub(super) enum Phase {
     Glb,
     /// The plain-float GLB, for its bytes.
     GlbPlain,
-    /// The Hausdorff columns: each mesh's tree and samples, and the two largest distances.
-    Hausdorff,
+    /// The Hausdorff columns: each mesh's tree and surface samples.
+    HausdorffSamples,
+    /// The Hausdorff columns: the two largest distances.
+    HausdorffDistances,
 }
 
 impl Phase {
-    const ALL: [Phase; 6] = [
+    const ALL: [Phase; 7] = [
         Phase::Outline,
         Phase::Poisson,
         Phase::Direct,
         Phase::Glb,
         Phase::GlbPlain,
-        Phase::Hausdorff,
+        Phase::HausdorffSamples,
+        Phase::HausdorffDistances,
     ];
 
     fn name(self) -> &'static str {
@@ -261,15 +264,17 @@ impl Phase {
             Phase::Direct => "direct solid",
             Phase::Glb => "GLB, compressed",
             Phase::GlbPlain => "GLB, plain floats",
-            Phase::Hausdorff => "Hausdorff (trees, samples, distances)",
+            Phase::HausdorffSamples => "Hausdorff: trees and samples",
+            Phase::HausdorffDistances => "Hausdorff: distances",
         }
     }
 }
 
-/// Thread time by [`Phase`] over a run, and the meshes built and reused.
+/// CPU time by [`Phase`] over a run (each thread's own, so other processes on a busy machine
+/// do not count), and the meshes built and reused.
 #[derive(Debug, Default)]
 pub(super) struct PhaseTimes {
-    nanos: [AtomicU64; 6],
+    nanos: [AtomicU64; 7],
     /// Meshes built, and meshes whose retained samples were another method's of the same
     /// stroke (so the same mesh: its measures reused, not built again).
     built: AtomicUsize,
@@ -277,13 +282,15 @@ pub(super) struct PhaseTimes {
 }
 
 impl PhaseTimes {
-    /// Runs `f`, adding its time to `phase`'s.
+    /// Runs `f`, adding the thread's CPU time in it to `phase`'s; also returns its wall time,
+    /// s (the table's T).
     fn time<T>(&self, phase: Phase, f: impl FnOnce() -> T) -> (T, f64) {
-        let started = Instant::now();
+        let (started, cpu) = (Instant::now(), cpu_time::ThreadTime::try_now().ok());
         let value = f();
         let elapsed = started.elapsed();
+        let cpu = cpu.and_then(|cpu| cpu.try_elapsed().ok()).unwrap_or(elapsed);
         let index = Phase::ALL.iter().position(|&p| p == phase).unwrap_or_default();
-        let nanos = u64::try_from(elapsed.as_nanos()).unwrap_or(u64::MAX);
+        let nanos = u64::try_from(cpu.as_nanos()).unwrap_or(u64::MAX);
         self.nanos[index].fetch_add(nanos, Ordering::Relaxed);
         (value, elapsed.as_secs_f64())
     }
@@ -304,8 +311,8 @@ impl PhaseTimes {
         let mut md = String::new();
         let _ = writeln!(
             md,
-            "Where the time went (thread seconds, summed over the threads; {} meshes built, {} \
-             the same retained samples as another method's of the stroke, so not built again):\n",
+            "Where the time went (CPU seconds of the threads, summed; {} meshes built, {} the same \
+             retained samples as another method's of the stroke, so not built again):\n",
             self.built.load(Ordering::Relaxed),
             self.reused.load(Ordering::Relaxed)
         );
@@ -317,7 +324,7 @@ impl PhaseTimes {
                 fixed(s / total.max(1e-9) * 100.0, 1),
             ]);
         }
-        table.row(vec!["all".into(), fixed(total, 1), "100.0".into()]);
+        table.row(vec!["all phases".into(), fixed(total, 1), "100.0".into()]);
         table.write(&mut md);
         md
     }
@@ -350,17 +357,15 @@ fn measure_stroke<'a>(
             }
             let (mesh, bytes, seconds) =
                 stroke_mesh(samples, this, bound, mesher, poisson, phases)?;
-            let (hausdorff, _) = phases.time(Phase::Hausdorff, || {
-                let sampled = SampledMesh::new(&mesh, step);
-                if i == 0 {
-                    reference = sampled;
-                    reference.as_ref().map(|_| Hausdorff { to_reference: 0.0, from_reference: 0.0 })
-                } else {
-                    sampled
-                        .zip(reference.as_ref())
-                        .map(|(mesh, reference)| mesh.hausdorff_to(reference))
-                }
-            });
+            let (sampled, _) =
+                phases.time(Phase::HausdorffSamples, || SampledMesh::new(&mesh, step));
+            let hausdorff = if i == 0 {
+                reference = sampled;
+                reference.as_ref().map(|_| Hausdorff { to_reference: 0.0, from_reference: 0.0 })
+            } else {
+                let distances = || sampled.zip(reference.as_ref()).map(|(m, r)| m.hausdorff_to(r));
+                phases.time(Phase::HausdorffDistances, distances).0
+            };
             let (plain_bytes, _) = phases.time(Phase::GlbPlain, || plain_glb_bytes(&mesh));
             measures.push(StrokeMeasure {
                 vertices: mesh.stats().vertices,
