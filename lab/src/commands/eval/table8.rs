@@ -625,4 +625,42 @@ mod tests {
         assert_eq!(serial.as_array().unwrap().len(), 2 * 2 * 2);
         assert!(serial.as_array().unwrap().iter().all(|r| r["vertices"].as_u64().unwrap() > 0));
     }
+
+    #[test]
+    fn the_same_retained_samples_are_meshed_once_and_measured_alike() {
+        // `window-d` and `bqs` are the same greedy window, so they keep the same samples: their
+        // meshes are built once a mesher (the reuse is counted), and their rows are the same
+        // but for the name; every phase took some CPU time.
+        let params = penmesh::GeneratorParams {
+            shape: penmesh::Shape::Leaf,
+            size: 30.0,
+            ..penmesh::GeneratorParams::default()
+        };
+        let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
+        let curve = DataSet {
+            name: "leaf".into(),
+            files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
+        };
+        let names = ["bqs".to_string(), "window-d".to_string()];
+        let algos = algos(&names, (0.0, AcutsParams::default())).unwrap();
+        let poisson = PoissonOptions { depth: 5, ..PoissonOptions::default() };
+        let phases = PhaseTimes::default();
+        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, 1, &ProgressBar::hidden(), &phases)
+            .unwrap();
+        assert_eq!(phases.reused.load(Ordering::Relaxed), 2);
+        assert_eq!(phases.built.load(Ordering::Relaxed), 4);
+        for mesher in MESHERS {
+            let row = |algo: &str| {
+                let r = rows.iter().find(|r| r.algo == algo && r.mesher == mesher).unwrap();
+                let mut json = serde_json::to_value(r).unwrap();
+                json.as_object_mut().unwrap().remove("algo");
+                json
+            };
+            assert_eq!(row("bqs"), row("window-d"), "{mesher:?}");
+        }
+        let seconds = phases.seconds();
+        let poisson_s = seconds.iter().find(|(p, _)| *p == Phase::Poisson).unwrap().1;
+        assert!(poisson_s > 0.0, "{seconds:?}");
+        assert!(phases.markdown().contains("4 meshes built, 2 the same"));
+    }
 }
