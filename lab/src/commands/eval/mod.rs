@@ -311,9 +311,10 @@ fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
         }
         None => std::thread::available_parallelism().map_or(1, usize::from),
     };
-    let rows = mesh_rows(&curves, &algos, bound, &poisson, jobs, &progress)?;
+    let phases = PhaseTimes::default();
+    let rows = mesh_rows(&curves, &algos, bound, &poisson, jobs, &progress, &phases)?;
     progress.finish_and_clear();
-    let markdown = mesh_markdown(&rows, &poisson);
+    let markdown = mesh_markdown(&rows, &poisson) + "\n" + &phases.markdown();
     print!("{markdown}");
     if let Some(path) = &args.markdown {
         io::write_file(path, &markdown)?;

@@ -14,9 +14,9 @@
 use super::table::{Table, fixed};
 use super::*;
 use penmesh_client::commands::mesh::{Mesher, build_mesh};
-use penmesh_client::mesh_distance::{Hausdorff, SAMPLE_STEP, hausdorff_sampled};
+use penmesh_client::mesh_distance::{Hausdorff, SAMPLE_STEP, SampledMesh};
 use penmesh_client::poisson::PoissonOptions;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// The simplifiers of `--meshes` unless `--algos` says otherwise: the paper's five (BQS, IDP as
@@ -113,6 +113,7 @@ pub(super) fn mesh_rows(
     poisson: &PoissonOptions,
     jobs: usize,
     progress: &ProgressBar,
+    phases: &PhaseTimes,
 ) -> anyhow::Result<Vec<MeshEvalRow>> {
     // For each curve, each method's retained samples of each stroke ("original" first: the
     // reference of the Hausdorff columns).
@@ -146,7 +147,8 @@ pub(super) fn mesh_rows(
                     let (c, s) = units[unit];
                     progress.set_message(curves[c].name.clone());
                     let kept = kept_by_curve[c].iter().map(|(_, kept)| kept[s].as_slice());
-                    let result = measure_stroke(strokes[c][s], kept, bound, poisson, progress);
+                    let result =
+                        measure_stroke(strokes[c][s], kept, bound, poisson, progress, phases);
                     failed.fetch_or(result.is_err(), Ordering::Relaxed);
                     measured.lock().unwrap_or_else(PoisonError::into_inner)[unit] = Some(result);
                 }
@@ -225,36 +227,155 @@ fn hausdorff_step(mesher: Mesher) -> f64 {
     }
 }
 
+/// What the run spends its time on, summed over its threads: the phases of each mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Phase {
+    /// The checked smooth outline from the retained samples (both meshers).
+    Outline,
+    /// The layered cloud and PoissonRecon.
+    Poisson,
+    /// The direct solid.
+    Direct,
+    /// The GLB in the default encoding (quantised, meshopt-compressed).
+    Glb,
+    /// The plain-float GLB, for its bytes.
+    GlbPlain,
+    /// The Hausdorff columns: each mesh's tree and surface samples.
+    HausdorffSamples,
+    /// The Hausdorff columns: the two largest distances.
+    HausdorffDistances,
+}
+
+impl Phase {
+    const ALL: [Phase; 7] = [
+        Phase::Outline,
+        Phase::Poisson,
+        Phase::Direct,
+        Phase::Glb,
+        Phase::GlbPlain,
+        Phase::HausdorffSamples,
+        Phase::HausdorffDistances,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            Phase::Outline => "outline",
+            Phase::Poisson => "Poisson (cloud + PoissonRecon)",
+            Phase::Direct => "direct solid",
+            Phase::Glb => "GLB, compressed",
+            Phase::GlbPlain => "GLB, plain floats",
+            Phase::HausdorffSamples => "Hausdorff: trees and samples",
+            Phase::HausdorffDistances => "Hausdorff: distances",
+        }
+    }
+}
+
+/// CPU time by [`Phase`] over a run (each thread's own, so other processes on a busy machine
+/// do not count), and the meshes built and reused.
+#[derive(Debug, Default)]
+pub(super) struct PhaseTimes {
+    nanos: [AtomicU64; 7],
+    /// Meshes built, and meshes whose retained samples were another method's of the same
+    /// stroke (so the same mesh: its measures reused, not built again).
+    built: AtomicUsize,
+    reused: AtomicUsize,
+}
+
+impl PhaseTimes {
+    /// Runs `f`, adding the thread's CPU time in it to `phase`'s; also returns its wall time,
+    /// s (the table's T).
+    fn time<T>(&self, phase: Phase, f: impl FnOnce() -> T) -> (T, f64) {
+        let (started, cpu) = (Instant::now(), cpu_time::ThreadTime::try_now().ok());
+        let value = f();
+        let elapsed = started.elapsed();
+        let cpu = cpu.and_then(|cpu| cpu.try_elapsed().ok()).unwrap_or(elapsed);
+        let index = Phase::ALL.iter().position(|&p| p == phase).unwrap_or_default();
+        let nanos = u64::try_from(cpu.as_nanos()).unwrap_or(u64::MAX);
+        self.nanos[index].fetch_add(nanos, Ordering::Relaxed);
+        (value, elapsed.as_secs_f64())
+    }
+
+    /// Seconds by phase, in [`Phase::ALL`]'s order.
+    pub(super) fn seconds(&self) -> Vec<(Phase, f64)> {
+        Phase::ALL
+            .iter()
+            .zip(&self.nanos)
+            .map(|(&phase, nanos)| (phase, nanos.load(Ordering::Relaxed) as f64 / 1e9))
+            .collect()
+    }
+
+    /// Where the run's thread time went, as Markdown.
+    pub(super) fn markdown(&self) -> String {
+        let seconds = self.seconds();
+        let total: f64 = seconds.iter().map(|(_, s)| s).sum();
+        let mut md = String::new();
+        let _ = writeln!(
+            md,
+            "Where the time went (CPU seconds of the threads, summed; {} meshes built, {} the same \
+             retained samples as another method's of the stroke, so not built again):\n",
+            self.built.load(Ordering::Relaxed),
+            self.reused.load(Ordering::Relaxed)
+        );
+        let mut table = Table::new(&["phase", "s", "%"], 1);
+        for (phase, s) in seconds {
+            table.row(vec![
+                phase.name().into(),
+                fixed(s, 1),
+                fixed(s / total.max(1e-9) * 100.0, 1),
+            ]);
+        }
+        table.row(vec!["all phases".into(), fixed(total, 1), "100.0".into()]);
+        table.write(&mut md);
+        md
+    }
+}
+
 /// One stroke by each mesher ([`MESHERS`]) and each method's retained samples (`kept`, the
-/// unsimplified stroke first): one measure per mesher and method, in that order.
+/// unsimplified stroke first): one measure per mesher and method, in that order. Retained
+/// samples equal to an earlier method's give the same mesh, so its measures (its time too)
+/// are reused; the reference's tree and samples are made once.
 fn measure_stroke<'a>(
     samples: &[Sample],
-    kept: impl Iterator<Item = &'a [usize]> + Clone,
+    kept: impl Iterator<Item = &'a [usize]>,
     bound: f64,
     poisson: &PoissonOptions,
     progress: &ProgressBar,
+    phases: &PhaseTimes,
 ) -> anyhow::Result<Vec<Vec<StrokeMeasure>>> {
+    let kept: Vec<&[usize]> = kept.collect();
     let mut by_mesher = Vec::with_capacity(MESHERS.len());
     for mesher in MESHERS {
-        let mut reference: Option<StrokeMesh> = None;
-        let mut measures = Vec::new();
-        for kept in kept.clone() {
-            let (mesh, bytes, seconds) = stroke_mesh(samples, kept, bound, mesher, poisson)?;
-            let hausdorff = match &reference {
-                Some(reference) => hausdorff_sampled(&mesh, reference, hausdorff_step(mesher)),
-                None => Some(Hausdorff { to_reference: 0.0, from_reference: 0.0 }),
+        let step = hausdorff_step(mesher);
+        let mut reference: Option<SampledMesh> = None;
+        let mut measures: Vec<StrokeMeasure> = Vec::with_capacity(kept.len());
+        for (i, this) in kept.iter().enumerate() {
+            if let Some(same) = kept[..i].iter().position(|earlier| earlier == this) {
+                measures.push(measures[same]);
+                phases.reused.fetch_add(1, Ordering::Relaxed);
+                progress.inc(1);
+                continue;
+            }
+            let (mesh, bytes, seconds) =
+                stroke_mesh(samples, this, bound, mesher, poisson, phases)?;
+            let (sampled, _) =
+                phases.time(Phase::HausdorffSamples, || SampledMesh::new(&mesh, step));
+            let hausdorff = if i == 0 {
+                reference = sampled;
+                reference.as_ref().map(|_| Hausdorff { to_reference: 0.0, from_reference: 0.0 })
+            } else {
+                let distances = || sampled.zip(reference.as_ref()).map(|(m, r)| m.hausdorff_to(r));
+                phases.time(Phase::HausdorffDistances, distances).0
             };
+            let (plain_bytes, _) = phases.time(Phase::GlbPlain, || plain_glb_bytes(&mesh));
             measures.push(StrokeMeasure {
                 vertices: mesh.stats().vertices,
                 faces: mesh.stats().triangles,
                 bytes,
-                plain_bytes: plain_glb_bytes(&mesh),
+                plain_bytes,
                 seconds,
                 hausdorff,
             });
-            if reference.is_none() {
-                reference = Some(mesh);
-            }
+            phases.built.fetch_add(1, Ordering::Relaxed);
             progress.inc(1);
         }
         by_mesher.push(measures);
@@ -270,16 +391,24 @@ fn stroke_mesh(
     bound: f64,
     mesher: Mesher,
     poisson: &PoissonOptions,
+    phases: &PhaseTimes,
 ) -> anyhow::Result<(StrokeMesh, usize, f64)> {
     let brush = Brush::default();
     let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
     let options = OutlineOptions::default().centreline(smooth);
     let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
-    let started = Instant::now();
-    let outline = penmesh::fitted_outline(samples, kept, &brush, &options)?;
-    let mesh = build_mesh(mesher, &outline, poisson)?;
-    let glb = penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default());
-    Ok((mesh, glb.len(), started.elapsed().as_secs_f64()))
+    let (outline, outline_s) =
+        phases.time(Phase::Outline, || penmesh::fitted_outline(samples, kept, &brush, &options));
+    let mesher_phase = match mesher {
+        Mesher::Poisson => Phase::Poisson,
+        Mesher::Direct => Phase::Direct,
+    };
+    let outline = outline?;
+    let (mesh, mesh_s) = phases.time(mesher_phase, || build_mesh(mesher, &outline, poisson));
+    let mesh = mesh?;
+    let (glb, glb_s) =
+        phases.time(Phase::Glb, || penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default()));
+    Ok((mesh, glb.len(), outline_s + mesh_s + glb_s))
 }
 
 /// The bytes of `mesh`'s GLB written as plain floats (not timed: the table's time is the
@@ -407,7 +536,16 @@ mod tests {
         };
         let algos = algos(&["bqs".into(), "acuts".into()], (0.0, AcutsParams::default())).unwrap();
         let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
-        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, 2, &ProgressBar::hidden()).unwrap();
+        let rows = mesh_rows(
+            &[curve],
+            &algos,
+            1.74,
+            &poisson,
+            2,
+            &ProgressBar::hidden(),
+            &PhaseTimes::default(),
+        )
+        .unwrap();
         let json = serde_json::to_value(&rows).unwrap();
         let rows = json.as_array().unwrap();
         assert_eq!(rows.len(), 3 * 2);
@@ -471,7 +609,9 @@ mod tests {
         let algos = algos(&["dp".into()], (0.0, AcutsParams::default())).unwrap();
         let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
         let run = |jobs| {
-            let rows = mesh_rows(&curves, &algos, 1.74, &poisson, jobs, &ProgressBar::hidden());
+            let phases = PhaseTimes::default();
+            let rows =
+                mesh_rows(&curves, &algos, 1.74, &poisson, jobs, &ProgressBar::hidden(), &phases);
             let mut json = serde_json::to_value(rows.unwrap()).unwrap();
             for row in json.as_array_mut().unwrap() {
                 for key in ["seconds", "eta_seconds"] {
@@ -484,5 +624,43 @@ mod tests {
         assert_eq!(serial, parallel);
         assert_eq!(serial.as_array().unwrap().len(), 2 * 2 * 2);
         assert!(serial.as_array().unwrap().iter().all(|r| r["vertices"].as_u64().unwrap() > 0));
+    }
+
+    #[test]
+    fn the_same_retained_samples_are_meshed_once_and_measured_alike() {
+        // `window-d` and `bqs` are the same greedy window, so they keep the same samples: their
+        // meshes are built once a mesher (the reuse is counted), and their rows are the same
+        // but for the name; every phase took some CPU time.
+        let params = penmesh::GeneratorParams {
+            shape: penmesh::Shape::Leaf,
+            size: 30.0,
+            ..penmesh::GeneratorParams::default()
+        };
+        let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
+        let curve = DataSet {
+            name: "leaf".into(),
+            files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
+        };
+        let names = ["bqs".to_string(), "window-d".to_string()];
+        let algos = algos(&names, (0.0, AcutsParams::default())).unwrap();
+        let poisson = PoissonOptions { depth: 5, ..PoissonOptions::default() };
+        let phases = PhaseTimes::default();
+        let rows = mesh_rows(&[curve], &algos, 1.74, &poisson, 1, &ProgressBar::hidden(), &phases)
+            .unwrap();
+        assert_eq!(phases.reused.load(Ordering::Relaxed), 2);
+        assert_eq!(phases.built.load(Ordering::Relaxed), 4);
+        for mesher in MESHERS {
+            let row = |algo: &str| {
+                let r = rows.iter().find(|r| r.algo == algo && r.mesher == mesher).unwrap();
+                let mut json = serde_json::to_value(r).unwrap();
+                json.as_object_mut().unwrap().remove("algo");
+                json
+            };
+            assert_eq!(row("bqs"), row("window-d"), "{mesher:?}");
+        }
+        let seconds = phases.seconds();
+        let poisson_s = seconds.iter().find(|(p, _)| *p == Phase::Poisson).unwrap().1;
+        assert!(poisson_s > 0.0, "{seconds:?}");
+        assert!(phases.markdown().contains("4 meshes built, 2 the same"));
     }
 }
