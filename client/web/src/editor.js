@@ -111,7 +111,8 @@ export class Editor {
 
   // --- erasing -------------------------------------------------------------------------------
   /// Erases our strokes under page point (`x`, `y`); `drag` (one per eraser drag) collects
-  /// whose strokes it touched, for one notice when they were only the others'.
+  /// whose strokes it touched, for one notice when they were only the others', and makes what it
+  /// erased one command of the history (takeback.js).
   eraseAt(x, y, drag) {
     const at = this.view.toStroke(x, y);
     if (!at || !this.conn.me) return;
@@ -123,7 +124,7 @@ export class Editor {
           drag.others.add(owner);
           this.notice(`that stroke is ${this.people.get(owner) || "someone else"}'s: you can erase only your own`);
         }
-      } else if (!this.takeBack.erase(stroke)) {
+      } else if (!this.takeBack.erase(stroke, drag)) {
         this.notice("cannot erase: not connected to the proxy; try again");
       }
     }

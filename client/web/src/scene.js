@@ -50,24 +50,24 @@ const MIN_WIDTH_PX = 1.5;
 // and an ambient part), and a pixel only takes the colour its vertices give it. A stroke's rim
 // vertex stands at z = ±thickness·r (shared/src/mesh.rs, thickness 0.5) and its normal points
 // out of the outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it.
+// The widening costs little per vertex, with no branch (SwiftShader shades vertices on the CPU,
+// and the busy board's orbit is bound by them: docs/performance.md): `minHalfWidth` is half of
+// MIN_WIDTH_PX in plane units per unit of depth (set by SceneView.resize), so at a vertex the
+// least half-width is minHalfWidth · depth, and the move, made in view space, needs no second
+// projection. Each matrix multiplies a vector, never another matrix.
 const VERTEX_SHADER = `
 attribute vec3 colour;
-uniform float viewportHeight;
+uniform float minHalfWidth;
 varying vec3 vColour;
 void main() {
   vec3 n = normalize(normalMatrix * normal);
   float light = max(dot(n, vec3(0.29, 0.48, 0.83)), 0.0);
   vColour = colour * (0.55 + 0.6 * light);
-  vec3 p = position;
-  vec4 clip = projectionMatrix * modelViewMatrix * vec4(p, 1.0);
-  float pxPerUnit = 0.5 * viewportHeight * projectionMatrix[1][1] / clip.w;
-  float halfWidth = ${(MIN_WIDTH_PX / 2).toFixed(2)} / pxPerUnit;
-  float r = 2.0 * abs(p.z);
-  if (r < halfWidth && dot(normal.xy, normal.xy) > 1e-8) {
-    p.xy += normalize(normal.xy) * (halfWidth - r);
-    clip = projectionMatrix * modelViewMatrix * vec4(p, 1.0);
-  }
-  gl_Position = clip;
+  vec4 mv = modelViewMatrix * vec4(position, 1.0);
+  float grow = max(minHalfWidth * -mv.z - 2.0 * abs(position.z), 0.0);
+  vec2 push = normal.xy * (grow * inversesqrt(max(dot(normal.xy, normal.xy), 1e-12)));
+  mv.xyz += modelViewMatrix[0].xyz * push.x + modelViewMatrix[1].xyz * push.y;
+  gl_Position = projectionMatrix * mv;
 }`;
 const FRAGMENT_SHADER = `
 varying vec3 vColour;
@@ -121,7 +121,7 @@ export class SceneView {
     this.hiddenMeshCount = 0; // meshes of strokes taken back
     this.people = new Map(); // participant -> MergedMeshes
     this.workPlacement = null; // the plane the pen draws on (null: the board)
-    this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { viewportHeight: { value: 1 } } });
+    this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { minHalfWidth: { value: 0 } } });
     // A live ribbon is one face: seen from either side.
     this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
     this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
@@ -150,8 +150,11 @@ export class SceneView {
   /// Fits the renderer to the page; the camera stays where it is (camera.js).
   resize() {
     this.renderer.setSize(innerWidth, innerHeight, false);
-    this.material.uniforms.viewportHeight.value = innerHeight * this.renderer.getPixelRatio();
     this.rig.resize(innerWidth, innerHeight);
+    // Half of MIN_WIDTH_PX in plane units, per unit of depth: the screen's height in device
+    // pixels spans 2 / projection[1][1] units at depth 1.
+    const heightPx = innerHeight * this.renderer.getPixelRatio();
+    this.material.uniforms.minHalfWidth.value = MIN_WIDTH_PX / (heightPx * this.camera.projectionMatrix.elements[5]);
     this.requestRender();
   }
 

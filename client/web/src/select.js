@@ -271,7 +271,7 @@ export class Selection {
     const after = new Map([...drag.before.keys()].map((id) => [id, this.view.strokes.get(id).placement]));
     if ([...after].every(([id, m]) => same(m, drag.before.get(id)))) return this.refresh();
     this.place(after);
-    this.editor.takeBack.done({ undo: () => this.place(drag.before), redo: () => this.place(after) });
+    this.editor.takeBack.push({ undo: () => this.place(drag.before), redo: () => this.place(after) });
     this.refresh();
   }
 
@@ -307,7 +307,7 @@ export class Selection {
     const before = new Map(this.list.map((id) => [id, this.view.strokes.get(id).placement]));
     const after = new Map([...before].map(([id, m]) => [id, placementOf(about.clone().multiply(matrixOf(m)))]));
     if (!this.place(after)) return this.editor.notice("cannot mirror: not connected to the proxy; try again");
-    this.editor.takeBack.done({ undo: () => this.place(before), redo: () => this.place(after) });
+    this.editor.takeBack.push({ undo: () => this.place(before), redo: () => this.place(after) });
   }
 
   /// Duplicates the selection (anyone's strokes): each copy a new stroke of ours, offset in its
@@ -327,7 +327,7 @@ export class Selection {
     }
     if (!copies.length) return;
     const remove = (removed) => copies.every((id) => conn.setRemoved(id, removed));
-    this.editor.takeBack.done({ undo: () => remove(true), redo: () => remove(false) });
+    this.editor.takeBack.push({ undo: () => remove(true), redo: () => remove(false) });
     // Selected when their meshes are shown (they come over the connection as any stroke).
     const shown = () => copies.every((id) => this.view.hasMesh(id));
     for (let i = 0; i < 100 && !shown(); i++) await new Promise((r) => setTimeout(r, 50));

@@ -69,7 +69,7 @@ function drawTool() {
 
 /// Erase: every stroke of ours the pointer passes over is taken back (undo brings it back).
 function eraseTool() {
-  let drag = null; // {others: participants whose strokes it touched}
+  let drag = null; // {others: participants whose strokes it touched, command: its history's (takeback.js)}
   return {
     id: "erase",
     label: "Erase",
@@ -80,7 +80,7 @@ function eraseTool() {
       drag = null;
     },
     down(editor, pointer, sample) {
-      drag = { others: new Set() };
+      drag = { others: new Set(), command: null };
       editor.eraseAt(sample.clientX, sample.clientY, drag);
     },
     move(editor, pointer, samples) {

@@ -340,6 +340,31 @@ const checks = {
     await bob.screenshot({ path: join(ARTIFACTS, "first-8-desktop.png") });
   },
 
+  // The eraser (style.md): one drag that erases three strokes is one command; Undo brings all
+  //    three back, Redo erases them again.
+  async eraser({ base, browser }) {
+    const s = await newSession(base);
+    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    await synced(page);
+    for (const y of [200, 300, 400]) await line(page.cdp, 300, 500, y);
+    await until("three meshes", () => page.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
+    await toolButton(page, "Eras").click();
+    await drawStroke(page.cdp, { x0: 400, y0: 150, dx: 0, dy: 10, n: 30, wobble: 0 });
+    await until("the three erased", () => page.evaluate(() => window.penmesh.shown === 0));
+    await page.keyboard.press("Control+z");
+    await until("one Undo to bring all three back", () => page.evaluate(() => window.penmesh.shown === 3), 3000);
+    await page.keyboard.press("Control+Shift+z");
+    await until("one Redo to erase all three again", () => page.evaluate(() => window.penmesh.shown === 0), 3000);
+    await page.keyboard.press("Control+z");
+    await until("all three back again", () => page.evaluate(() => window.penmesh.shown === 3), 3000);
+    // The command before the drag is the last stroke drawn: one more Undo takes back one.
+    await page.keyboard.press("Control+z");
+    await until("the last stroke drawn taken back", () => page.evaluate(() => window.penmesh.shown === 2), 3000);
+    await page.waitForTimeout(300);
+    assert.equal(await page.evaluate(() => window.penmesh.shown), 2, "an Undo took back more than the last stroke drawn");
+    assert.equal((await storedStrokes(base, s)).length, 2, "the strokes the proxy shows");
+  },
+
   // 9. Sharing: "Copy link" copies the session's link; "New session" asks first.
   async 9({ base, browser }) {
     const s = await newSession(base);
