@@ -13,6 +13,7 @@
 
 use super::table::{Table, fixed};
 use super::*;
+use penmesh::Outline;
 use penmesh_client::commands::mesh::{Mesher, build_mesh};
 use penmesh_client::mesh_distance::{Hausdorff, SAMPLE_STEP, SampledMesh};
 use penmesh_client::poisson::PoissonOptions;
@@ -131,6 +132,10 @@ pub(super) fn mesh_rows(
         units.extend((0..strokes.len()).map(|s| (c, s)));
     }
     let strokes: Vec<Vec<&[Sample]>> = curves.iter().map(|c| c.strokes().collect()).collect();
+    // The longest strokes first (the most work, as a rule), so that the last ones to finish
+    // are short and no thread is left alone with a long stroke at the end.
+    let mut order: Vec<usize> = (0..units.len()).collect();
+    order.sort_by_key(|&unit| std::cmp::Reverse(strokes[units[unit].0][units[unit].1].len()));
 
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
@@ -140,8 +145,10 @@ pub(super) fn mesh_rows(
         for _ in 0..jobs.max(1) {
             scope.spawn(|| {
                 loop {
-                    let unit = next.fetch_add(1, Ordering::Relaxed);
-                    if unit >= units.len() || failed.load(Ordering::Relaxed) {
+                    let Some(&unit) = order.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                        break;
+                    };
+                    if failed.load(Ordering::Relaxed) {
                         break;
                     }
                     let (c, s) = units[unit];
@@ -331,9 +338,10 @@ impl PhaseTimes {
 }
 
 /// One stroke by each mesher ([`MESHERS`]) and each method's retained samples (`kept`, the
-/// unsimplified stroke first): one measure per mesher and method, in that order. Retained
-/// samples equal to an earlier method's give the same mesh, so its measures (its time too)
-/// are reused; the reference's tree and samples are made once.
+/// unsimplified stroke first): one measure per mesher and method, in that order. Each method's
+/// outline is made once for both meshers; retained samples equal to an earlier method's give
+/// the same mesh, so its measures (its time too) are reused; the reference's tree and samples
+/// are made once.
 fn measure_stroke<'a>(
     samples: &[Sample],
     kept: impl Iterator<Item = &'a [usize]>,
@@ -343,20 +351,27 @@ fn measure_stroke<'a>(
     phases: &PhaseTimes,
 ) -> anyhow::Result<Vec<Vec<StrokeMeasure>>> {
     let kept: Vec<&[usize]> = kept.collect();
+    let outlines = kept
+        .iter()
+        .map(|kept| {
+            let (outline, seconds) =
+                phases.time(Phase::Outline, || stroke_outline(samples, kept, bound));
+            Ok((outline?, seconds))
+        })
+        .collect::<anyhow::Result<Vec<(Outline, f64)>>>()?;
     let mut by_mesher = Vec::with_capacity(MESHERS.len());
     for mesher in MESHERS {
         let step = hausdorff_step(mesher);
         let mut reference: Option<SampledMesh> = None;
-        let mut measures: Vec<StrokeMeasure> = Vec::with_capacity(kept.len());
-        for (i, this) in kept.iter().enumerate() {
-            if let Some(same) = kept[..i].iter().position(|earlier| earlier == this) {
+        let mut measures: Vec<StrokeMeasure> = Vec::with_capacity(outlines.len());
+        for (i, (outline, outline_s)) in outlines.iter().enumerate() {
+            if let Some(same) = kept[..i].iter().position(|earlier| *earlier == kept[i]) {
                 measures.push(measures[same]);
                 phases.reused.fetch_add(1, Ordering::Relaxed);
                 progress.inc(1);
                 continue;
             }
-            let (mesh, bytes, seconds) =
-                stroke_mesh(samples, this, bound, mesher, poisson, phases)?;
+            let (mesh, bytes, seconds) = stroke_mesh(outline, mesher, poisson, phases)?;
             let (sampled, _) =
                 phases.time(Phase::HausdorffSamples, || SampledMesh::new(&mesh, step));
             let hausdorff = if i == 0 {
@@ -372,7 +387,7 @@ fn measure_stroke<'a>(
                 faces: mesh.stats().triangles,
                 bytes,
                 plain_bytes,
-                seconds,
+                seconds: outline_s + seconds,
                 hausdorff,
             });
             phases.built.fetch_add(1, Ordering::Relaxed);
@@ -383,32 +398,32 @@ fn measure_stroke<'a>(
     Ok(by_mesher)
 }
 
-/// One stroke's mesh from its retained samples by `mesher`: the mesh, its GLB's bytes and the
-/// seconds from the outline to the GLB.
+/// The checked smooth outline of a stroke's retained samples, the one both meshers build on.
+fn stroke_outline(samples: &[Sample], kept: &[usize], bound: f64) -> anyhow::Result<Outline> {
+    let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
+    let options = OutlineOptions::default().centreline(smooth);
+    Ok(penmesh::fitted_outline(samples, kept, &Brush::default(), &options)?)
+}
+
+/// One stroke's mesh from its outline by `mesher`: the mesh, its GLB's bytes and the seconds
+/// from the outline to the GLB.
 fn stroke_mesh(
-    samples: &[Sample],
-    kept: &[usize],
-    bound: f64,
+    outline: &Outline,
     mesher: Mesher,
     poisson: &PoissonOptions,
     phases: &PhaseTimes,
 ) -> anyhow::Result<(StrokeMesh, usize, f64)> {
-    let brush = Brush::default();
-    let smooth = penmesh::Centreline::Smooth(penmesh::SmoothOptions::default().bound(bound));
-    let options = OutlineOptions::default().centreline(smooth);
-    let meta = GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush };
-    let (outline, outline_s) =
-        phases.time(Phase::Outline, || penmesh::fitted_outline(samples, kept, &brush, &options));
+    let meta =
+        GlbMeta { stroke: uuid::Uuid::nil(), author: "eval".into(), brush: Brush::default() };
     let mesher_phase = match mesher {
         Mesher::Poisson => Phase::Poisson,
         Mesher::Direct => Phase::Direct,
     };
-    let outline = outline?;
-    let (mesh, mesh_s) = phases.time(mesher_phase, || build_mesh(mesher, &outline, poisson));
+    let (mesh, mesh_s) = phases.time(mesher_phase, || build_mesh(mesher, outline, poisson));
     let mesh = mesh?;
     let (glb, glb_s) =
         phases.time(Phase::Glb, || penmesh::stroke_glb(&mesh, &meta, &GlbOptions::default()));
-    Ok((mesh, glb.len(), outline_s + mesh_s + glb_s))
+    Ok((mesh, glb.len(), mesh_s + glb_s))
 }
 
 /// The bytes of `mesh`'s GLB written as plain floats (not timed: the table's time is the
@@ -519,21 +534,26 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
 mod tests {
     use super::*;
 
-    #[test]
-    fn rows_have_the_fields_and_bqs_poisson_is_the_eta_reference() {
-        // One small generated stroke (a shallow octree keeps Poisson quick): one row per method
-        // (and "original") and mesher, with every field of the JSON, and eta 0 for BQS's
-        // Poisson mesh, the reference of every eta.
+    /// A one-stroke curve small enough for a shallow octree to mesh quickly: a 30-px leaf.
+    fn small_leaf() -> DataSet {
         let params = penmesh::GeneratorParams {
             shape: penmesh::Shape::Leaf,
             size: 30.0,
             ..penmesh::GeneratorParams::default()
         };
         let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
-        let curve = DataSet {
+        DataSet {
             name: "leaf".into(),
             files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
-        };
+        }
+    }
+
+    #[test]
+    fn rows_have_the_fields_and_bqs_poisson_is_the_eta_reference() {
+        // One small generated stroke (a shallow octree keeps Poisson quick): one row per method
+        // (and "original") and mesher, with every field of the JSON, and eta 0 for BQS's
+        // Poisson mesh, the reference of every eta.
+        let curve = small_leaf();
         let algos = algos(&["bqs".into(), "acuts".into()], (0.0, AcutsParams::default())).unwrap();
         let poisson = PoissonOptions { depth: 6, ..PoissonOptions::default() };
         let rows = mesh_rows(
@@ -631,16 +651,7 @@ mod tests {
         // `window-d` and `bqs` are the same greedy window, so they keep the same samples: their
         // meshes are built once a mesher (the reuse is counted), and their rows are the same
         // but for the name; every phase took some CPU time.
-        let params = penmesh::GeneratorParams {
-            shape: penmesh::Shape::Leaf,
-            size: 30.0,
-            ..penmesh::GeneratorParams::default()
-        };
-        let stroke = penmesh::generate_stroke(&params).unwrap().into_samples();
-        let curve = DataSet {
-            name: "leaf".into(),
-            files: vec![DataFile { name: "leaf".into(), strokes: vec![stroke] }],
-        };
+        let curve = small_leaf();
         let names = ["bqs".to_string(), "window-d".to_string()];
         let algos = algos(&names, (0.0, AcutsParams::default())).unwrap();
         let poisson = PoissonOptions { depth: 5, ..PoissonOptions::default() };
