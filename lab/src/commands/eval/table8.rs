@@ -185,7 +185,7 @@ pub(super) fn mesh_rows(
             }
         }
         for _ in 0..curve.n_strokes() {
-            // A unit that never ran was stopped by another's error, which comes first.
+            // A unit that never ran was stopped by another's error, which is returned.
             let stroke = match measured.next().flatten() {
                 Some(result) => result?,
                 None => continue,
