@@ -2,11 +2,11 @@
 //! print, the union of its strokes' solids as one STL or 3MF file made by `penmesh-print` from
 //! the stored drawn samples, kept indices, brushes and placements (`docs/print.md`), or the
 //! scene, one GLB of its stored meshes and pen data (`crate::scene`, `docs/model-format.md`).
-//! A bounded job like a mesh build: at most [`MAX_EXPORTS`] at once on a replica (the next is
-//! answered 503 `busy`), at most [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking
-//! pool.
+//! A bounded job like a mesh build: at most [`MAX_PRINTS`] prints and, apart, [`MAX_SCENES`]
+//! scenes at once on a replica (the next is answered 503 `busy`), at most
+//! [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking pool.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
@@ -19,10 +19,16 @@ use crate::http::{AppError, authorize_session};
 use crate::state::AppState;
 use crate::store::StrokeRow;
 
-/// Prints made at once on one replica: each keeps a core busy for up to seconds.
-pub const MAX_EXPORTS: usize = 1;
+/// Prints made at once on one replica: each keeps the cores busy for seconds.
+pub const MAX_PRINTS: usize = 1;
+/// Scenes made at once on one replica, a bound apart from the prints': each takes a fraction of
+/// a second but holds its strokes' meshes in memory (at most
+/// [`crate::scene::MAX_SCENE_MESH_BYTES`]).
+pub const MAX_SCENES: usize = 2;
 /// Most strokes in one print.
 pub const MAX_EXPORT_STROKES: usize = 5_000;
+/// Strokes whose samples are read per query (bound parameters: SQLite allows 32,766).
+const STROKES_PER_READ: usize = 500;
 
 /// What to export.
 #[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
@@ -48,7 +54,7 @@ pub struct ExportQuery {
         (status = 404, description = "a chosen stroke is not in the session", body = crate::http::ErrorBody),
         (status = 409, description = "nothing done to export", body = crate::http::ErrorBody),
         (status = 413, description = "too many strokes", body = crate::http::ErrorBody),
-        (status = 503, description = "busy: another export is being made", body = crate::http::ErrorBody)))]
+        (status = 503, description = "busy: another print (or, for a scene, as many scenes as allowed) is being made", body = crate::http::ErrorBody)))]
 pub async fn export_print(
     State(state): State<AppState>,
     Path(session): Path<String>,
@@ -73,12 +79,14 @@ pub async fn export_print(
     };
     options.validate().map_err(|e| AppError::BadRequest(e.to_string()))?;
     let rows = chosen_rows(&state, session, query.strokes.as_deref()).await?;
-    let Some(_permit) = state.export_permit() else {
+    let scene = extension == "glb";
+    let Some(_permit) = state.export_permit(scene) else {
+        let (limit, what) = if scene { (MAX_SCENES, "scene") } else { (MAX_PRINTS, "print") };
         return Err(AppError::Busy(format!(
-            "{MAX_EXPORTS} export(s) are being made, the limit; try again shortly"
+            "{limit} {what}(s) are being made, the limit; try again shortly"
         )));
     };
-    let file = if extension == "glb" {
+    let file = if scene {
         crate::scene::scene_file(&state, session, &rows, options.size_mm).await?
     } else {
         print_file(&state, &rows, options, extension).await?
@@ -144,12 +152,19 @@ async fn print_file(
     options: PrintOptions,
     extension: &'static str,
 ) -> Result<Vec<u8>, AppError> {
+    let ids: Vec<Uuid> = rows.iter().map(|r| r.id).collect();
+    let mut simplified = HashMap::with_capacity(ids.len());
+    let mut raw = HashMap::with_capacity(ids.len());
+    for chunk in ids.chunks(STROKES_PER_READ) {
+        simplified.extend(state.store.simplified_many(chunk).await?);
+        raw.extend(state.store.done_raw_samples_many(chunk).await?);
+    }
     let mut strokes = Vec::with_capacity(rows.len());
     for row in rows {
-        let Some(simplified) = state.store.simplified(row.id).await? else {
+        let Some(simplified) = simplified.remove(&row.id) else {
             return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
         };
-        let raw = state.store.raw_samples(row.id).await?;
+        let raw = raw.remove(&row.id).unwrap_or_default();
         if let Err(err) = penmesh::validate_samples(&raw, None, 0) {
             return Err(AppError::Conflict(format!("stroke {} cannot be printed: {err}", row.id)));
         }

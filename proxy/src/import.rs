@@ -14,10 +14,12 @@
 //! checked for all of them before the strokes are written. Others in the session see the
 //! strokes arrive live, as any new stroke.
 
+use std::collections::HashMap;
+
 use axum::Json;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, StatusCode, header};
-use penmesh::protocol::{Imported, ImportedStroke, KEY_HEADER, quantize_sample};
+use penmesh::protocol::{Imported, ImportedStroke, quantize_sample};
 use penmesh::{
     AcutsParams, GlbMeta, GlbOptions, ImportedFrom, Kept, OutlineOptions, Placement, ReadStroke,
     SceneError,
@@ -108,16 +110,7 @@ pub async fn import_scene(
     body: axum::body::Body,
 ) -> Result<(StatusCode, Json<Imported>), AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
-    let by = match crate::identity::request_participant(session, &headers) {
-        Ok(by) => by,
-        Err(crate::identity::KeyError::Missing) => {
-            return Err(AppError::BadRequest(format!(
-                "an import needs a drawer: send your participant key (your hello.key) in the \
-                 {KEY_HEADER} header"
-            )));
-        }
-        Err(crate::identity::KeyError::Malformed(why)) => return Err(AppError::BadRequest(why)),
-    };
+    let by = crate::placement::new_drawer(session, &headers, "an import")?;
     let importer_name = match query.name.as_deref() {
         None => String::new(),
         Some(name) => crate::identity::clean_name(name).ok_or_else(|| {
@@ -257,6 +250,16 @@ pub async fn import_scene(
                 crate::placement::request((session, by, stroke), c.placement, "begin", None);
             ops.push(place);
             events.push(placed);
+        }
+    }
+    // A duplicate whose source is in the file too stays its duplicate: the file's ids mapped to
+    // the new ones. It keeps its own mesh, built from its own samples (another tool may have
+    // changed them). Last, so that every source is written before it is named.
+    let new_ids: HashMap<Uuid, Uuid> =
+        checked.iter().rev().map(|(stroke, c)| (c.read.extras.stroke, *stroke)).collect();
+    for (stroke, c) in &checked {
+        if let Some(&source) = c.read.extras.duplicate_of.and_then(|old| new_ids.get(&old)) {
+            ops.push(WriteOp::MarkDuplicate { stroke: *stroke, source, mesh_of: *stroke });
         }
     }
     state.writer.write_with(ops, events).await.map_err(|err| match err {

@@ -36,15 +36,8 @@ impl ExportFormat {
 
 #[derive(Debug, Clone, Args)]
 pub struct ExportArgs {
-    /// The proxy, e.g. http://127.0.0.1:8080.
-    #[arg(long, env = "PENMESH_SERVER")]
-    pub server: String,
-    /// The session id.
-    #[arg(long, env = "PENMESH_SESSION")]
-    pub session: uuid::Uuid,
-    /// The session's bearer token.
-    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
-    pub token: String,
+    #[command(flatten)]
+    pub connection: crate::commands::args::ConnectionArgs,
     /// glb (the scene), stl or 3mf (the print).
     #[arg(long, value_enum)]
     pub format: ExportFormat,
@@ -66,7 +59,7 @@ pub struct ExportArgs {
 }
 
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
-    let endpoint = Endpoint::new(&args.server, args.session, args.token.clone())?;
+    let endpoint = args.connection.endpoint()?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -81,7 +74,7 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
 pub fn export_url(args: &ExportArgs, endpoint: &Endpoint) -> String {
     let mut url = format!(
         "{}?format={}&size_mm={}&min_thickness_mm={}",
-        endpoint.url(&crate::api::session_export(args.session)),
+        endpoint.url(&crate::api::session_export(args.connection.session)),
         args.format.query(),
         args.size_mm,
         args.min_thickness_mm

@@ -166,6 +166,31 @@ async fn a_3d_session_exported_imported_and_exported_again_has_the_same_pen_data
         assert_eq!(info["has_mesh"], true, "its mesh is built as for the page");
     }
 
+    // The duplicate and its source came in the same file: the new duplicate names the new
+    // source.
+    let copy_of = |id: Uuid| {
+        again
+            .iter()
+            .find(|s| s.extras.imported_from.as_ref().map(|f| f.stroke) == Some(id))
+            .unwrap()
+            .extras
+            .stroke
+    };
+    let new_duplicate = again.iter().find(|s| s.extras.stroke == copy_of(ids[4])).unwrap();
+    assert_eq!(new_duplicate.extras.duplicate_of, Some(copy_of(ids[0])));
+    let plain = again.iter().filter(|s| s.extras.duplicate_of.is_none()).count();
+    assert_eq!(plain, 4, "only the duplicate is one");
+    // The duplicate alone: its source is not in the file, so it comes in as a plain stroke.
+    let alone = proxy.create_session().await;
+    let path = format!("/v1/sessions/{}/export?format=glb&strokes={}", first.session, ids[4]);
+    let response = proxy.get(&path, &first).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    let (status, body) = import(&proxy, &alone, response.bytes().await.unwrap().to_vec()).await;
+    assert_eq!(status, 201, "{body}");
+    let single = read_scene(&export_glb(&proxy, &alone).await).unwrap();
+    assert_eq!(single.len(), 1);
+    assert_eq!(single[0].extras.duplicate_of, None);
+
     // Imported once more: the first origin stays.
     let third = proxy.create_session().await;
     let (status, body) = import(&proxy, &third, export_glb(&proxy, &second).await).await;
