@@ -11,7 +11,8 @@
 //! then every stroke is written in one request to the writer, which commits it in one
 //! transaction. The meshes (built as `crate::mesh_build` builds them for the page) are stored
 //! after that commit, each as an upload is (`http::store_mesh`); the session's mesh quota is
-//! checked for all of them before the strokes are written. Others in the session see the
+//! checked for all of them before the strokes are written. Once the strokes are committed the
+//! import is answered 201 even if a mesh then fails to be stored (the stroke stays meshless). Others in the session see the
 //! strokes arrive live, as any new stroke.
 
 use std::collections::HashMap;
@@ -270,15 +271,24 @@ pub async fn import_scene(
     })?;
     metrics::counter!("penmesh_strokes_total", "event" => "imported")
         .increment(checked.len() as u64);
+    // The strokes are committed: from here on the import has happened, and the answer says so
+    // whatever becomes of the meshes (an error now would have the importer send the file again
+    // and import it twice). A mesh that cannot be stored leaves its stroke meshless, which the
+    // page builds when it next opens the session (`docs/model-format.md`).
     let mut answer = Vec::with_capacity(checked.len());
     for (stroke, c) in checked {
-        let row = state
-            .store
-            .stroke(stroke)
-            .await?
-            .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
-        store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await?;
         answer.push(ImportedStroke { stroke, source: c.read.extras.stroke });
+        let stored = async {
+            let row = state
+                .store
+                .stroke(stroke)
+                .await?
+                .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
+            store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await
+        };
+        if let Err(err) = stored.await {
+            tracing::warn!(%stroke, error = %err, "an imported stroke's mesh was not stored");
+        }
     }
     Ok((StatusCode::CREATED, Json(Imported { strokes: answer })))
 }

@@ -6,9 +6,10 @@
 
 use penmesh::protocol::{KEY_HEADER, ServerMessage};
 use penmesh::{ReadStroke, Sample, read_scene};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
 use penmesh_e2e::{
-    TestDatabase, TestProxy, TestSession, count_rows, draw_stroke, spawn_proxy, spawn_proxy_with,
-    stroke_samples,
+    TestDatabase, TestProxy, TestSession, count_rows, draw_stroke, spawn_faulty_proxy_on,
+    spawn_proxy, spawn_proxy_with, stroke_samples,
 };
 use serde_json::{Value, json};
 use uuid::Uuid;
@@ -358,4 +359,38 @@ async fn an_import_past_the_session_mesh_quota_stores_nothing() {
     assert_eq!(answer["error"], "quota_exceeded");
     assert!(answer["message"].as_str().unwrap().contains("nothing imported"), "{answer}");
     assert_eq!(strokes_of(&proxy.db, &session).await, 1);
+}
+
+#[tokio::test]
+async fn a_storage_failure_during_an_import_stores_nothing_and_a_lost_mesh_loses_no_stroke() {
+    let faults = CommitFaults::new();
+    let proxy = spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
+    let (first, _) = three_d_session(&proxy).await;
+    let glb = export_glb(&proxy, &first).await;
+    let target = proxy.create_session().await;
+
+    // The strokes' one transaction fails: the import fails, nothing is stored.
+    faults.fail_transaction(1, Fault::Fail);
+    let (status, answer) = import(&proxy, &target, glb.clone()).await;
+    assert_eq!(status, 500, "{answer}");
+    assert_eq!(strokes_of(&proxy.db, &target).await, 0, "all or nothing");
+
+    // The strokes commit, then the first mesh's write fails: the import has happened and says
+    // so; every stroke is stored, that one without its mesh.
+    faults.fail_transaction(2, Fault::Fail);
+    let (status, answer) = import(&proxy, &target, glb).await;
+    assert_eq!(status, 201, "{answer}");
+    let strokes = answer["strokes"].as_array().unwrap();
+    assert_eq!(strokes.len(), 5);
+    assert_eq!(strokes_of(&proxy.db, &target).await, 5);
+    let mut meshless = 0;
+    for stroke in strokes {
+        let id: Uuid = stroke["stroke"].as_str().unwrap().parse().unwrap();
+        let info = proxy.stroke_info(&target, id).await;
+        assert_eq!(info["status"], "done");
+        if info["has_mesh"] == false {
+            meshless += 1;
+        }
+    }
+    assert_eq!(meshless, 1, "only the mesh whose write failed is missing");
 }
