@@ -60,17 +60,25 @@ mod tests {
     #[test]
     fn results_are_taken_in_order_and_an_error_stops_the_work() {
         let mut seen = Vec::new();
-        let done: Result<(), ()> = in_order(100, |i| i * i, |i, r| {
-            seen.push((i, r));
-            Ok(())
-        });
+        let done: Result<(), ()> = in_order(
+            100,
+            |i| i * i,
+            |i, r| {
+                seen.push((i, r));
+                Ok(())
+            },
+        );
         assert_eq!(done, Ok(()));
         assert_eq!(seen, (0..100).map(|i| (i, i * i)).collect::<Vec<_>>());
         let mut taken = 0;
-        let failed = in_order(100, |i| i, |i, _| {
-            taken += 1;
-            if i == 10 { Err(i) } else { Ok(()) }
-        });
+        let failed = in_order(
+            100,
+            |i| i,
+            |i, _| {
+                taken += 1;
+                if i == 10 { Err(i) } else { Ok(()) }
+            },
+        );
         assert_eq!((failed, taken), (Err(10), 11));
         assert_eq!(in_order(0, |i| i, |_, _| Err::<(), _>(())), Ok(()));
     }

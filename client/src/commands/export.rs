@@ -160,7 +160,10 @@ async fn read_progress(
         while let Some(end) = pending.iter().position(|&b| b == b'\n') {
             let line: Vec<u8> = pending.drain(..=end).collect();
             let line: Line = serde_json::from_slice(&line).with_context(|| {
-                format!("the proxy sent a line that is not progress: {}", String::from_utf8_lossy(&line))
+                format!(
+                    "the proxy sent a line that is not progress: {}",
+                    String::from_utf8_lossy(&line)
+                )
             })?;
             match line {
                 Line::Progress { stage, done, total } => {

@@ -11,7 +11,6 @@ use anyhow::Context;
 use clap::Args;
 use penmesh::protocol::{Imported, KEY_HEADER};
 
-
 #[derive(Debug, Clone, Args)]
 pub struct ImportArgs {
     #[command(flatten)]

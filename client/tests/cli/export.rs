@@ -131,9 +131,8 @@ async fn a_long_export_tells_its_progress_and_a_failure_midway_writes_no_file() 
     assert_eq!(file["content_type"], "model/stl");
     assert_eq!(file["name"], format!("penmesh-{}.stl", proxy.session));
     use base64::Engine as _;
-    let streamed = base64::engine::general_purpose::STANDARD
-        .decode(file["base64"].as_str().unwrap())
-        .unwrap();
+    let streamed =
+        base64::engine::general_purpose::STANDARD.decode(file["base64"].as_str().unwrap()).unwrap();
     assert_eq!(file["bytes"], streamed.len());
     let plain = reqwest::Client::new()
         .get(format!("{}/v1/sessions/{}/export?format=stl", proxy.url, proxy.session))

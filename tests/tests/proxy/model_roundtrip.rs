@@ -364,7 +364,8 @@ async fn an_import_past_the_session_mesh_quota_stores_nothing() {
 #[tokio::test]
 async fn a_storage_failure_during_an_import_stores_nothing_and_a_lost_mesh_loses_no_stroke() {
     let faults = CommitFaults::new();
-    let proxy = spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
+    let proxy =
+        spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
     let (first, _) = three_d_session(&proxy).await;
     let glb = export_glb(&proxy, &first).await;
     let target = proxy.create_session().await;
