@@ -4,11 +4,8 @@
 use serde_json::Value;
 
 use super::SceneError;
+use crate::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC};
 use crate::placement::IDENTITY_MATRIX;
-
-const GLB_MAGIC: &[u8; 4] = b"glTF";
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// A node's local transform, column-major: its `matrix`, or its translation, rotation and
 /// scale composed (`T · R · S`), or the identity.
@@ -52,7 +49,6 @@ pub(super) fn node_matrix(node: &Value, index: usize) -> Result<[f64; 16], Scene
     }
     Ok(m)
 }
-
 
 /// A GLB's JSON document and its binary chunk (empty when it has none).
 pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
@@ -112,4 +108,3 @@ pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     }
     Ok((json, bin))
 }
-
