@@ -34,7 +34,7 @@ use crate::{internal_errors, real_strokes};
 /// HTTP, and every other round a duplicate).
 const N_CLIENTS: usize = 20;
 const STROKES_PER_CLIENT: usize = 3;
-const ROUNDS: usize = 6;
+const ROUNDS: usize = 10;
 /// Who tries to move another's stroke (in round 2), and who imports a GLB (in round 1).
 const INTRUDERS: [usize; 2] = [0, 7];
 const IMPORTERS: [usize; 2] = [3, 12];
@@ -300,7 +300,7 @@ impl Modeller {
         let import = r == 1 && IMPORTERS.contains(&self.i);
 
         let i = self.i;
-        let proxy = ctx.proxy_of(i);
+        let proxy = ctx.http_proxy_of(i);
         let Modeller { ws, seen, me, .. } = self;
         let (_, (imported, duplicated)) =
             tokio::join!(socket_changes(ws, seen, on_socket, &socket, intrude), async {
@@ -547,8 +547,15 @@ struct Ctx {
 }
 
 impl Ctx {
+    /// The replica client `i` draws and models on over the socket.
     fn proxy_of(&self, i: usize) -> &TestProxy {
         &self.proxies[i % self.proxies.len()]
+    }
+
+    /// The replica it sends its HTTP requests to: the other one, so that what it does over
+    /// HTTP reaches its socket through the database's notifications.
+    fn http_proxy_of(&self, i: usize) -> &TestProxy {
+        &self.proxies[(i + 1) % self.proxies.len()]
     }
 
     fn first_stroke_of(&self, i: usize) -> StrokeId {
@@ -633,6 +640,7 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
     };
 
     // Act: all join at once and draw; once all are drawn and listening, all model at once.
+    let started = std::time::Instant::now();
     let joined = Arc::new(tokio::sync::Barrier::new(N_CLIENTS));
     let drawn = Arc::new(tokio::sync::Barrier::new(N_CLIENTS));
     let modelled = Arc::new(tokio::sync::Barrier::new(N_CLIENTS));
@@ -662,21 +670,34 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
             }
             ctx.first.lock().unwrap().insert(i, reports[0].stroke);
             modeller.wait_reading(&drawn).await;
+            let modelling = std::time::Instant::now();
             for r in 0..ROUNDS {
                 modeller.round(r, &ctx).await;
             }
             everything.lock().unwrap().extend(modeller.mine.clone());
+            let modelling = modelling.elapsed();
             modeller.wait_reading(&modelled).await;
             let expected = everything.lock().unwrap().clone();
             modeller.settle(&expected).await;
-            modeller
+            (modeller, modelling)
         });
     }
-    let mut modellers = Vec::new();
+    let (mut modellers, mut slowest) = (Vec::new(), Duration::ZERO);
     while let Some(joined) = clients.join_next().await {
-        modellers.push(joined.expect("a client failed"));
+        let (modeller, modelling) = joined.expect("a client failed");
+        modellers.push(modeller);
+        slowest = slowest.max(modelling);
     }
     let expected: BTreeMap<StrokeId, Acknowledged> = everything.lock().unwrap().clone();
+    eprintln!(
+        "model storm: {} clients, {} strokes, {} placements acknowledged; {:.1} s in all, the \
+         slowest client's changes {:.1} s",
+        N_CLIENTS,
+        expected.len(),
+        expected.values().map(|a| a.placements.len()).sum::<usize>(),
+        started.elapsed().as_secs_f64(),
+        slowest.as_secs_f64()
+    );
 
     // Assert: the numbers add up (every change acknowledged, imports whole).
     let n_drawn = N_CLIENTS * STROKES_PER_CLIENT + INTRUDERS.len();
