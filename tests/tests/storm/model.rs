@@ -86,8 +86,24 @@ fn placement(m: Matrix) -> Placement {
     Placement::new(m).unwrap_or_else(|e| panic!("the test made a bad placement {m:?}: {e}"))
 }
 
-fn bits(p: &Placement) -> Vec<u8> {
-    p.to_bytes()
+/// A placement compared bit for bit (`-0.0` is not `0.0`), shown as its matrix.
+#[derive(Clone, Copy)]
+struct Exact(Placement);
+
+impl PartialEq for Exact {
+    fn eq(&self, other: &Exact) -> bool {
+        self.0.to_bytes() == other.0.to_bytes()
+    }
+}
+
+impl std::fmt::Debug for Exact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.0.matrix())
+    }
+}
+
+fn bits(p: &Placement) -> Exact {
+    Exact(*p)
 }
 
 /// The work plane client `i` draws on: stood up by its own angle, turned and moved off the
@@ -132,7 +148,7 @@ fn scaling_x(k: f64) -> Matrix {
 }
 
 /// One placement a stroke had: its bits, and why (`begin`, `set`, `duplicate`).
-type Entry = (Vec<u8>, &'static str);
+type Entry = (Exact, &'static str);
 
 /// A stroke as its drawer knows it: whose, and every placement the proxy acknowledged, in
 /// order (the last is its current one).
@@ -146,7 +162,7 @@ struct Acknowledged {
 #[derive(Debug, Default)]
 struct Seen {
     /// Every stroke it heard of, with the placements it was told, in order.
-    strokes: BTreeMap<StrokeId, Vec<Vec<u8>>>,
+    strokes: BTreeMap<StrokeId, Vec<Exact>>,
     /// Times the connection fell behind and was resynced.
     lagged: usize,
     synced: usize,
@@ -244,8 +260,8 @@ impl Modeller {
     /// The placements this connection is to be told of `stroke`, in order: all of them but a
     /// first one at the identity (never told) and, for a stroke drawn on this socket, its
     /// begin (the drawer has it).
-    fn to_be_told(&self, stroke: &StrokeId, a: &Acknowledged) -> Vec<Vec<u8>> {
-        let mut told: Vec<Vec<u8>> = a.placements.iter().map(|(p, _)| p.clone()).collect();
+    fn to_be_told(&self, stroke: &StrokeId, a: &Acknowledged) -> Vec<Exact> {
+        let mut told: Vec<Exact> = a.placements.iter().map(|(p, _)| *p).collect();
         if self.drawn_here.contains(stroke) || told[0] == bits(&Placement::IDENTITY) {
             told.remove(0);
         }
@@ -253,8 +269,7 @@ impl Modeller {
     }
 
     fn current(&self, stroke: StrokeId) -> Placement {
-        let last = &self.mine[&stroke].placements.last().expect("a placement").0;
-        Placement::from_bytes(last).unwrap()
+        self.mine[&stroke].placements.last().expect("a placement").0.0
     }
 
     /// The next `changes` of `stroke`, each from the one before.
@@ -363,12 +378,21 @@ impl Modeller {
             }
             match tokio::time::timeout_at(deadline, self.ws.ws.next()).await {
                 Ok(frame) => decode(frame).iter().for_each(|msg| self.seen.apply(msg)),
-                Err(_) => panic!(
-                    "client {}: {} strokes never reached their last placement, e.g. {}",
-                    self.i,
-                    missing.len(),
-                    missing[0]
-                ),
+                Err(_) => {
+                    let stroke = missing[0];
+                    let wanted = self.to_be_told(&stroke, &expected[&stroke]);
+                    let told = self.seen.strokes.get(&stroke).cloned().unwrap_or_default();
+                    let last = told.last().and_then(|p| wanted.iter().position(|w| w == p));
+                    panic!(
+                        "client {}: {} strokes never reached their last placement; {stroke} \
+                         was told {} of its {} placements, the last told being its number \
+                         {last:?}",
+                        self.i,
+                        missing.len(),
+                        told.len(),
+                        wanted.len(),
+                    )
+                }
             }
         }
     }
@@ -404,7 +428,7 @@ async fn socket_changes(
                 .await;
         }
     }
-    let sent: Vec<Vec<u8>> = changes.iter().map(bits).collect();
+    let sent: Vec<Exact> = changes.iter().map(bits).collect();
     let (mut answered, mut refused) = (0, intrude.is_none());
     while answered < sent.len() || !refused {
         let msg = ws.recv_any().await;
@@ -721,7 +745,7 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
     // A late joiner (on the last replica) is told each stroke's last placement, only that.
     let late = Modeller::join(ctx.proxies.last().unwrap(), ctx.session.stranger(), N_CLIENTS).await;
     for (stroke, a) in &expected {
-        let wanted: Vec<Vec<u8>> = late.to_be_told(stroke, a).last().into_iter().cloned().collect();
+        let wanted: Vec<Exact> = late.to_be_told(stroke, a).last().into_iter().copied().collect();
         assert_eq!(late.seen.strokes.get(stroke), Some(&wanted), "the late joiner: {stroke}");
     }
     assert_eq!(late.seen.strokes.len(), expected.len(), "the late joiner: strokes never made");
@@ -731,9 +755,9 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
         let path = format!("/v1/sessions/{}/strokes", ctx.session.session);
         let list: StrokeList =
             serde_json::from_value(proxy.get_json(&path, &ctx.session).await).unwrap();
-        let listed: BTreeMap<StrokeId, (Uuid, Vec<u8>)> =
+        let listed: BTreeMap<StrokeId, (Uuid, Exact)> =
             list.strokes.iter().map(|s| (s.id, (s.participant, bits(&s.placement)))).collect();
-        let wanted: BTreeMap<StrokeId, (Uuid, Vec<u8>)> = expected
+        let wanted: BTreeMap<StrokeId, (Uuid, Exact)> = expected
             .iter()
             .map(|(id, a)| (*id, (a.drawer, a.placements.last().unwrap().0.clone())))
             .collect();
@@ -746,13 +770,13 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
         let proxy = &ctx.proxies[stroke.as_bytes()[0] as usize % ctx.proxies.len()];
         let body = proxy.get_json(&format!("/v1/strokes/{stroke}/placements"), &ctx.session).await;
         let history: PlacementHistory = serde_json::from_value(body).unwrap();
-        let stored: Vec<(Vec<u8>, &str, Uuid)> = history
+        let stored: Vec<(Exact, &str, Uuid)> = history
             .placements
             .iter()
             .map(|c| (bits(&c.placement), c.cause.as_str(), c.by))
             .collect();
-        let wanted: Vec<(Vec<u8>, &str, Uuid)> =
-            a.placements.iter().map(|(p, cause)| (p.clone(), *cause, a.drawer)).collect();
+        let wanted: Vec<(Exact, &str, Uuid)> =
+            a.placements.iter().map(|(p, cause)| (*p, *cause, a.drawer)).collect();
         assert_eq!(stored, wanted, "the placement history of {stroke}");
     }
 
