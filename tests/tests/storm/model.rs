@@ -200,6 +200,8 @@ struct Modeller {
     mine: BTreeMap<StrokeId, Acknowledged>,
     /// Strokes drawn on this very socket: the proxy tells it nothing of them but its answers.
     drawn_here: BTreeSet<StrokeId>,
+    /// The strokes it imported, with their samples in the file.
+    imported: BTreeMap<StrokeId, u64>,
     n_changes: usize,
 }
 
@@ -223,6 +225,7 @@ impl Modeller {
             seen: Seen::default(),
             mine: BTreeMap::new(),
             drawn_here: BTreeSet::new(),
+            imported: BTreeMap::new(),
             n_changes: 0,
         };
         while m.seen.synced == 0 {
@@ -345,8 +348,9 @@ impl Modeller {
         if let Some((id, p)) = duplicated {
             self.acknowledge(id, &p, "duplicate");
         }
-        for (stroke, matrix) in imported.into_iter().flatten() {
+        for (stroke, matrix, n_samples) in imported.into_iter().flatten() {
             self.acknowledge(stroke, &placement(matrix), "begin");
+            self.imported.insert(stroke, n_samples);
         }
         if intrude.is_some() {
             // Refused twice; the connection goes on: a new real stroke drawn on it.
@@ -357,6 +361,9 @@ impl Modeller {
                 .await;
             self.drawn_here.insert(stroke);
             self.acknowledge(stroke, &on, "begin");
+            // Its mesh built by the proxy, as the page asks for it.
+            let built = ctx.http_proxy_of(self.i).build_mesh(&self.me, stroke).send().await;
+            assert_eq!(built.unwrap().status(), 200, "client {}: its mesh built", self.i);
         }
     }
 
@@ -531,8 +538,13 @@ async fn duplicate_stroke(
     assert_eq!(status, 201, "duplicate: {}", response.text().await.unwrap());
 }
 
-/// Imports `glb` as `who`: each new stroke with its node's matrix, in the file's order.
-async fn import_glb(proxy: &TestProxy, who: &TestSession, glb: &[u8]) -> Vec<(StrokeId, Matrix)> {
+/// Imports `glb` as `who`: each new stroke with its node's matrix and its number of samples,
+/// in the file's order.
+async fn import_glb(
+    proxy: &TestProxy,
+    who: &TestSession,
+    glb: &[u8],
+) -> Vec<(StrokeId, Matrix, u64)> {
     let response = proxy
         .http
         .post(proxy.url(&format!("/v1/sessions/{}/import", who.session)))
@@ -555,7 +567,7 @@ async fn import_glb(proxy: &TestProxy, who: &TestSession, glb: &[u8]) -> Vec<(St
         .zip(&file)
         .map(|(new, read)| {
             assert_eq!(new.source, read.extras.stroke, "in the file's order");
-            (new.stroke, read.placement)
+            (new.stroke, read.placement, read.extras.samples.len() as u64)
         })
         .collect()
 }
@@ -742,6 +754,10 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
         assert_eq!(m.seen.strokes.len(), expected.len(), "client {}: strokes never made", m.i);
     }
 
+    let imported: BTreeMap<StrokeId, u64> =
+        modellers.iter().flat_map(|m| m.imported.clone()).collect();
+    assert_eq!(imported.len(), IMPORTERS.len() * N_EXPORTED, "every import whole");
+
     // A late joiner (on the last replica) is told each stroke's last placement, only that.
     let late = Modeller::join(ctx.proxies.last().unwrap(), ctx.session.stranger(), N_CLIENTS).await;
     for (stroke, a) in &expected {
@@ -759,10 +775,17 @@ async fn twenty_people_modelling_at_once_see_every_acknowledged_placement_in_ord
             list.strokes.iter().map(|s| (s.id, (s.participant, bits(&s.placement)))).collect();
         let wanted: BTreeMap<StrokeId, (Uuid, Exact)> = expected
             .iter()
-            .map(|(id, a)| (*id, (a.drawer, a.placements.last().unwrap().0.clone())))
+            .map(|(id, a)| (*id, (a.drawer, a.placements.last().unwrap().0)))
             .collect();
         assert_eq!(listed, wanted, "the strokes list");
-        assert!(list.strokes.iter().all(|s| s.status == penmesh::protocol::StrokeStatus::Done));
+        for s in &list.strokes {
+            assert_eq!(s.status, penmesh::protocol::StrokeStatus::Done, "{}", s.id);
+            // Each with its mesh, an imported one with every sample of the file.
+            assert!(s.has_mesh, "{} has no mesh", s.id);
+            if let Some(n_samples) = imported.get(&s.id) {
+                assert_eq!((s.n_points, s.n_retained), (*n_samples, *n_samples), "{}", s.id);
+            }
+        }
     }
 
     // Each stroke's placement history: every acknowledged change, in order, by its drawer.
