@@ -168,6 +168,7 @@ struct Seen {
     /// Times the connection fell behind and was resynced.
     lagged: usize,
     synced: usize,
+    who: usize,
 }
 
 impl Seen {
@@ -180,8 +181,11 @@ impl Seen {
                 assert!(self.strokes.insert(b.stroke, Vec::new()).is_none(), "begun twice");
             }
             ServerMessage::PeerPlacement(p) => {
+                let who = self.who;
                 let told = self.strokes.get_mut(&p.stroke);
-                let told = told.unwrap_or_else(|| panic!("a placement of {} before it", p.stroke));
+                let told = told.unwrap_or_else(|| {
+                    panic!("{}: a placement of {} (by {}) before it", who, p.stroke, p.participant)
+                });
                 told.push(bits(&p.placement));
             }
             ServerMessage::Synced(_) => self.synced += 1,
@@ -224,7 +228,7 @@ impl Modeller {
             ws,
             me,
             participant,
-            seen: Seen::default(),
+            seen: Seen { who: i, ..Seen::default() },
             mine: BTreeMap::new(),
             drawn_here: BTreeSet::new(),
             imported: BTreeMap::new(),
