@@ -15,7 +15,16 @@
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--planes 1] [--json OUT.json] [--profile OUT.cpuprofile]
+//                             [--orbit-profile OUT.cpuprofile] [--frame-costs] [--page DIR]
 //                             [--exports N [--export-formats glb,stl] [--no-page]]
+//
+// What bounds an orbit frame: `--orbit-profile` writes the first open's CPU profile during the
+// orbit; `--frame-costs` times frames drawn back to back in the page (each waited for with a
+// one-pixel readPixels), the view turned a little between them, as the page is and with one
+// thing changed at a time (docs/performance.md "What bounds an orbit frame").
+// `--page DIR` serves the page's script from DIR/app.js (`node client/web/build.mjs DIR` in a
+// checkout of another commit) instead of the proxy's, so two pages can be paired with one
+// build of the Rust; both arms of a pair should then use it (it is sent unzipped).
 //
 // `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
 // 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
@@ -48,6 +57,9 @@ const SIZE = Number(option("--size", "140"));
 const JSON_OUT = option("--json", null);
 const PROFILE = option("--profile", null); // the first open's CPU profile (.cpuprofile, DevTools)
 const PLANES = Number(option("--planes", "1"));
+const ORBIT_PROFILE = option("--orbit-profile", null);
+const FRAME_COSTS = args.includes("--frame-costs");
+const PAGE_DIR = option("--page", null);
 // The planes of --planes, as `penmesh draw --placement` takes them (column-major): the board,
 // the front plane through y = 350, the side plane through x = 500.
 const PLACEMENTS = [null, "1,0,0,0,0,0,1,0,0,-1,0,0,0,350,0,1", "0,1,0,0,0,0,1,0,1,0,0,0,500,0,0,1"];
@@ -58,6 +70,7 @@ const EXPORTS = Number(option("--exports", "0"));
 const EXPORT_FORMATS = option("--export-formats", "glb").split(",");
 const NO_PAGE = args.includes("--no-page");
 let profiled = false;
+let orbitProfiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
 const ORBIT_SECONDS = 5;
@@ -264,6 +277,13 @@ async function measurePage(context, url, expected) {
   });
   const frames = () => page.evaluate(() => window.penmesh.frames ?? window.__rafTicks);
   const mouse = (type, x, y) => cdp.send("Input.dispatchMouseEvent", { type, x, y, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1 });
+  const orbitProfiling = ORBIT_PROFILE && !orbitProfiled;
+  if (orbitProfiling) {
+    orbitProfiled = true;
+    await cdp.send("Profiler.enable");
+    await cdp.send("Profiler.setSamplingInterval", { interval: 250 });
+    await cdp.send("Profiler.start");
+  }
   await mouse("mousePressed", 500, 350);
   const f0 = await frames();
   const t0 = Date.now();
@@ -273,6 +293,11 @@ async function measurePage(context, url, expected) {
     await mouse("mouseMoved", 500 + 200 * Math.sin(step / 20), 350 + 120 * Math.sin(step / 31));
   }
   const orbitFps = ((await frames()) - f0) / ((Date.now() - t0) / 1000);
+  if (orbitProfiling) {
+    const { profile } = await cdp.send("Profiler.stop");
+    writeFileSync(ORBIT_PROFILE, JSON.stringify(profile));
+    log(`CPU profile of the first orbit: ${ORBIT_PROFILE}`);
+  }
   const triangles = await page.evaluate(() => window.penmesh.triangles ?? null);
   await mouse("mouseReleased", 500, 350);
   await page.evaluate(() => (window.__stopTicks = true));
@@ -290,6 +315,7 @@ async function measurePage(context, url, expected) {
   for (const type of Object.keys(after)) idle[type] = (after[type] - (before[type] || 0)) / TICKS_PER_SECOND / seconds;
   const idleCores = Object.values(idle).reduce((a, b) => a + b, 0);
   await page.screenshot({ path: join(work, "busy-board-orbited.png") });
+  const frameCosts = FRAME_COSTS ? await measureFrameCosts(page) : undefined;
   await page.close();
   return {
     complete_ms: Math.round(completeMs),
@@ -305,8 +331,59 @@ async function measurePage(context, url, expected) {
     idle_cores: Number(idleCores.toFixed(3)),
     idle_cores_by_process: Object.fromEntries(Object.entries(idle).map(([k, v]) => [k, Number(v.toFixed(3))])),
     idle_frames: idleFrames0 === null ? null : idleFrames1 - idleFrames0,
+    frame_costs: frameCosts,
     errors,
   };
+}
+
+/// Milliseconds a frame, drawn back to back (each waited for with a one-pixel readPixels: the
+/// GPU process, SwiftShader here, has drawn it), the view turned a little between frames, for
+/// the page as it is and with one thing changed at a time; each variant timed twice, in turn.
+async function measureFrameCosts(page) {
+  return page.evaluate(async () => {
+    const view = window.penmesh.view;
+    const gl = view.renderer.getContext();
+    const pixel = new Uint8Array(4);
+    const groups = view.groups.objects;
+    const grid = view.world.children.find((o) => o.isLineSegments);
+    const THREE_ShaderMaterial = view.material.constructor;
+    const plain = new THREE_ShaderMaterial({
+      vertexShader: "void main() { gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }",
+      fragmentShader: "void main() { gl_FragColor = vec4(0.3, 0.3, 0.3, 1.0); }",
+    });
+    let turn = 1;
+    const frame = () => {
+      turn = -turn;
+      view.rig.orbitBy(4 * turn, 2 * turn);
+      view.renderer.render(view.scene, view.camera);
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+    };
+    const variants = {
+      as_is: [() => {}, () => {}],
+      grid_hidden: [() => grid && (grid.visible = false), () => grid && (grid.visible = true)],
+      canvas_100x70: [() => view.renderer.setSize(100, 70, false), () => view.resize()],
+      plain_material: [() => groups.forEach((g) => (g.material = plain)), () => groups.forEach((g) => (g.material = view.material))],
+      half_the_groups: [() => groups.forEach((g, i) => (g.visible = i % 2 === 0)), () => groups.forEach((g) => (g.visible = true))],
+      meshes_hidden: [() => groups.forEach((g) => (g.visible = false)), () => groups.forEach((g) => (g.visible = true))],
+    };
+    view.rig.orbitBy(120, -60); // a turned view: the grid shows, the strokes seen at a slant
+    const out = {};
+    for (let round = 0; round < 2; round++) {
+      for (const [name, [set, reset]] of Object.entries(variants)) {
+        set();
+        for (let i = 0; i < 2; i++) frame(); // warm
+        const triangles = view.renderer.info.render.triangles;
+        const t = performance.now();
+        const n = 8;
+        for (let i = 0; i < n; i++) frame();
+        (out[name] ??= { ms: [], triangles }).ms.push(Number(((performance.now() - t) / n).toFixed(1)));
+        reset();
+      }
+    }
+    view.rig.orbitBy(-120, 60);
+    view.requestRender();
+    return out;
+  });
 }
 
 // --- the run ------------------------------------------------------------------------------
@@ -388,6 +465,10 @@ try {
 
   browser = await launch();
   const context = await browser.newContext({ viewport: { width: BOARD.width, height: BOARD.height }, deviceScaleFactor: 1 });
+  if (PAGE_DIR) {
+    const script = readFileSync(join(PAGE_DIR, "app.js"));
+    await context.route("**/web/app.js", (route) => route.fulfill({ status: 200, contentType: "text/javascript", body: script }));
+  }
   const url = `${proxy.base}/s/${session.session}#token=${session.token}`;
   const first = await measurePage(context, url, withMesh);
   log("opened:", JSON.stringify(first));
