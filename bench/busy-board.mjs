@@ -338,19 +338,28 @@ async function measurePage(context, url, expected) {
 
 /// Milliseconds a frame, drawn back to back (each waited for with a one-pixel readPixels: the
 /// GPU process, SwiftShader here, has drawn it), the view turned a little between frames, for
-/// the page as it is and with one thing changed at a time; each variant timed twice, in turn.
+/// the page as it is and with one thing changed at a time; each variant timed in turn, ROUNDS
+/// times. Both the wall time and the CPU time of Chromium's processes (all of them, from
+/// /proc: a measure that a busy machine disturbs less) per frame.
 async function measureFrameCosts(page) {
-  return page.evaluate(async () => {
+  const ROUNDS = 3;
+  const FRAMES = 10;
+  const names = await page.evaluate(() => {
     const view = window.penmesh.view;
     const gl = view.renderer.getContext();
     const pixel = new Uint8Array(4);
     const groups = view.groups.objects;
     const grid = view.world.children.find((o) => o.isLineSegments);
-    const THREE_ShaderMaterial = view.material.constructor;
-    const plain = new THREE_ShaderMaterial({
+    const ShaderMaterial = view.material.constructor;
+    const plain = new ShaderMaterial({
       vertexShader: "void main() { gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }",
       fragmentShader: "void main() { gl_FragColor = vec4(0.3, 0.3, 0.3, 1.0); }",
     });
+    // One shader of the page's pair made plain at a time.
+    const own = { vertexShader: view.material.vertexShader, fragmentShader: view.material.fragmentShader, uniforms: view.material.uniforms };
+    const plainVertex = new ShaderMaterial({ ...own, vertexShader: "attribute vec3 colour; varying vec3 vColour; void main() { vColour = colour; gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }" });
+    const plainFragment = new ShaderMaterial({ ...own, fragmentShader: "varying vec3 vColour; void main() { gl_FragColor = vec4(vColour, 1.0); }" });
+    const material = (m) => [() => groups.forEach((g) => (g.material = m)), () => groups.forEach((g) => (g.material = view.material))];
     let turn = 1;
     const frame = () => {
       turn = -turn;
@@ -362,28 +371,49 @@ async function measureFrameCosts(page) {
       as_is: [() => {}, () => {}],
       grid_hidden: [() => grid && (grid.visible = false), () => grid && (grid.visible = true)],
       canvas_100x70: [() => view.renderer.setSize(100, 70, false), () => view.resize()],
-      plain_material: [() => groups.forEach((g) => (g.material = plain)), () => groups.forEach((g) => (g.material = view.material))],
+      plain_material: material(plain),
+      plain_vertex_shader: material(plainVertex),
+      plain_fragment_shader: material(plainFragment),
       half_the_groups: [() => groups.forEach((g, i) => (g.visible = i % 2 === 0)), () => groups.forEach((g) => (g.visible = true))],
       meshes_hidden: [() => groups.forEach((g) => (g.visible = false)), () => groups.forEach((g) => (g.visible = true))],
     };
     view.rig.orbitBy(120, -60); // a turned view: the grid shows, the strokes seen at a slant
-    const out = {};
-    for (let round = 0; round < 2; round++) {
-      for (const [name, [set, reset]] of Object.entries(variants)) {
-        set();
-        for (let i = 0; i < 2; i++) frame(); // warm
-        const triangles = view.renderer.info.render.triangles;
-        const t = performance.now();
-        const n = 8;
-        for (let i = 0; i < n; i++) frame();
-        (out[name] ??= { ms: [], triangles }).ms.push(Number(((performance.now() - t) / n).toFixed(1)));
-        reset();
-      }
-    }
-    view.rig.orbitBy(-120, 60);
-    view.requestRender();
-    return out;
+    window.__frameCosts = { variants, frame };
+    return Object.keys(variants);
   });
+  const out = {};
+  for (let round = 0; round < ROUNDS; round++) {
+    for (const name of names) {
+      const triangles = await page.evaluate((name) => {
+        const { variants, frame } = window.__frameCosts;
+        variants[name][0]();
+        frame(); // warm: a new program is compiled here
+        frame();
+        return window.penmesh.view.renderer.info.render.triangles;
+      }, name);
+      const before = chromiumTicks(process.pid);
+      const ms = await page.evaluate(
+        ([name, n]) => {
+          const t = performance.now();
+          for (let i = 0; i < n; i++) window.__frameCosts.frame();
+          const ms = (performance.now() - t) / n;
+          window.__frameCosts.variants[name][1]();
+          return ms;
+        },
+        [name, FRAMES],
+      );
+      const after = chromiumTicks(process.pid);
+      const cpu = Object.keys(after).reduce((a, k) => a + after[k] - (before[k] || 0), 0);
+      const entry = (out[name] ??= { triangles, wall_ms: [], cpu_ms: [] });
+      entry.wall_ms.push(Number(ms.toFixed(1)));
+      entry.cpu_ms.push(Number(((cpu * 1000) / TICKS_PER_SECOND / FRAMES).toFixed(1)));
+    }
+  }
+  await page.evaluate(() => {
+    window.penmesh.view.rig.orbitBy(-120, 60);
+    window.penmesh.view.requestRender();
+  });
+  return out;
 }
 
 // --- the run ------------------------------------------------------------------------------

@@ -48,41 +48,36 @@ function segmentDistance(p, a, b) {
 // falls between pixel centres and shows as a dashed line.
 const MIN_WIDTH_PX = 1.5;
 // Cheap to shade: the light is worked out once per vertex (a light over the viewer's shoulder
-// and an ambient part), and so is the screen's sRGB encoding (three.js's sRGBTransferOETF, the
-// formula its `colorspace_fragment` applies to every pixel): a pixel only copies the colour its
-// vertices give it. In software WebGL that per-pixel power was about a tenth of an orbit
-// frame's CPU (docs/performance.md, "What bounds an orbit frame"); encoding per vertex differs
-// only inside a triangle whose corners are lit differently (the mix of two encoded colours, not
-// the encoding of their mix), by at most a step or two of 255. A stroke's rim vertex stands at
-// z = ±thickness·r (shared/src/mesh.rs, thickness 0.5) and its normal points out of the
-// outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it, with no
-// branch: `minHalfWidth` is half of MIN_WIDTH_PX in plane units per unit of depth (set by
-// SceneView.resize), so at a vertex the least half-width is minHalfWidth · depth, and the move,
-// made in view space, needs no second projection. Each matrix multiplies a vector, never
-// another matrix. (Positions and normals are the mesh's own, in its plane: its group's object
-// carries the placement, batch.js.)
+// and an ambient part), and a pixel only takes the colour its vertices give it. A stroke's rim
+// vertex stands at z = ±thickness·r (shared/src/mesh.rs, thickness 0.5) and its normal points
+// out of the outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it.
+// The widening costs little per vertex, with no branch (SwiftShader shades vertices on the CPU;
+// the busy board's orbit frame is bound by its work per triangle and per covered pixel, and
+// a plain vertex shader saves about a tenth of it: docs/performance.md, "What bounds an orbit
+// frame"). `minHalfWidth` is half of
+// MIN_WIDTH_PX in plane units per unit of depth (set by SceneView.resize), so at a vertex the
+// least half-width is minHalfWidth · depth, and the move, made in view space, needs no second
+// projection. Each matrix multiplies a vector, never another matrix. Positions and normals are
+// the mesh's own, in its plane (its group's object carries the placement, batch.js).
 const VERTEX_SHADER = `
 attribute vec3 colour;
 uniform float minHalfWidth;
 varying vec3 vColour;
-vec3 toSRGB(vec3 c) {
-  return mix(pow(c, vec3(0.41666)) * 1.055 - vec3(0.055), c * 12.92, vec3(lessThanEqual(c, vec3(0.0031308))));
-}
 void main() {
   vec3 n = normalize(normalMatrix * normal);
   float light = max(dot(n, vec3(0.29, 0.48, 0.83)), 0.0);
-  vColour = toSRGB(colour * (0.55 + 0.6 * light));
+  vColour = colour * (0.55 + 0.6 * light);
   vec4 mv = modelViewMatrix * vec4(position, 1.0);
   float grow = max(minHalfWidth * -mv.z - 2.0 * abs(position.z), 0.0);
   vec2 push = normal.xy * (grow * inversesqrt(max(dot(normal.xy, normal.xy), 1e-12)));
   mv.xyz += modelViewMatrix[0].xyz * push.x + modelViewMatrix[1].xyz * push.y;
   gl_Position = projectionMatrix * mv;
 }`;
-// The colour is encoded for the screen already (the vertex shader): no colorspace_fragment.
 const FRAGMENT_SHADER = `
 varying vec3 vColour;
 void main() {
   gl_FragColor = vec4(vColour, 1.0);
+  #include <colorspace_fragment>
 }`;
 
 /// Whether a WebGL context is drawn on the CPU (SwiftShader, llvmpipe).
