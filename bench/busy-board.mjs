@@ -16,6 +16,7 @@
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--planes 1] [--json OUT.json] [--profile OUT.cpuprofile]
 //                             [--orbit-profile OUT.cpuprofile] [--frame-costs] [--page DIR]
+//                             [--save-bundle OUT.bin]
 //                             [--exports N [--export-formats glb,stl] [--no-page]]
 //
 // What bounds an orbit frame: `--orbit-profile` writes the first open's CPU profile during the
@@ -25,6 +26,8 @@
 // `--page DIR` serves the page's script from DIR/app.js (`node client/web/build.mjs DIR` in a
 // checkout of another commit) instead of the proxy's, so two pages can be paired with one
 // build of the Rust; both arms of a pair should then use it (it is sent unzipped).
+// `--save-bundle` keeps the board's mesh bundle (`GET .../meshes?placements=true`) for
+// bench/page-merge.mjs.
 //
 // `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
 // 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
@@ -60,6 +63,7 @@ const PLANES = Number(option("--planes", "1"));
 const ORBIT_PROFILE = option("--orbit-profile", null);
 const FRAME_COSTS = args.includes("--frame-costs");
 const PAGE_DIR = option("--page", null);
+const SAVE_BUNDLE = option("--save-bundle", null);
 // The planes of --planes, as `penmesh draw --placement` takes them (column-major): the board,
 // the front plane through y = 350, the side plane through x = 500.
 const PLACEMENTS = [null, "1,0,0,0,0,0,1,0,0,-1,0,0,0,350,0,1", "0,1,0,0,0,0,1,0,1,0,0,0,500,0,0,1"];
@@ -196,6 +200,8 @@ function chromiumTicks(pid) {
   return byType;
 }
 const TICKS_PER_SECOND = 100; // USER_HZ on Linux
+/// Ticks of every process type in `after` less those in `before`.
+const sumTicks = (after, before) => Object.keys(after).reduce((a, k) => a + after[k] - (before[k] || 0), 0);
 
 /// Opens the session's page and measures it; `expected` meshes make the view complete.
 async function measurePage(context, url, expected) {
@@ -224,6 +230,9 @@ async function measurePage(context, url, expected) {
     await cdp.send("Profiler.start");
   }
 
+  // Chromium's CPU time (all its processes, /proc) from here until the view is complete, and
+  // per frame of the orbit: measures that a busy machine disturbs less than wall time.
+  const ticksBeforeOpen = chromiumTicks(process.pid);
   await page.goto(url);
   const completeMs = await page.evaluate(
     (n) =>
@@ -236,6 +245,7 @@ async function measurePage(context, url, expected) {
       }),
     expected,
   );
+  const openCpuS = sumTicks(chromiumTicks(process.pid), ticksBeforeOpen) / TICKS_PER_SECOND;
   // When the script and the meshes had arrived (ms from navigation start).
   const arrived = await page.evaluate(() =>
     Object.fromEntries(
@@ -285,6 +295,7 @@ async function measurePage(context, url, expected) {
     await cdp.send("Profiler.start");
   }
   await mouse("mousePressed", 500, 350);
+  const ticksBeforeOrbit = chromiumTicks(process.pid);
   const f0 = await frames();
   const t0 = Date.now();
   let step = 0;
@@ -292,7 +303,9 @@ async function measurePage(context, url, expected) {
     step += 1;
     await mouse("mouseMoved", 500 + 200 * Math.sin(step / 20), 350 + 120 * Math.sin(step / 31));
   }
-  const orbitFps = ((await frames()) - f0) / ((Date.now() - t0) / 1000);
+  const orbitFrames = (await frames()) - f0;
+  const orbitFps = orbitFrames / ((Date.now() - t0) / 1000);
+  const orbitCpuMsPerFrame = (sumTicks(chromiumTicks(process.pid), ticksBeforeOrbit) * 1000) / TICKS_PER_SECOND / Math.max(orbitFrames, 1);
   if (orbitProfiling) {
     const { profile } = await cdp.send("Profiler.stop");
     writeFileSync(ORBIT_PROFILE, JSON.stringify(profile));
@@ -327,6 +340,8 @@ async function measurePage(context, url, expected) {
     http_requests: traffic.requests,
     statuses: traffic.statuses,
     orbit_fps: Number(orbitFps.toFixed(1)),
+    open_cpu_s: Number(openCpuS.toFixed(2)),
+    orbit_cpu_ms_per_frame: Number(orbitCpuMsPerFrame.toFixed(1)),
     triangles, // drawn in the orbit's last frame
     idle_cores: Number(idleCores.toFixed(3)),
     idle_cores_by_process: Object.fromEntries(Object.entries(idle).map(([k, v]) => [k, Number(v.toFixed(3))])),
@@ -403,7 +418,7 @@ async function measureFrameCosts(page) {
         [name, FRAMES],
       );
       const after = chromiumTicks(process.pid);
-      const cpu = Object.keys(after).reduce((a, k) => a + after[k] - (before[k] || 0), 0);
+      const cpu = sumTicks(after, before);
       const entry = (out[name] ??= { triangles, wall_ms: [], cpu_ms: [] });
       entry.wall_ms.push(Number(ms.toFixed(1)));
       entry.cpu_ms.push(Number(((cpu * 1000) / TICKS_PER_SECOND / FRAMES).toFixed(1)));
@@ -472,6 +487,12 @@ try {
       json_base64_decode_ms: Number(jsonDecodeMs.toFixed(1)),
     };
     log("meshes:", JSON.stringify(meshes));
+  }
+
+  if (SAVE_BUNDLE) {
+    const placed = await fetch(`${proxy.base}/v1/sessions/${session.session}/meshes?placements=true`, { headers: auth });
+    writeFileSync(SAVE_BUNDLE, Buffer.from(await placed.arrayBuffer()));
+    log(`mesh bundle with placements: ${SAVE_BUNDLE}`);
   }
 
   // The board taken out through the CLI, as a user does: wall time of each `penmesh export`.
