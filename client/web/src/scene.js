@@ -14,7 +14,7 @@ import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
 import { StrokeGroups, flatten } from "./batch.js";
-import { matrixOf } from "./placement.js";
+import { matrixOf, samePlacement } from "./placement.js";
 import { CameraRig } from "./camera.js";
 import { ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
@@ -225,7 +225,11 @@ export class SceneView {
   setPlacement(id, placement) {
     const s = this.strokes.get(id);
     if (!s) return;
+    // The same placement again (the history's `peer_placement` after the bundle said it, our
+    // own echoed): nothing to move, no frame to draw.
+    const same = samePlacement(s.placement, placement);
     s.placement = placement;
+    if (same) return;
     const m = matrixOf(placement);
     if (s.line) s.line.matrix.copy(m);
     if (s.lifted) s.lifted.matrix.copy(m);

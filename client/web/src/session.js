@@ -330,7 +330,9 @@ export function startSession(session, token) {
         break;
       case "peer_placement":
         view.setPlacement(m.stroke, m.placement.matrix);
-        editor.selection.refresh();
+        // Only a selected stroke's box and gizmo follow it (a history's hundreds of placements
+        // ask for no frame).
+        if (editor.selection.ids.has(m.stroke)) editor.selection.refresh();
         break;
       case "error":
         if (m.code === "not_owner") editor.notice("that stroke is someone else's: you can take back only your own");
