@@ -1,8 +1,7 @@
 // The 3D view: the three.js renderer, the camera (camera.js) and the session's strokes in it:
 // a live stroke as a ribbon of its retained points at its brush's width (ribbon.js), finished
 // ones as meshes merged per person and placement (one draw call each, batch.js), each in its
-// brush's colour
-// or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
+// brush's colour or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
 // stroke taken back is hidden until it is brought back. It renders only when something
 // changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
 // coordinates are screen-like (y down); the scene flips y. Each stroke stands where its
@@ -117,8 +116,8 @@ export class SceneView {
     this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
     this.rig = new CameraRig(this.camera, innerWidth, innerHeight);
     // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
-    // line: its live ribbon, mesh: its range in its group's merged meshes (batch.js), placement: 16
-    // numbers or null (the board), lifted: its own object while selected}
+    // line: its live ribbon, mesh: its range in its group's merged meshes (batch.js),
+    // placement: 16 numbers or null (the board), lifted: its own object while selected}
     this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
