@@ -53,7 +53,6 @@ pub(super) fn node_matrix(node: &Value, index: usize) -> Result<[f64; 16], Scene
     Ok(m)
 }
 
-
 /// A GLB's JSON document and its binary chunk (empty when it has none).
 pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     let word = |at: usize| {
@@ -112,4 +111,3 @@ pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     }
     Ok((json, bin))
 }
-

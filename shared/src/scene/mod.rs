@@ -163,6 +163,5 @@ pub fn stroke_label(extras: &StrokeExtras) -> String {
     }
 }
 
-
 #[cfg(test)]
 mod tests;
