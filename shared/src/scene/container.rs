@@ -53,6 +53,7 @@ pub(super) fn node_matrix(node: &Value, index: usize) -> Result<[f64; 16], Scene
     Ok(m)
 }
 
+
 /// A GLB's JSON document and its binary chunk (empty when it has none).
 pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     let word = |at: usize| {
@@ -111,3 +112,4 @@ pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     }
     Ok((json, bin))
 }
+

@@ -163,5 +163,6 @@ pub fn stroke_label(extras: &StrokeExtras) -> String {
     }
 }
 
+
 #[cfg(test)]
 mod tests;

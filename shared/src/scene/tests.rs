@@ -1,5 +1,5 @@
-use super::container::parse_glb;
 use super::*;
+use super::container::parse_glb;
 use crate::placement::IDENTITY_MATRIX;
 use crate::{GlbMeta, GlbOptions, OutlineOptions, SolidOptions, stroke_glb, stroke_mesh};
 
@@ -35,7 +35,8 @@ fn a_scene_reads_back_its_strokes_and_placements_exactly() {
         Sample::new(40.5, 10.0, 12.125, 0.7),
     ]);
     let b = extras(vec![Sample::new(5.0, 5.0, 0.0, 0.5), Sample::new(5.0, 60.0, 8.0, 0.5)]);
-    let mirror = [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.5, -0.0, 7.0, 1.0];
+    let mirror =
+        [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.5, -0.0, 7.0, 1.0];
     let meshes = [glb_of(&a), glb_of(&b)];
     let input = SceneInput {
         meshes: meshes.iter().map(Vec::as_slice).collect(),

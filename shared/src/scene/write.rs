@@ -9,6 +9,7 @@ use crate::placement::IDENTITY_MATRIX;
 
 const MESHOPT: &str = "EXT_meshopt_compression";
 
+
 fn transform_point(m: &[f64; 16], p: [f64; 3]) -> [f64; 3] {
     let mut out = [0.0; 3];
     for (row, value) in out.iter_mut().enumerate() {
@@ -38,11 +39,13 @@ fn corners((lo, hi): Bounds) -> impl Iterator<Item = [f64; 3]> {
     })
 }
 
+
 /// Converts an sRGB channel to linear, as glTF's `baseColorFactor` wants.
 fn srgb_to_linear(channel: u32) -> f64 {
     let c = f64::from(channel & 0xff) / 255.0;
     if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
+
 
 /// The stored mesh merged into the scene: the templates of its scene's root nodes (their
 /// `mesh` already shifted) and its bounds in its own coordinates.
