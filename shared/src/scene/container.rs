@@ -6,9 +6,9 @@ use serde_json::Value;
 use super::SceneError;
 use crate::placement::IDENTITY_MATRIX;
 
-pub(super) const GLB_MAGIC: &[u8; 4] = b"glTF";
-pub(super) const CHUNK_JSON: u32 = 0x4E4F_534A;
-pub(super) const CHUNK_BIN: u32 = 0x004E_4942;
+const GLB_MAGIC: &[u8; 4] = b"glTF";
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// A node's local transform, column-major: its `matrix`, or its translation, rotation and
 /// scale composed (`T · R · S`), or the identity.

@@ -3,7 +3,7 @@
 
 use serde_json::{Map, Value, json};
 
-use super::container::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, node_matrix, parse_glb};
+use super::container::{node_matrix, parse_glb};
 use super::*;
 use crate::placement::IDENTITY_MATRIX;
 
