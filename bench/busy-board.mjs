@@ -15,7 +15,19 @@
 // `npm ci --prefix client/web`):
 //   node bench/busy-board.mjs [--bin target/release/penmesh] [--people 10] [--strokes 1000]
 //                             [--size 140] [--planes 1] [--json OUT.json] [--profile OUT.cpuprofile]
+//                             [--orbit-profile OUT.cpuprofile] [--frame-costs] [--page DIR]
+//                             [--save-bundle OUT.bin]
 //                             [--exports N [--export-formats glb,stl] [--no-page]]
+//
+// What bounds an orbit frame: `--orbit-profile` writes the first open's CPU profile during the
+// orbit; `--frame-costs` times frames drawn back to back in the page (each waited for with a
+// one-pixel readPixels), the view turned a little between them, as the page is and with one
+// thing changed at a time (docs/performance.md "What bounds an orbit frame").
+// `--page DIR` serves the page's script from DIR/app.js (`node client/web/build.mjs DIR` in a
+// checkout of another commit) instead of the proxy's, so two pages can be paired with one
+// build of the Rust; both arms of a pair should then use it (it is sent unzipped).
+// `--save-bundle` keeps the board's mesh bundle (`GET .../meshes?placements=true`) for
+// bench/page-merge.mjs.
 //
 // `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
 // 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
@@ -48,6 +60,10 @@ const SIZE = Number(option("--size", "140"));
 const JSON_OUT = option("--json", null);
 const PROFILE = option("--profile", null); // the first open's CPU profile (.cpuprofile, DevTools)
 const PLANES = Number(option("--planes", "1"));
+const ORBIT_PROFILE = option("--orbit-profile", null);
+const FRAME_COSTS = args.includes("--frame-costs");
+const PAGE_DIR = option("--page", null);
+const SAVE_BUNDLE = option("--save-bundle", null);
 // The planes of --planes, as `penmesh draw --placement` takes them (column-major): the board,
 // the front plane through y = 350, the side plane through x = 500.
 const PLACEMENTS = [null, "1,0,0,0,0,0,1,0,0,-1,0,0,0,350,0,1", "0,1,0,0,0,0,1,0,1,0,0,0,500,0,0,1"];
@@ -58,6 +74,7 @@ const EXPORTS = Number(option("--exports", "0"));
 const EXPORT_FORMATS = option("--export-formats", "glb").split(",");
 const NO_PAGE = args.includes("--no-page");
 let profiled = false;
+let orbitProfiled = false;
 const DATA = resolve(root, "../shared/data");
 const BOARD = { width: 1000, height: 700 };
 const ORBIT_SECONDS = 5;
@@ -183,6 +200,8 @@ function chromiumTicks(pid) {
   return byType;
 }
 const TICKS_PER_SECOND = 100; // USER_HZ on Linux
+/// Ticks of every process type in `after` less those in `before`.
+const sumTicks = (after, before) => Object.keys(after).reduce((a, k) => a + after[k] - (before[k] || 0), 0);
 
 /// Opens the session's page and measures it; `expected` meshes make the view complete.
 async function measurePage(context, url, expected) {
@@ -211,6 +230,9 @@ async function measurePage(context, url, expected) {
     await cdp.send("Profiler.start");
   }
 
+  // Chromium's CPU time (all its processes, /proc) from here until the view is complete, and
+  // per frame of the orbit: measures that a busy machine disturbs less than wall time.
+  const ticksBeforeOpen = chromiumTicks(process.pid);
   await page.goto(url);
   const completeMs = await page.evaluate(
     (n) =>
@@ -223,6 +245,7 @@ async function measurePage(context, url, expected) {
       }),
     expected,
   );
+  const openCpuS = sumTicks(chromiumTicks(process.pid), ticksBeforeOpen) / TICKS_PER_SECOND;
   // When the script and the meshes had arrived (ms from navigation start).
   const arrived = await page.evaluate(() =>
     Object.fromEntries(
@@ -264,7 +287,15 @@ async function measurePage(context, url, expected) {
   });
   const frames = () => page.evaluate(() => window.penmesh.frames ?? window.__rafTicks);
   const mouse = (type, x, y) => cdp.send("Input.dispatchMouseEvent", { type, x, y, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1 });
+  const orbitProfiling = ORBIT_PROFILE && !orbitProfiled;
+  if (orbitProfiling) {
+    orbitProfiled = true;
+    await cdp.send("Profiler.enable");
+    await cdp.send("Profiler.setSamplingInterval", { interval: 250 });
+    await cdp.send("Profiler.start");
+  }
   await mouse("mousePressed", 500, 350);
+  const ticksBeforeOrbit = chromiumTicks(process.pid);
   const f0 = await frames();
   const t0 = Date.now();
   let step = 0;
@@ -272,7 +303,14 @@ async function measurePage(context, url, expected) {
     step += 1;
     await mouse("mouseMoved", 500 + 200 * Math.sin(step / 20), 350 + 120 * Math.sin(step / 31));
   }
-  const orbitFps = ((await frames()) - f0) / ((Date.now() - t0) / 1000);
+  const orbitFrames = (await frames()) - f0;
+  const orbitFps = orbitFrames / ((Date.now() - t0) / 1000);
+  const orbitCpuMsPerFrame = (sumTicks(chromiumTicks(process.pid), ticksBeforeOrbit) * 1000) / TICKS_PER_SECOND / Math.max(orbitFrames, 1);
+  if (orbitProfiling) {
+    const { profile } = await cdp.send("Profiler.stop");
+    writeFileSync(ORBIT_PROFILE, JSON.stringify(profile));
+    log(`CPU profile of the first orbit: ${ORBIT_PROFILE}`);
+  }
   const triangles = await page.evaluate(() => window.penmesh.triangles ?? null);
   await mouse("mouseReleased", 500, 350);
   await page.evaluate(() => (window.__stopTicks = true));
@@ -290,6 +328,7 @@ async function measurePage(context, url, expected) {
   for (const type of Object.keys(after)) idle[type] = (after[type] - (before[type] || 0)) / TICKS_PER_SECOND / seconds;
   const idleCores = Object.values(idle).reduce((a, b) => a + b, 0);
   await page.screenshot({ path: join(work, "busy-board-orbited.png") });
+  const frameCosts = FRAME_COSTS ? await measureFrameCosts(page) : undefined;
   await page.close();
   return {
     complete_ms: Math.round(completeMs),
@@ -301,12 +340,95 @@ async function measurePage(context, url, expected) {
     http_requests: traffic.requests,
     statuses: traffic.statuses,
     orbit_fps: Number(orbitFps.toFixed(1)),
+    open_cpu_s: Number(openCpuS.toFixed(2)),
+    orbit_cpu_ms_per_frame: Number(orbitCpuMsPerFrame.toFixed(1)),
     triangles, // drawn in the orbit's last frame
     idle_cores: Number(idleCores.toFixed(3)),
     idle_cores_by_process: Object.fromEntries(Object.entries(idle).map(([k, v]) => [k, Number(v.toFixed(3))])),
     idle_frames: idleFrames0 === null ? null : idleFrames1 - idleFrames0,
+    frame_costs: frameCosts,
     errors,
   };
+}
+
+/// Milliseconds a frame, drawn back to back (each waited for with a one-pixel readPixels: the
+/// GPU process, SwiftShader here, has drawn it), the view turned a little between frames, for
+/// the page as it is and with one thing changed at a time; each variant timed in turn, ROUNDS
+/// times. Both the wall time and the CPU time of Chromium's processes (all of them, from
+/// /proc: a measure that a busy machine disturbs less) per frame.
+async function measureFrameCosts(page) {
+  const ROUNDS = 3;
+  const FRAMES = 10;
+  const names = await page.evaluate(() => {
+    const view = window.penmesh.view;
+    const gl = view.renderer.getContext();
+    const pixel = new Uint8Array(4);
+    const groups = view.groups.objects;
+    const grid = view.world.children.find((o) => o.isLineSegments);
+    const ShaderMaterial = view.material.constructor;
+    const plain = new ShaderMaterial({
+      vertexShader: "void main() { gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }",
+      fragmentShader: "void main() { gl_FragColor = vec4(0.3, 0.3, 0.3, 1.0); }",
+    });
+    // One shader of the page's pair made plain at a time.
+    const own = { vertexShader: view.material.vertexShader, fragmentShader: view.material.fragmentShader, uniforms: view.material.uniforms };
+    const plainVertex = new ShaderMaterial({ ...own, vertexShader: "attribute vec3 colour; varying vec3 vColour; void main() { vColour = colour; gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }" });
+    const plainFragment = new ShaderMaterial({ ...own, fragmentShader: "varying vec3 vColour; void main() { gl_FragColor = vec4(vColour, 1.0); }" });
+    const material = (m) => [() => groups.forEach((g) => (g.material = m)), () => groups.forEach((g) => (g.material = view.material))];
+    let turn = 1;
+    const frame = () => {
+      turn = -turn;
+      view.rig.orbitBy(4 * turn, 2 * turn);
+      view.renderer.render(view.scene, view.camera);
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+    };
+    const variants = {
+      as_is: [() => {}, () => {}],
+      grid_hidden: [() => grid && (grid.visible = false), () => grid && (grid.visible = true)],
+      canvas_100x70: [() => view.renderer.setSize(100, 70, false), () => view.resize()],
+      plain_material: material(plain),
+      plain_vertex_shader: material(plainVertex),
+      plain_fragment_shader: material(plainFragment),
+      half_the_groups: [() => groups.forEach((g, i) => (g.visible = i % 2 === 0)), () => groups.forEach((g) => (g.visible = true))],
+      meshes_hidden: [() => groups.forEach((g) => (g.visible = false)), () => groups.forEach((g) => (g.visible = true))],
+    };
+    view.rig.orbitBy(120, -60); // a turned view: the grid shows, the strokes seen at a slant
+    window.__frameCosts = { variants, frame };
+    return Object.keys(variants);
+  });
+  const out = {};
+  for (let round = 0; round < ROUNDS; round++) {
+    for (const name of names) {
+      const triangles = await page.evaluate((name) => {
+        const { variants, frame } = window.__frameCosts;
+        variants[name][0]();
+        frame(); // warm: a new program is compiled here
+        frame();
+        return window.penmesh.view.renderer.info.render.triangles;
+      }, name);
+      const before = chromiumTicks(process.pid);
+      const ms = await page.evaluate(
+        ([name, n]) => {
+          const t = performance.now();
+          for (let i = 0; i < n; i++) window.__frameCosts.frame();
+          const ms = (performance.now() - t) / n;
+          window.__frameCosts.variants[name][1]();
+          return ms;
+        },
+        [name, FRAMES],
+      );
+      const after = chromiumTicks(process.pid);
+      const cpu = sumTicks(after, before);
+      const entry = (out[name] ??= { triangles, wall_ms: [], cpu_ms: [] });
+      entry.wall_ms.push(Number(ms.toFixed(1)));
+      entry.cpu_ms.push(Number(((cpu * 1000) / TICKS_PER_SECOND / FRAMES).toFixed(1)));
+    }
+  }
+  await page.evaluate(() => {
+    window.penmesh.view.rig.orbitBy(-120, 60);
+    window.penmesh.view.requestRender();
+  });
+  return out;
 }
 
 // --- the run ------------------------------------------------------------------------------
@@ -367,6 +489,12 @@ try {
     log("meshes:", JSON.stringify(meshes));
   }
 
+  if (SAVE_BUNDLE) {
+    const placed = await fetch(`${proxy.base}/v1/sessions/${session.session}/meshes?placements=true`, { headers: auth });
+    writeFileSync(SAVE_BUNDLE, Buffer.from(await placed.arrayBuffer()));
+    log(`mesh bundle with placements: ${SAVE_BUNDLE}`);
+  }
+
   // The board taken out through the CLI, as a user does: wall time of each `penmesh export`.
   const exportTimes = {};
   for (const format of EXPORTS > 0 ? EXPORT_FORMATS : []) {
@@ -388,6 +516,10 @@ try {
 
   browser = await launch();
   const context = await browser.newContext({ viewport: { width: BOARD.width, height: BOARD.height }, deviceScaleFactor: 1 });
+  if (PAGE_DIR) {
+    const script = readFileSync(join(PAGE_DIR, "app.js"));
+    await context.route("**/web/app.js", (route) => route.fulfill({ status: 200, contentType: "text/javascript", body: script }));
+  }
   const url = `${proxy.base}/s/${session.session}#token=${session.token}`;
   const first = await measurePage(context, url, withMesh);
   log("opened:", JSON.stringify(first));

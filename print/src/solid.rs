@@ -27,6 +27,7 @@ use penmesh::{
 };
 
 use crate::apart::apart;
+use crate::ordered::in_order;
 use crate::pieces::pieces;
 
 /// Default longest side of the print (mm).
@@ -144,15 +145,22 @@ pub fn print_mesh(
     // Unfloored bounds: every centre with its radius, placed.
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
-    for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
+    let stroke_bounds = |index: usize| {
+        let (stroke, place) = (&strokes[index], &placements[index]);
         let outline = fitted_outline(&stroke.raw, &stroke.kept, &stroke.brush, &outline_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
+        let mut bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for (c, r) in outline.centres.iter().zip(&outline.radii) {
             let p = place.matrix.transform_point3(DVec3::new(c.x, c.y, 0.0));
-            lo = lo.min(p - r * place.scale);
-            hi = hi.max(p + r * place.scale);
+            bounds = (bounds.0.min(p - r * place.scale), bounds.1.max(p + r * place.scale));
         }
-    }
+        Ok(bounds)
+    };
+    in_order(strokes.len(), stroke_bounds, |_, bounds: Result<(DVec3, DVec3), PrintError>| {
+        let (a, b) = bounds?;
+        (lo, hi) = (lo.min(a), hi.max(b));
+        Ok(())
+    })?;
     let longest = (hi - lo).max_element();
     if !longest.is_finite() || longest <= 0.0 {
         return Err(PrintError::Empty);
@@ -166,7 +174,9 @@ pub fn print_mesh(
     let n = strokes.len();
     let total = 2 * n - 1;
     let mut solids = Vec::with_capacity(n);
-    for (index, (stroke, place)) in strokes.iter().zip(&placements).enumerate() {
+    // Each stroke's pieces are meshed on the worker threads, made Manifolds here in order.
+    let stroke_pieces = |index: usize| {
+        let (stroke, place) = (&strokes[index], &placements[index]);
         let mut brush = stroke.brush;
         brush.min_radius = brush.min_radius.max(floor_world / place.scale);
         // The print's detail in the stroke's own units, never finer than the screen's.
@@ -174,9 +184,20 @@ pub fn print_mesh(
         let stroke_options = outline_options.cap_tolerance(tolerance);
         let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &stroke_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
-        solids.extend(stroke_solids(index, &outline, tolerance, place)?);
+        Ok(piece_meshes(&outline, tolerance))
+    };
+    in_order(n, stroke_pieces, |index, meshes: Result<Vec<PieceMesh>, PrintError>| {
+        for piece in meshes? {
+            let solid = to_manifold(index, &piece.mesh, &placements[index])?;
+            solids.push(if piece.hull {
+                Solid { manifold: solid.manifold.hull(), ..solid }
+            } else {
+                solid
+            });
+        }
         progress(index + 1, total);
-    }
+        Ok(())
+    })?;
     // The unions' share of the steps: `n - 1` whatever the number of pieces.
     let unions = solids.len() - 1;
     let mut united_count = 0;
@@ -235,25 +256,24 @@ fn placement(index: usize, m: &[f64; 16]) -> Result<Placement, PrintError> {
     Ok(Placement { matrix, scale: det.abs().cbrt(), mirrored: det < 0.0 })
 }
 
-/// The stroke's solid as Manifolds that each are embedded (`crate::pieces`), placed: the solid
-/// itself when it does not pass through itself.
-fn stroke_solids(
-    index: usize,
-    outline: &Outline,
-    tolerance: f64,
-    place: &Placement,
-) -> Result<Vec<Solid>, PrintError> {
+/// One piece of a stroke's solid (`crate::pieces`), unplaced, and whether Manifold replaces it
+/// by its convex hull.
+struct PieceMesh {
+    mesh: StrokeMesh,
+    hull: bool,
+}
+
+/// The stroke's solid as meshes that each are embedded (`crate::pieces`): the solid itself when
+/// it does not pass through itself.
+fn piece_meshes(outline: &Outline, tolerance: f64) -> Vec<PieceMesh> {
     let options = SolidOptions::default();
     // The centreline points the solid keeps at this tolerance; the pieces are cut from those.
     let keep = visible_centres(outline, tolerance, options.thickness);
     let kept = kept_outline(outline, &keep);
     let exact = options.tolerance(0.0);
-    let cut = pieces(&kept, tolerance);
-    cut.iter()
-        .map(|piece| {
-            let solid = to_manifold(index, &solid_mesh(&piece.outline, &exact), place)?;
-            Ok(if piece.hull { Solid { manifold: solid.manifold.hull(), ..solid } } else { solid })
-        })
+    pieces(&kept, tolerance)
+        .iter()
+        .map(|piece| PieceMesh { mesh: solid_mesh(&piece.outline, &exact), hull: piece.hull })
         .collect()
 }
 

@@ -2,27 +2,36 @@
 //! print, the union of its strokes' solids as one STL or 3MF file made by `penmesh-print` from
 //! the stored drawn samples, kept indices, brushes and placements (`docs/print.md`), or the
 //! scene, one GLB of its stored meshes and pen data (`crate::scene`, `docs/model-format.md`).
-//! A bounded job like a mesh build: at most [`MAX_EXPORTS`] at once on a replica (the next is
-//! answered 503 `busy`), at most [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking
-//! pool.
+//! A bounded job like a mesh build: at most [`MAX_PRINTS`] prints and, apart, [`MAX_SCENES`]
+//! scenes at once on a replica (the next is answered 503 `busy`), at most
+//! [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking pool.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
+use axum::body::Bytes;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
+use base64::Engine as _;
 use penmesh::protocol::StrokeStatus;
 use penmesh_print::{PrintOptions, PrintStroke};
+use serde_json::json;
 use uuid::Uuid;
 
 use crate::http::{AppError, authorize_session};
 use crate::state::AppState;
 use crate::store::StrokeRow;
 
-/// Prints made at once on one replica: each keeps a core busy for up to seconds.
-pub const MAX_EXPORTS: usize = 1;
+/// Prints made at once on one replica: each keeps the cores busy for seconds.
+pub const MAX_PRINTS: usize = 1;
+/// Scenes made at once on one replica, a bound apart from the prints': each takes a fraction of
+/// a second but holds its strokes' meshes in memory (at most
+/// [`crate::scene::MAX_SCENE_MESH_BYTES`]).
+pub const MAX_SCENES: usize = 2;
 /// Most strokes in one print.
 pub const MAX_EXPORT_STROKES: usize = 5_000;
+/// Strokes whose samples are read per query (bound parameters: SQLite allows 32,766).
+const STROKES_PER_READ: usize = 500;
 
 /// What to export.
 #[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
@@ -42,13 +51,15 @@ pub struct ExportQuery {
 /// stroke with its placement, stored mesh and pen data in `extras`, in metres, the longest
 /// side `size_mm`), or the print, one closed manifold in millimetres, as binary STL or 3MF.
 #[utoipa::path(get, path = "/v1/sessions/{session}/export", tag = "export",
-    params(("session" = Uuid, Path), ExportQuery), security(("bearer" = [])),
-    responses((status = 200, description = "the GLB (model/gltf-binary), STL (model/stl) or 3MF (model/3mf) file"),
+    params(("session" = Uuid, Path), ExportQuery,
+        ("accept" = Option<String>, Header, description = "`application/x-ndjson` to be told the progress: then the answer is a JSON object a line, `{\"progress\": {\"stage\", \"done\", \"total\"}}` while the export is made, last `{\"file\": {\"content_type\", \"name\", \"bytes\", \"base64\"}}` or `{\"error\": {\"status\", \"code\", \"message\"}}` (docs/protocol.md)")),
+    security(("bearer" = [])),
+    responses((status = 200, description = "the GLB (model/gltf-binary), STL (model/stl) or 3MF (model/3mf) file; asked with `Accept: application/x-ndjson`, the progress lines and the file in the last (application/x-ndjson)"),
         (status = 400, body = crate::http::ErrorBody), (status = 401, body = crate::http::ErrorBody),
         (status = 404, description = "a chosen stroke is not in the session", body = crate::http::ErrorBody),
         (status = 409, description = "nothing done to export", body = crate::http::ErrorBody),
         (status = 413, description = "too many strokes", body = crate::http::ErrorBody),
-        (status = 503, description = "busy: another export is being made", body = crate::http::ErrorBody)))]
+        (status = 503, description = "busy: another print (or, for a scene, as many scenes as allowed) is being made", body = crate::http::ErrorBody)))]
 pub async fn export_print(
     State(state): State<AppState>,
     Path(session): Path<String>,
@@ -73,17 +84,21 @@ pub async fn export_print(
     };
     options.validate().map_err(|e| AppError::BadRequest(e.to_string()))?;
     let rows = chosen_rows(&state, session, query.strokes.as_deref()).await?;
-    let Some(_permit) = state.export_permit() else {
+    let scene = extension == "glb";
+    let Some(permit) = state.export_permit(scene) else {
+        let (limit, what) = if scene { (MAX_SCENES, "scene") } else { (MAX_PRINTS, "print") };
         return Err(AppError::Busy(format!(
-            "{MAX_EXPORTS} export(s) are being made, the limit; try again shortly"
+            "{limit} {what}(s) are being made, the limit; try again shortly"
         )));
     };
-    let file = if extension == "glb" {
-        crate::scene::scene_file(&state, session, &rows, options.size_mm).await?
-    } else {
-        print_file(&state, &rows, options, extension).await?
-    };
-    let disposition = format!("attachment; filename=\"penmesh-{session}.{extension}\"");
+    let name = format!("penmesh-{session}.{extension}");
+    let job = Job { state, session, rows, options, extension };
+    if wants_progress(&headers) {
+        return Ok(progress_stream(job, content_type, name, permit));
+    }
+    let file = job.file(Box::new(|_, _, _| {})).await?;
+    drop(permit);
+    let disposition = format!("attachment; filename=\"{name}\"");
     Ok((
         [
             (header::CONTENT_TYPE, content_type.to_string()),
@@ -92,6 +107,109 @@ pub async fn export_print(
         file,
     )
         .into_response())
+}
+
+/// The media type a client asks with `Accept` to be told the export's progress.
+pub const PROGRESS_TYPE: &str = "application/x-ndjson";
+/// Most progress lines a second.
+const PROGRESS_LINES_PER_SECOND: u32 = 10;
+
+/// Whether the request's `Accept` names [`PROGRESS_TYPE`].
+fn wants_progress(headers: &HeaderMap) -> bool {
+    headers
+        .get_all(header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .any(|t| t.split(';').next().is_some_and(|t| t.trim() == PROGRESS_TYPE))
+}
+
+/// Where an export is: its `stage` (`reading`, `solids`, `union`), `done` of `total`.
+type Report = Box<dyn FnMut(&'static str, usize, usize) + Send>;
+
+/// One export to make, its checks passed.
+struct Job {
+    state: AppState,
+    session: Uuid,
+    rows: Vec<StrokeRow>,
+    options: PrintOptions,
+    extension: &'static str,
+}
+
+impl Job {
+    async fn file(self, mut report: Report) -> Result<Vec<u8>, AppError> {
+        if self.extension == "glb" {
+            report("reading", 0, self.rows.len());
+            crate::scene::scene_file(&self.state, self.session, &self.rows, self.options.size_mm)
+                .await
+        } else {
+            print_file(&self.state, &self.rows, self.options, self.extension, report).await
+        }
+    }
+}
+
+/// The answer to an export that asked for its progress: 200 `application/x-ndjson`, a line
+/// `{"progress":{"stage","done","total"}}` per step (at most [`PROGRESS_LINES_PER_SECOND`] a
+/// second), then one line `{"file":{"content_type","name","bytes","base64"}}`, or
+/// `{"error":{"status","code","message"}}` when the export fails once the answer has begun.
+/// The job runs on its own task, holding `permit`, so it is one request's work on one replica
+/// and nothing is kept between requests.
+fn progress_stream(
+    job: Job,
+    content_type: &'static str,
+    name: String,
+    permit: tokio::sync::OwnedSemaphorePermit,
+) -> Response {
+    let (lines, received) = tokio::sync::mpsc::channel::<Bytes>(64);
+    let progress = lines.clone();
+    let mut last: Option<(&'static str, std::time::Instant)> = None;
+    let gap = std::time::Duration::from_secs(1) / PROGRESS_LINES_PER_SECOND;
+    let report: Report = Box::new(move |stage, done, total| {
+        let due = match last {
+            Some((at_stage, at)) => at_stage != stage || done == total || at.elapsed() >= gap,
+            None => true,
+        };
+        if due {
+            last = Some((stage, std::time::Instant::now()));
+            let line = json!({ "progress": { "stage": stage, "done": done, "total": total } });
+            // A full channel (a slow reader) drops the step: the next one says more.
+            let _ = progress.try_send(ndjson(&line));
+        }
+    });
+    tokio::spawn(async move {
+        let _permit = permit;
+        let line = match job.file(report).await {
+            Ok(file) => json!({ "file": {
+                "content_type": content_type,
+                "name": name,
+                "bytes": file.len(),
+                "base64": base64::engine::general_purpose::STANDARD.encode(&file),
+            }}),
+            Err(err) => error_line(err).await,
+        };
+        let _ = lines.send(ndjson(&line)).await;
+    });
+    let body = futures_util::stream::unfold(received, |mut received| async move {
+        let line = received.recv().await?;
+        Some((Ok::<_, std::convert::Infallible>(line), received))
+    });
+    ([(header::CONTENT_TYPE, PROGRESS_TYPE)], axum::body::Body::from_stream(body)).into_response()
+}
+
+fn ndjson(line: &serde_json::Value) -> Bytes {
+    let mut text = line.to_string();
+    text.push('\n');
+    Bytes::from(text)
+}
+
+/// The error line of a failure after the answer began: the status, code and message the error
+/// would have had as its own answer.
+async fn error_line(err: AppError) -> serde_json::Value {
+    let response = err.into_response();
+    let status = response.status().as_u16();
+    let body = axum::body::to_bytes(response.into_body(), 64 * 1024).await.unwrap_or_default();
+    let body: serde_json::Value = serde_json::from_slice(&body).unwrap_or_default();
+    json!({ "error": { "status": status, "code": body["error"], "message": body["message"] } })
 }
 
 /// The session's done strokes not taken back, oldest first, or the chosen ones (each done
@@ -143,13 +261,23 @@ async fn print_file(
     rows: &[StrokeRow],
     options: PrintOptions,
     extension: &'static str,
+    mut report: Report,
 ) -> Result<Vec<u8>, AppError> {
+    let ids: Vec<Uuid> = rows.iter().map(|r| r.id).collect();
+    let mut simplified = HashMap::with_capacity(ids.len());
+    let mut raw = HashMap::with_capacity(ids.len());
+    report("reading", 0, ids.len());
+    for chunk in ids.chunks(STROKES_PER_READ) {
+        simplified.extend(state.store.simplified_many(chunk).await?);
+        raw.extend(state.store.done_raw_samples_many(chunk).await?);
+        report("reading", raw.len(), ids.len());
+    }
     let mut strokes = Vec::with_capacity(rows.len());
     for row in rows {
-        let Some(simplified) = state.store.simplified(row.id).await? else {
+        let Some(simplified) = simplified.remove(&row.id) else {
             return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
         };
-        let raw = state.store.raw_samples(row.id).await?;
+        let raw = raw.remove(&row.id).unwrap_or_default();
         if let Err(err) = penmesh::validate_samples(&raw, None, 0) {
             return Err(AppError::Conflict(format!("stroke {} cannot be printed: {err}", row.id)));
         }
@@ -162,7 +290,15 @@ async fn print_file(
         });
     }
     let file = tokio::task::spawn_blocking(move || {
-        let mesh = penmesh_print::print_mesh(&strokes, &options, &mut |_, _| {})?;
+        // print_mesh's steps: one per stroke's solid, then the unions.
+        let n = strokes.len();
+        let mesh = penmesh_print::print_mesh(&strokes, &options, &mut |done, _| {
+            if done <= n {
+                report("solids", done, n);
+            } else {
+                report("union", done - n, n - 1);
+            }
+        })?;
         Ok::<_, penmesh_print::PrintError>(match extension {
             "stl" => Ok(penmesh_print::write_stl(&mesh)),
             _ => penmesh_print::write_3mf(&mesh),

@@ -11,13 +11,16 @@
 //! then every stroke is written in one request to the writer, which commits it in one
 //! transaction. The meshes (built as `crate::mesh_build` builds them for the page) are stored
 //! after that commit, each as an upload is (`http::store_mesh`); the session's mesh quota is
-//! checked for all of them before the strokes are written. Others in the session see the
+//! checked for all of them before the strokes are written. Once the strokes are committed the
+//! import is answered 201 even if a mesh then fails to be stored (the stroke stays meshless). Others in the session see the
 //! strokes arrive live, as any new stroke.
+
+use std::collections::HashMap;
 
 use axum::Json;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, StatusCode, header};
-use penmesh::protocol::{Imported, ImportedStroke, KEY_HEADER, quantize_sample};
+use penmesh::protocol::{Imported, ImportedStroke, quantize_sample};
 use penmesh::{
     AcutsParams, GlbMeta, GlbOptions, ImportedFrom, Kept, OutlineOptions, Placement, ReadStroke,
     SceneError,
@@ -108,16 +111,7 @@ pub async fn import_scene(
     body: axum::body::Body,
 ) -> Result<(StatusCode, Json<Imported>), AppError> {
     let session = authorize_session(&state, &headers, None, &session).await?;
-    let by = match crate::identity::request_participant(session, &headers) {
-        Ok(by) => by,
-        Err(crate::identity::KeyError::Missing) => {
-            return Err(AppError::BadRequest(format!(
-                "an import needs a drawer: send your participant key (your hello.key) in the \
-                 {KEY_HEADER} header"
-            )));
-        }
-        Err(crate::identity::KeyError::Malformed(why)) => return Err(AppError::BadRequest(why)),
-    };
+    let by = crate::placement::new_drawer(session, &headers, "an import")?;
     let importer_name = match query.name.as_deref() {
         None => String::new(),
         Some(name) => crate::identity::clean_name(name).ok_or_else(|| {
@@ -259,6 +253,16 @@ pub async fn import_scene(
             events.push(placed);
         }
     }
+    // A duplicate whose source is in the file too stays its duplicate: the file's ids mapped to
+    // the new ones. It keeps its own mesh, built from its own samples (another tool may have
+    // changed them). Last, so that every source is written before it is named.
+    let new_ids: HashMap<Uuid, Uuid> =
+        checked.iter().rev().map(|(stroke, c)| (c.read.extras.stroke, *stroke)).collect();
+    for (stroke, c) in &checked {
+        if let Some(&source) = c.read.extras.duplicate_of.and_then(|old| new_ids.get(&old)) {
+            ops.push(WriteOp::MarkDuplicate { stroke: *stroke, source, mesh_of: *stroke });
+        }
+    }
     state.writer.write_with(ops, events).await.map_err(|err| match err {
         WriteError::Closed => AppError::ShuttingDown,
         WriteError::Refused(why) => AppError::Conflict(why),
@@ -267,15 +271,24 @@ pub async fn import_scene(
     })?;
     metrics::counter!("penmesh_strokes_total", "event" => "imported")
         .increment(checked.len() as u64);
+    // The strokes are committed: from here on the import has happened, and the answer says so
+    // whatever becomes of the meshes (an error now would have the importer send the file again
+    // and import it twice). A mesh that cannot be stored leaves its stroke meshless, which the
+    // page builds when it next opens the session (`docs/model-format.md`).
     let mut answer = Vec::with_capacity(checked.len());
     for (stroke, c) in checked {
-        let row = state
-            .store
-            .stroke(stroke)
-            .await?
-            .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
-        store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await?;
         answer.push(ImportedStroke { stroke, source: c.read.extras.stroke });
+        let stored = async {
+            let row = state
+                .store
+                .stroke(stroke)
+                .await?
+                .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
+            store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await
+        };
+        if let Err(err) = stored.await {
+            tracing::warn!(%stroke, error = %err, "an imported stroke's mesh was not stored");
+        }
     }
     Ok((StatusCode::CREATED, Json(Imported { strokes: answer })))
 }

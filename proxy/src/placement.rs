@@ -80,6 +80,22 @@ fn write_error(err: WriteError) -> AppError {
     }
 }
 
+/// The drawer of the new strokes that `what` (a duplicate, an import) makes: the participant
+/// of the request's `x-penmesh-key`; 400 when it is missing or malformed.
+pub(crate) fn new_drawer(
+    session: uuid::Uuid,
+    headers: &axum::http::HeaderMap,
+    what: &str,
+) -> Result<ParticipantId, AppError> {
+    crate::identity::request_participant(session, headers).map_err(|err| match err {
+        crate::identity::KeyError::Missing => AppError::BadRequest(format!(
+            "{what} needs a drawer: send your participant key (your hello.key) in the {} header",
+            penmesh::protocol::KEY_HEADER
+        )),
+        crate::identity::KeyError::Malformed(why) => AppError::BadRequest(why),
+    })
+}
+
 /// A placement body, `{"matrix": [16 numbers]}`: 400 naming what is wrong.
 fn placement_body(body: &[u8]) -> Result<Placement, AppError> {
     serde_json::from_slice(body).map_err(|e| {
@@ -188,17 +204,7 @@ pub async fn duplicate(
     body: Bytes,
 ) -> Result<(StatusCode, Json<Duplicated>), AppError> {
     let source = authorized_stroke(&state, &headers, &id).await?;
-    let by = match crate::identity::request_participant(source.session_id, &headers) {
-        Ok(by) => by,
-        Err(crate::identity::KeyError::Missing) => {
-            return Err(AppError::BadRequest(format!(
-                "a duplicate needs a drawer: send your participant key (your hello.key) in the \
-                 {} header",
-                penmesh::protocol::KEY_HEADER
-            )));
-        }
-        Err(crate::identity::KeyError::Malformed(why)) => return Err(AppError::BadRequest(why)),
-    };
+    let by = new_drawer(source.session_id, &headers, "a duplicate")?;
     let asked: DuplicateRequest = serde_json::from_slice(&body).map_err(|e| {
         AppError::BadRequest(format!(
             "the body is not {{\"placement\": {{\"matrix\": [16 numbers]}}, \"stroke\"?: id}}: {e}"

@@ -56,8 +56,11 @@ pub struct Inner {
     addresses: Mutex<HashMap<IpAddr, usize>>,
     /// One permit per large HTTP body being handled (`max_large_bodies`).
     large_bodies: Arc<tokio::sync::Semaphore>,
-    /// One permit per print being made (`crate::export::MAX_EXPORTS`).
-    exports: Arc<tokio::sync::Semaphore>,
+    /// One permit per print being made (`crate::export::MAX_PRINTS`).
+    prints: Arc<tokio::sync::Semaphore>,
+    /// One permit per scene being made (`crate::export::MAX_SCENES`): its own bound, so a
+    /// print that takes seconds never holds up a scene that takes a fraction of one.
+    scenes: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -104,7 +107,8 @@ impl AppState {
                 connections,
                 addresses: Mutex::new(HashMap::new()),
                 large_bodies,
-                exports: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_EXPORTS)),
+                prints: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_PRINTS)),
+                scenes: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_SCENES)),
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -132,10 +136,12 @@ impl AppState {
         Ok(ConnectionSlot { state: self.clone(), address, _permit: permit })
     }
 
-    /// The permit to make a print, or `None` while [`crate::export::MAX_EXPORTS`] are being
+    /// The permit to make a print (`scene` false) or a scene, or `None` while
+    /// [`crate::export::MAX_PRINTS`] prints or [`crate::export::MAX_SCENES`] scenes are being
     /// made; it frees when dropped.
-    pub fn export_permit(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
-        self.exports.clone().try_acquire_owned().ok()
+    pub fn export_permit(&self, scene: bool) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        let slots = if scene { &self.scenes } else { &self.prints };
+        slots.clone().try_acquire_owned().ok()
     }
 
     /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up

@@ -50,10 +50,10 @@ pub const EXT_MESHOPT_COMPRESSION: &str = "EXT_meshopt_compression";
 /// on `../shared/data`).
 pub const POSITION_STEP: f32 = 1.0 / 16.0;
 
-const GLB_MAGIC: &[u8; 4] = b"glTF";
+pub(crate) const GLB_MAGIC: &[u8; 4] = b"glTF";
 const GLB_VERSION: u32 = 2;
-const CHUNK_JSON: u32 = 0x4E4F_534A;
-const CHUNK_BIN: u32 = 0x004E_4942;
+pub(crate) const CHUNK_JSON: u32 = 0x4E4F_534A;
+pub(crate) const CHUNK_BIN: u32 = 0x004E_4942;
 /// The vertex codec version `EXT_meshopt_compression` specifies (header byte `0xa0`); version
 /// 1 belongs to the later `KHR_meshopt_compression`.
 const MESHOPT_VERTEX_VERSION: i32 = 0;

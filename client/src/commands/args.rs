@@ -1,6 +1,27 @@
-//! Flags that several commands share: the ACUTS setting and the stroke generator's.
+//! Flags that several commands share: the proxy to talk to, the ACUTS setting and the stroke
+//! generator's.
 
 use clap::Args;
+
+/// Where the commands that talk to a proxy (draw, export, import) find the session.
+#[derive(Debug, Clone, Args)]
+pub struct ConnectionArgs {
+    /// The proxy, e.g. http://127.0.0.1:8080.
+    #[arg(long, env = "PENMESH_SERVER")]
+    pub server: String,
+    /// The session id (from POST /v1/sessions or `penmesh-lab demo --keep-serving`).
+    #[arg(long, env = "PENMESH_SESSION")]
+    pub session: uuid::Uuid,
+    /// The session's bearer token.
+    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
+    pub token: String,
+}
+
+impl ConnectionArgs {
+    pub fn endpoint(&self) -> anyhow::Result<crate::endpoint::Endpoint> {
+        crate::endpoint::Endpoint::new(&self.server, self.session, self.token.clone())
+    }
+}
 
 /// ACUTS settings shared by the commands that simplify.
 #[derive(Debug, Clone, Args)]

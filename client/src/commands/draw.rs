@@ -64,15 +64,8 @@ pub struct LiveArgs {
         .args(["input", "synth", "device", "watch"])
 ))]
 pub struct DrawArgs {
-    /// The proxy, e.g. http://127.0.0.1:8080.
-    #[arg(long, env = "PENMESH_SERVER")]
-    pub server: String,
-    /// The session id (from POST /v1/sessions or `penmesh-lab demo --keep-serving`).
-    #[arg(long, env = "PENMESH_SESSION")]
-    pub session: uuid::Uuid,
-    /// The session's bearer token.
-    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
-    pub token: String,
+    #[command(flatten)]
+    pub connection: crate::commands::args::ConnectionArgs,
     /// Replay the strokes of a file: CSV (x,y,t,p), JSON, SVC2004 .txt or SigComp2011 .hwr.
     #[arg(long, value_name = "FILE")]
     pub input: Option<PathBuf>,
@@ -128,7 +121,7 @@ fn parse_placement(text: &str) -> Result<Box<penmesh::Placement>, String> {
 
 pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     init_tracing(args.live.verbose);
-    let endpoint = Endpoint::new(&args.server, args.session, args.token.clone())?;
+    let endpoint = args.connection.endpoint()?;
     if args.watch && args.input.is_none() && args.synth.is_none() && args.device.is_none() {
         return watch_only(args, &endpoint);
     }

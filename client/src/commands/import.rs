@@ -11,19 +11,10 @@ use anyhow::Context;
 use clap::Args;
 use penmesh::protocol::{Imported, KEY_HEADER};
 
-use crate::endpoint::Endpoint;
-
 #[derive(Debug, Clone, Args)]
 pub struct ImportArgs {
-    /// The proxy, e.g. http://127.0.0.1:8080.
-    #[arg(long, env = "PENMESH_SERVER")]
-    pub server: String,
-    /// The session id.
-    #[arg(long, env = "PENMESH_SESSION")]
-    pub session: uuid::Uuid,
-    /// The session's bearer token.
-    #[arg(long, env = "PENMESH_TOKEN", hide_env_values = true)]
-    pub token: String,
+    #[command(flatten)]
+    pub connection: crate::commands::args::ConnectionArgs,
     /// Your participant key (the strokes' drawer); a new one when absent.
     #[arg(long, env = "PENMESH_KEY", hide_env_values = true)]
     pub key: Option<String>,
@@ -35,7 +26,7 @@ pub struct ImportArgs {
 }
 
 pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
-    let endpoint = Endpoint::new(&args.server, args.session, args.token.clone())?;
+    let endpoint = args.connection.endpoint()?;
     let bytes = fs_err::read(&args.file)?;
     let key = args.key.clone().unwrap_or_else(crate::wire::new_participant_key);
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -43,7 +34,7 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
         .build()
         .context("starting the runtime")?;
     let imported = runtime.block_on(async {
-        let url = endpoint.url(&crate::api::session_import(args.session));
+        let url = endpoint.url(&crate::api::session_import(args.connection.session));
         let http = reqwest::Client::builder()
             .timeout(Duration::from_secs(300))
             .build()

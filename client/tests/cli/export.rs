@@ -87,3 +87,90 @@ async fn a_session_exported_imported_and_exported_again_keeps_its_pen_data() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("size_mm"));
     assert!(!missing.exists());
 }
+
+/// The lines of an export asked with its progress (`Accept: application/x-ndjson`).
+async fn progress_lines(proxy: &Proxy, format: &str) -> Vec<Value> {
+    let response = reqwest::Client::new()
+        .get(format!("{}/v1/sessions/{}/export?format={format}", proxy.url, proxy.session))
+        .bearer_auth(&proxy.token)
+        .header("accept", "application/x-ndjson")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "application/x-ndjson");
+    let text = response.text().await.unwrap();
+    text.lines().map(|line| serde_json::from_str(line).unwrap()).collect()
+}
+
+#[tokio::test]
+async fn a_long_export_tells_its_progress_and_a_failure_midway_writes_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let proxy = Proxy::start(&dir.path().join("p.db"), 0);
+    json_of(&run(proxy.draw().args(["--synth", "scribble", "--count", "6"])));
+    let session = (proxy.session.as_str(), proxy.token.as_str());
+
+    // The progress lines: the stages in order, each step at or after the one before, the file
+    // last; the file the same bytes as the plain GET's.
+    let lines = progress_lines(&proxy, "stl").await;
+    let (file, progress) = lines.split_last().unwrap();
+    let stages = ["reading", "solids", "union"];
+    let mut at = (0, 0);
+    for line in progress {
+        let step = &line["progress"];
+        let stage = stages.iter().position(|s| *s == step["stage"]).unwrap_or_else(|| {
+            panic!("a stage that is not one of {stages:?}: {line}");
+        });
+        let done = step["done"].as_u64().unwrap();
+        assert!(done <= step["total"].as_u64().unwrap(), "{line}");
+        assert!((stage, done) >= at, "{line} after {at:?}");
+        at = (stage, done);
+    }
+    assert_eq!(at.0, 2, "the union was reported: {progress:?}");
+    let file = &file["file"];
+    assert_eq!(file["content_type"], "model/stl");
+    assert_eq!(file["name"], format!("penmesh-{}.stl", proxy.session));
+    use base64::Engine as _;
+    let streamed =
+        base64::engine::general_purpose::STANDARD.decode(file["base64"].as_str().unwrap()).unwrap();
+    assert_eq!(file["bytes"], streamed.len());
+    let plain = reqwest::Client::new()
+        .get(format!("{}/v1/sessions/{}/export?format=stl", proxy.url, proxy.session))
+        .bearer_auth(&proxy.token)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(plain.headers()["content-type"], "model/stl");
+    assert_eq!(plain.bytes().await.unwrap().to_vec(), streamed, "the same print either way");
+    // `penmesh export` reads the lines and writes that file.
+    let out = dir.path().join("print.stl");
+    let exported = run(penmesh()
+        .args(["export", "--server", &proxy.url, "--session", session.0, "--token", session.1])
+        .args(["--format", "stl", "--out"])
+        .arg(&out));
+    assert!(exported.status.success(), "{}", String::from_utf8_lossy(&exported.stderr));
+    assert_eq!(std::fs::read(&out).unwrap(), streamed);
+
+    // A stroke that loses its simplified samples fails the print once it has begun: an error
+    // line, which `penmesh export` reports, writing nothing.
+    let url = format!("sqlite://{}", proxy.db.display());
+    let pool = sqlx::SqlitePool::connect(&url).await.unwrap();
+    sqlx::query("DELETE FROM simplified WHERE stroke_id = (SELECT MIN(stroke_id) FROM simplified)")
+        .execute(&pool)
+        .await
+        .unwrap();
+    let lines = progress_lines(&proxy, "stl").await;
+    let error = &lines.last().unwrap()["error"];
+    assert_eq!(error["status"], 409, "{lines:?}");
+    assert_eq!(error["code"], "conflict");
+    assert!(error["message"].as_str().unwrap().contains("has no simplified samples"), "{error}");
+    let failed_out = dir.path().join("failed.stl");
+    let failed = run(penmesh()
+        .args(["export", "--server", &proxy.url, "--session", session.0, "--token", session.1])
+        .args(["--format", "stl", "--out"])
+        .arg(&failed_out));
+    assert!(!failed.status.success());
+    let why = String::from_utf8_lossy(&failed.stderr);
+    assert!(why.contains("409") && why.contains("has no simplified samples"), "{why}");
+    assert!(!failed_out.exists(), "no file for a failed export");
+}

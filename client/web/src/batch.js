@@ -1,73 +1,118 @@
-// One person's finished meshes merged into one geometry, so they cost one draw call however
-// many there are (docs/web.md). A new mesh is appended and only its part is uploaded; the
-// buffers double when full. Each stroke keeps its range, for the GLB export, its colour (a
-// vertex colour: a person may draw in several) and being hidden (a stroke taken back: its
-// triangles collapse to one point, and come back when it is brought back).
+// Finished meshes merged into one geometry per (person, placement), so they cost one draw call
+// a group however many there are (docs/web.md). A group's object has the placement as its
+// matrix: a mesh never moves, its node does, so a stroke's vertices are copied as they came and
+// nothing is baked on the CPU (three.js turns the culling round itself for a group whose matrix
+// mirrors). A stroke placed anew (moved, undone) leaves its group for the group of its new
+// placement, its own when no other stroke is there; a group left empty is dropped.
 //
-// A stroke's mesh is in its own plane's coordinates and never changes (range.flat keeps it);
-// its placement (placement.js) is baked into the merged copy, a render cache rewritten when the
-// placement changes. A mirroring placement flips the copy's winding, so the solid stays closed
-// and lit outward. A selected stroke is lifted out (select.js): hidden here, drawn as its own
-// object with the placement as its matrix, baked back when it is let go.
+// In a group a new mesh is appended and only its part is uploaded; the buffers double when
+// full. Each stroke keeps its range, for the GLB export, its colour (a vertex colour: a person
+// may draw in several) and being hidden (a stroke taken back, or one that left the group: its
+// triangles collapse to one point). A selected stroke is lifted out (select.js): collapsed
+// here, drawn as its own object with the placement as its matrix, put back when it is let go.
 import * as THREE from "three";
-import { matrixOf, mirrors } from "./placement.js";
+import { isIdentity, matrixOf } from "./placement.js";
 
 const FIRST_VERTICES = 4096;
 
+/// The key of a placement's group (null and the identity are the board).
+function placementKey(placement) {
+  return isIdentity(placement) ? "board" : placement.join(",");
+}
+
+/// Every finished mesh of the scene, in groups of one person and one placement.
+export class StrokeGroups {
+  /// `parent`: the THREE.Object3D the groups' objects are added to.
+  constructor(material, parent) {
+    this.material = material;
+    this.parent = parent;
+    this.groups = new Map(); // "participant placement" -> MergedMeshes
+  }
+
+  /// The groups' objects (for picking).
+  get objects() {
+    return [...this.groups.values()].map((g) => g.mesh);
+  }
+
+  /// Adds a stroke's mesh (`flat`, as batch.js `add` takes it) of `participant` in `colour` at
+  /// `placement`: its range, which knows its group.
+  add(flat, participant, colour, placement) {
+    const key = `${participant} ${placementKey(placement)}`;
+    let group = this.groups.get(key);
+    if (!group) {
+      group = new MergedMeshes(this.material, placement);
+      group.key = key;
+      this.parent.add(group.mesh);
+      this.groups.set(key, group);
+    }
+    return group.add(flat, colour);
+  }
+
+  /// The range of a stroke moved to `placement` (`participant`'s, in `colour`): the same one
+  /// when it is already in that placement's group, else one in that group, hidden and lifted
+  /// as it was, the old one collapsed (its group dropped when nothing is left in it).
+  place(range, participant, colour, placement) {
+    if (range.group.key === `${participant} ${placementKey(placement)}`) return range;
+    const moved = this.add(range.flat, participant, colour, placement);
+    moved.group.setHidden(moved, range.hidden);
+    moved.group.setLifted(moved, range.lifted);
+    this.drop(range);
+    return moved;
+  }
+
+  /// Takes a stroke's range out of its group for good.
+  drop(range) {
+    const group = range.group;
+    range.dropped = true;
+    group.writeIndices(range);
+    group.strokes -= 1;
+    if (group.strokes > 0) return;
+    this.parent.remove(group.mesh);
+    group.mesh.geometry.dispose();
+    this.groups.delete(group.key);
+  }
+}
+
+/// One group's meshes merged into one geometry, its object at `placement` (16 numbers; null:
+/// the board).
 export class MergedMeshes {
-  constructor(material) {
+  constructor(material, placement = null) {
     this.material = material;
     this.vertexCount = 0;
     this.indexCount = 0;
+    this.strokes = 0; // ranges in it not dropped
     this.positions = new Float32Array(0);
     this.normals = new Float32Array(0);
     this.colours = new Uint8Array(0);
     this.indices = new Uint32Array(0);
     this.mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
-    // The drawing is one connected board; culling per person would save nothing.
+    this.mesh.matrixAutoUpdate = false;
+    this.mesh.matrix.copy(matrixOf(placement));
+    // The drawing is one connected board; culling per group would save little.
     this.mesh.frustumCulled = false;
   }
 
   /// Appends a mesh given as flat `positions`, `normals` (Float32Array, 3 per vertex) and
-  /// `indices` (into its own vertices), in `colour` (a THREE.Color), at `placement` (16
-  /// numbers; null: as it is); returns its range.
-  add(flat, colour, placement = null) {
+  /// `indices` (into its own vertices), in `colour` (a THREE.Color); returns its range.
+  add(flat, colour) {
     const nVertices = flat.positions.length / 3;
     this.reserve(this.vertexCount + nVertices, this.indexCount + flat.indices.length);
-    const range = { firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: flat.indices.length, hidden: false, lifted: false, flip: false, flat };
+    const range = { group: this, firstVertex: this.vertexCount, vertexCount: nVertices, firstIndex: this.indexCount, indexCount: flat.indices.length, hidden: false, lifted: false, dropped: false, flat };
     this.vertexCount += nVertices;
     this.indexCount += flat.indices.length;
-    range.local = flat.indices;
-    this.setPlacement(range, placement);
-    this.setColour(range, colour);
-    this.mesh.geometry.setDrawRange(0, this.indexCount);
-    return range;
-  }
-
-  /// Bakes `placement` into one stroke's copy: its vertices moved, its normals turned, its
-  /// winding flipped where the placement mirrors.
-  setPlacement(range, placement) {
-    const { positions, normals } = range.flat;
+    this.strokes += 1;
     const at = range.firstVertex * 3;
-    if (!placement) {
-      this.positions.set(positions, at);
-      this.normals.set(normals, at);
-    } else {
-      const m = matrixOf(placement);
-      const n = new THREE.Matrix3().getNormalMatrix(m);
-      const v = new THREE.Vector3();
-      for (let i = 0; i < range.vertexCount; i++) {
-        v.fromArray(positions, i * 3).applyMatrix4(m).toArray(this.positions, at + i * 3);
-        v.fromArray(normals, i * 3).applyMatrix3(n).normalize().toArray(this.normals, at + i * 3);
-      }
-    }
+    this.positions.set(flat.positions, at);
+    this.normals.set(flat.normals, at);
     const g = this.mesh.geometry;
     for (const attribute of [g.attributes.position, g.attributes.normal]) {
-      attribute.addUpdateRange(at, range.vertexCount * 3);
+      attribute.addUpdateRange(at, nVertices * 3);
       attribute.needsUpdate = true;
     }
-    range.flip = mirrors(placement);
     this.writeIndices(range);
+    this.setColour(range, colour);
+    g.setDrawRange(0, this.indexCount);
+    return range;
   }
 
   /// Lifts one stroke's mesh out of the merged one (drawn on its own while selected), or
@@ -78,22 +123,17 @@ export class MergedMeshes {
     this.writeIndices(range);
   }
 
-  /// Writes a range's indices: its own triangles (each turned the other way round when its
-  /// placement mirrors), or, hidden or lifted out, every index at its first vertex (triangles
-  /// of no area, which draw nothing).
+  /// Writes a range's indices: its own triangles, or, hidden, lifted out or dropped, every
+  /// index at its first vertex (triangles of no area, which draw nothing).
   writeIndices(range) {
-    const { firstVertex, firstIndex, local } = range;
-    const gone = range.hidden || range.lifted;
-    for (let i = 0; i < local.length; i++) {
-      // In a flipped range the second and third index of each triangle swap places.
-      const from = range.flip && i % 3 !== 0 ? i + (i % 3 === 1 ? 1 : -1) : i;
-      this.indices[firstIndex + i] = gone ? firstVertex : local[from] + firstVertex;
-    }
+    const { firstVertex, firstIndex, flat } = range;
+    const local = flat.indices;
+    const gone = range.hidden || range.lifted || range.dropped;
+    for (let i = 0; i < local.length; i++) this.indices[firstIndex + i] = gone ? firstVertex : local[i] + firstVertex;
     const index = this.mesh.geometry.index;
     index.addUpdateRange(firstIndex, local.length);
     index.needsUpdate = true;
   }
-
   /// Hides (`hidden`) or shows again one stroke's mesh.
   setHidden(range, hidden) {
     if (range.hidden === hidden) return;

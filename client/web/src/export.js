@@ -1,8 +1,7 @@
 // The Export menu and the GLB import (issue 39, docs/model-format.md, docs/print.md): the model
 // taken out through the proxy's one export path, GET /v1/sessions/{id}/export?format=glb|stl|3mf
 // (the scene with every stroke's pen data, or the print as one closed solid in millimetres),
-// with progress while the proxy makes the file (the time so far) and while it arrives (bytes of
-// its length); and a GLB penmesh exported brought back, chosen in the menu or dropped on the
+// with a bar of each stage's steps while the proxy makes the file (its progress lines); and a GLB penmesh exported brought back, chosen in the menu or dropped on the
 // page (POST /v1/sessions/{id}/import with this tab's participant key: its strokes come back as
 // this tab's, and arrive live as any new stroke). Builds its own menu; needs only a button.
 
@@ -43,20 +42,17 @@ export function attachExport({ button, session, token, key, name, notice, fail }
     }
   };
 
-  /// Fetches the model, reporting progress; resolves to a Blob.
+  /// Fetches the model, reporting progress; resolves to a Blob. Asked with
+  /// `Accept: application/x-ndjson`, the proxy tells each stage's steps line by line, then sends
+  /// the file, base64, in the last line (docs/protocol.md).
   async function exportModel(format, sizeMm) {
     const started = performance.now();
     const seconds = () => ((performance.now() - started) / 1000).toFixed(1);
-    show(`the proxy is making the ${format.toUpperCase()}… 0.0 s`, 0);
-    const ticker = setInterval(() => show(`the proxy is making the ${format.toUpperCase()}… ${seconds()} s`, 0), 200);
-    let res;
-    try {
-      res = await fetch(`/v1/sessions/${session}/export?format=${format}&size_mm=${sizeMm}`, {
-        headers: { authorization: `Bearer ${token}` },
-      });
-    } finally {
-      clearInterval(ticker);
-    }
+    const label = format.toUpperCase();
+    show(`the proxy is making the ${label}…`, 0);
+    const res = await fetch(`/v1/sessions/${session}/export?format=${format}&size_mm=${sizeMm}`, {
+      headers: { authorization: `Bearer ${token}`, accept: "application/x-ndjson" },
+    });
     if (!res.ok) {
       let detail = "";
       try {
@@ -64,19 +60,29 @@ export function attachExport({ button, session, token, key, name, notice, fail }
       } catch {}
       throw new Error(`HTTP ${res.status} ${detail}`);
     }
-    const total = Number(res.headers.get("content-length")) || 0;
-    const reader = res.body.getReader();
-    const parts = [];
-    let received = 0;
+    const reader = res.body.pipeThrough(new TextDecoderStream()).getReader();
+    let pending = "";
     for (;;) {
       const { done, value } = await reader.read();
-      if (done) break;
-      parts.push(value);
-      received += value.length;
-      show(`receiving ${(received / 1024).toFixed(0)} KB${total ? ` of ${(total / 1024).toFixed(0)}` : ""}`, received, total);
+      if (done) throw new Error("the export was cut off before its file came");
+      pending += value;
+      let end;
+      while ((end = pending.indexOf("\n")) >= 0) {
+        const line = JSON.parse(pending.slice(0, end));
+        pending = pending.slice(end + 1);
+        if (line.progress) {
+          const { stage, done: k, total } = line.progress;
+          show(`${label}: ${stage} ${k} of ${total}… ${seconds()} s`, k, total);
+        } else if (line.error) {
+          throw new Error(`HTTP ${line.error.status} ${line.error.message}`);
+        } else if (line.file) {
+          const bytes = Uint8Array.from(atob(line.file.base64), (c) => c.charCodeAt(0));
+          if (bytes.length !== line.file.bytes) throw new Error(`the export was cut off: ${bytes.length} of ${line.file.bytes} bytes`);
+          show(`${label} ready: ${(bytes.length / 1024).toFixed(0)} KB in ${seconds()} s`);
+          return new Blob([bytes], { type: line.file.content_type });
+        }
+      }
     }
-    show(`${format.toUpperCase()} ready: ${(received / 1024).toFixed(0)} KB in ${seconds()} s`);
-    return new Blob(parts, { type: res.headers.get("content-type") || "application/octet-stream" });
   }
 
   async function download(format) {

@@ -28,6 +28,12 @@ export function isIdentity(placement) {
   return !placement || placement.every((v, i) => v === IDENTITY[i]);
 }
 
+/// Whether two placements are the same (null and the identity are the board).
+export function samePlacement(a, b) {
+  if (isIdentity(a) || isIdentity(b)) return isIdentity(a) && isIdentity(b);
+  return a.every((v, i) => v === b[i]);
+}
+
 /// Whether a placement mirrors (a negative determinant): its mesh's winding is flipped.
 export function mirrors(placement) {
   return Boolean(placement) && matrixOf(placement).determinant() < 0;

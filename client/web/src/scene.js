@@ -1,19 +1,19 @@
 // The 3D view: the three.js renderer, the camera (camera.js) and the session's strokes in it:
 // a live stroke as a ribbon of its retained points at its brush's width (ribbon.js), finished
-// ones as meshes merged per person (one draw call each, batch.js), each in its brush's colour
-// or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
+// ones as meshes merged per person and placement (one draw call each, batch.js), each in its
+// brush's colour or else its person's. No stroke is drawn thinner than MIN_WIDTH_PX on screen. A
 // stroke taken back is hidden until it is brought back. It renders only when something
 // changed: the camera moved, a stroke grew or a mesh came (no frame while idle). Stroke
 // coordinates are screen-like (y down); the scene flips y. Each stroke stands where its
-// placement (placement.js) puts it: the node matrix of its ribbon or of its mesh lifted out,
-// baked into its person's merged copy otherwise (batch.js); its mesh never changes. The pen
+// placement (placement.js) puts it: the node matrix of its ribbon, of its mesh lifted out, or
+// of the group its mesh is merged into (batch.js); its mesh never changes. The pen
 // draws on the work plane (`workPlacement`, workplane.js): `toStroke` and `toPage` are in its
 // coordinates.
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
-import { MergedMeshes, flatten } from "./batch.js";
-import { matrixOf } from "./placement.js";
+import { StrokeGroups, flatten } from "./batch.js";
+import { matrixOf, samePlacement } from "./placement.js";
 import { CameraRig } from "./camera.js";
 import { ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
@@ -50,11 +50,14 @@ const MIN_WIDTH_PX = 1.5;
 // and an ambient part), and a pixel only takes the colour its vertices give it. A stroke's rim
 // vertex stands at z = ±thickness·r (shared/src/mesh.rs, thickness 0.5) and its normal points
 // out of the outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it.
-// The widening costs little per vertex, with no branch (SwiftShader shades vertices on the CPU,
-// and the busy board's orbit is bound by them: docs/performance.md): `minHalfWidth` is half of
+// The widening costs little per vertex, with no branch (SwiftShader shades vertices on the CPU;
+// the busy board's orbit frame is bound by its work per triangle and per covered pixel, and
+// a plain vertex shader saves about a tenth of it: docs/performance.md, "What bounds an orbit
+// frame"). `minHalfWidth` is half of
 // MIN_WIDTH_PX in plane units per unit of depth (set by SceneView.resize), so at a vertex the
 // least half-width is minHalfWidth · depth, and the move, made in view space, needs no second
-// projection. Each matrix multiplies a vector, never another matrix.
+// projection. Each matrix multiplies a vector, never another matrix. Positions and normals are
+// the mesh's own, in its plane (its group's object carries the placement, batch.js).
 const VERTEX_SHADER = `
 attribute vec3 colour;
 uniform float minHalfWidth;
@@ -113,17 +116,17 @@ export class SceneView {
     this.camera = new THREE.PerspectiveCamera(40, 1, 1, 100000);
     this.rig = new CameraRig(this.camera, innerWidth, innerHeight);
     // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
-    // line: its live ribbon, mesh: its range in its person's merged meshes, placement: 16
-    // numbers or null (the board), lifted: its own object while selected}
+    // line: its live ribbon, mesh: its range in its group's merged meshes (batch.js),
+    // placement: 16 numbers or null (the board), lifted: its own object while selected}
     this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
     this.hiddenMeshCount = 0; // meshes of strokes taken back
-    this.people = new Map(); // participant -> MergedMeshes
     this.workPlacement = null; // the plane the pen draws on (null: the board)
     this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { minHalfWidth: { value: 0 } } });
     // A live ribbon is one face: seen from either side.
     this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
+    this.groups = new StrokeGroups(this.material, this.world); // the finished meshes
     this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
     this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
     this.frameQueued = false;
@@ -192,7 +195,7 @@ export class SceneView {
     } else if (brush) {
       s.colour = strokeColour(participant, brush);
       s.brush = brush;
-      if (s.mesh) this.person(participant).setColour(s.mesh, s.colour);
+      if (s.mesh) s.mesh.group.setColour(s.mesh, s.colour);
       if (s.line) this.changedLines.add(s);
       this.requestRender();
     }
@@ -208,7 +211,7 @@ export class SceneView {
     this.removedCount += change;
     if (s.mesh) {
       this.hiddenMeshCount += change;
-      this.person(s.participant).setHidden(s.mesh, removed);
+      s.mesh.group.setHidden(s.mesh, removed);
     }
     if (s.line) s.line.visible = !removed;
     if (s.lifted) s.lifted.visible = !removed;
@@ -216,15 +219,20 @@ export class SceneView {
   }
 
   /// Places stroke `id` (16 numbers, as the proxy said or as a gesture goes): its ribbon's or
-  /// lifted object's matrix, its baked copy rewritten.
+  /// lifted object's matrix; its mesh into the group of its placement (a lifted one when it is
+  /// put back: a drag places it at every step).
   setPlacement(id, placement) {
     const s = this.strokes.get(id);
     if (!s) return;
+    // The same placement again (the history's `peer_placement` after the bundle said it, our
+    // own echoed): nothing to move, no frame to draw.
+    const same = samePlacement(s.placement, placement);
     s.placement = placement;
+    if (same) return;
     const m = matrixOf(placement);
     if (s.line) s.line.matrix.copy(m);
     if (s.lifted) s.lifted.matrix.copy(m);
-    if (s.mesh) this.person(s.participant).setPlacement(s.mesh, placement);
+    else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, placement);
     this.requestRender();
   }
 
@@ -244,14 +252,14 @@ export class SceneView {
     return boxes;
   }
 
-  /// Lifts stroke `id`'s mesh out of its person's merged meshes as its own object, its
+  /// Lifts stroke `id`'s mesh out of its group's merged meshes as its own object, its
   /// placement its matrix (what a gizmo moves); null when it has no mesh.
   liftOut(id) {
     const s = this.strokes.get(id);
     if (!s || !s.mesh) return null;
     if (!s.lifted) {
-      this.person(s.participant).setLifted(s.mesh, true);
-      s.lifted = new THREE.Mesh(this.person(s.participant).geometryOf(s.mesh), this.material);
+      s.mesh.group.setLifted(s.mesh, true);
+      s.lifted = new THREE.Mesh(s.mesh.group.geometryOf(s.mesh), this.material);
       s.lifted.matrixAutoUpdate = false;
       s.lifted.matrix.copy(matrixOf(s.placement));
       s.lifted.visible = !s.removed;
@@ -262,14 +270,15 @@ export class SceneView {
     return s.lifted;
   }
 
-  /// Puts a lifted stroke back into its person's merged meshes (baked at its placement).
+  /// Puts a lifted stroke back into the merged meshes of its group (that of its placement now).
   putBack(id) {
     const s = this.strokes.get(id);
     if (!s || !s.lifted) return;
     this.world.remove(s.lifted);
     s.lifted.geometry.dispose();
     s.lifted = null;
-    this.person(s.participant).setLifted(s.mesh, false);
+    s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement);
+    s.mesh.group.setLifted(s.mesh, false);
     this.requestRender();
   }
 
@@ -312,17 +321,6 @@ export class SceneView {
     return Boolean(s && s.mesh);
   }
 
-  /// A person's merged meshes.
-  person(participant) {
-    let merged = this.people.get(participant);
-    if (!merged) {
-      merged = new MergedMeshes(this.material);
-      this.world.add(merged.mesh);
-      this.people.set(participant, merged);
-    }
-    return merged;
-  }
-
   /// A stroke's retained points `[x, y, t, p]` from index `first` on (kept for the fit and
   /// the eraser): until its mesh comes, its ribbon grows at the next frame.
   addRetained(id, participant, first, points) {
@@ -361,15 +359,14 @@ export class SceneView {
     return (await readGlb(glb)) ?? flatten((await this.loader.parseAsync(glb, "")).scene);
   }
 
-  /// Shows a stroke's mesh (from `parse`) in its person's merged meshes, in place of its
-  /// polyline; false when it already had one.
+  /// Shows a stroke's mesh (from `parse`) in the merged meshes of its person and placement,
+  /// in place of its polyline; false when it already had one.
   addMesh(id, participant, flat) {
     const s = this.stroke(id, participant);
     if (s.mesh) return false;
-    const merged = this.person(participant);
-    s.mesh = merged.add(flat, s.colour, s.placement);
+    s.mesh = this.groups.add(flat, participant, s.colour, s.placement);
     if (s.removed) {
-      merged.setHidden(s.mesh, true);
+      s.mesh.group.setHidden(s.mesh, true);
       this.hiddenMeshCount += 1;
     }
     this.removeLine(s);

@@ -1,6 +1,6 @@
 // Select: the tool (V) and the selection it makes. A click picks the stroke under the pointer
 // (shift adds or drops it), a drag on nothing draws a box and picks every stroke inside it. The
-// selected strokes are lifted out of their person's merged meshes (scene.js `liftOut`) and a
+// selected strokes are lifted out of their group's merged meshes (scene.js `liftOut`) and a
 // three.js TransformControls gizmo moves or turns them about their centre, snapping to the grid
 // and to 15° steps when snapping is on. The gizmo gets its pointer from this tool (input.js's
 // one dispatcher, so the camera's gestures stay the camera's), never from the DOM. A drag
@@ -175,9 +175,9 @@ export class Selection {
     const ray = new THREE.Raycaster();
     ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
     const meshes = [];
-    for (const merged of this.view.people.values()) {
-      merged.mesh.geometry.boundingSphere = null; // it grew since: worked out again
-      meshes.push(merged.mesh);
+    for (const mesh of this.view.groups.objects) {
+      mesh.geometry.boundingSphere = null; // it grew since: worked out again
+      meshes.push(mesh);
     }
     for (const s of this.view.strokes.values()) if (s.lifted) meshes.push(s.lifted);
     const hit = ray.intersectObjects(meshes, false)[0];

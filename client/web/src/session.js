@@ -103,6 +103,7 @@ export function startSession(session, token) {
     get brush() { return brush; },
     get tool() { return editor.tool.id; },
     get inked() { return ink.count; }, // strokes on the ink
+    get view() { return view; }, // the 3D view (bench/busy-board.mjs --frame-costs)
     get camera() { const r = view.rig; return { x: r.target.x, y: r.target.y, scale: r.scale, yaw: r.yaw, pitch: r.pitch }; },
     toStroke: (x, y) => view.toStroke(x, y),
     toPage: (x, y, placement) => view.toPage(x, y, placement),
@@ -329,7 +330,9 @@ export function startSession(session, token) {
         break;
       case "peer_placement":
         view.setPlacement(m.stroke, m.placement.matrix);
-        editor.selection.refresh();
+        // Only a selected stroke's box and gizmo follow it (a history's hundreds of placements
+        // ask for no frame).
+        if (editor.selection.ids.has(m.stroke)) editor.selection.refresh();
         break;
       case "error":
         if (m.code === "not_owner") editor.notice("that stroke is someone else's: you can take back only your own");

@@ -4,7 +4,8 @@
 //    GLTFLoader (with its MeshoptDecoder) reads both strokes' meshes, and each stroke's node
 //    carries its pen data, valid to docs/model-format.schema.json (ajv); the menu showed
 //    progress while the proxy worked;
-// 2. STL: the print downloads, a binary STL as long as its triangle count says;
+// 2. STL: the print downloads, a binary STL as long as its triangle count says, the menu's bar
+//    moved by the proxy's progress lines through each stage (reading, solids, union);
 // 3. import: the GLB dropped on the page of a new session comes back as two strokes of that
 //    page's own, meshes and all; a file that is no penmesh GLB is refused, naming why.
 // Run by scripts/test.sh.
@@ -39,7 +40,16 @@ await browserTest(async ({ proxy, browser }) => {
   await page.evaluate(() => {
     window.exportStatuses = [];
     const status = document.getElementById("export-status");
-    new MutationObserver(() => window.exportStatuses.push(status.textContent)).observe(status, { childList: true, characterData: true, subtree: true });
+    // (Each change is a record: a fast export sets several before the observer runs.)
+    new MutationObserver((records) => {
+      for (const r of records) for (const n of r.addedNodes) window.exportStatuses.push(n.textContent);
+    }).observe(status, { childList: true });
+    // And every value the bar took.
+    window.exportBar = [];
+    const bar = document.getElementById("export-progress");
+    new MutationObserver((records) => {
+      for (const r of records) window.exportBar.push(r.oldValue);
+    }).observe(bar, { attributeFilter: ["value"], attributeOldValue: true });
   });
   if (!(await page.isVisible("#download"))) await page.click("#toggle-more");
   await page.click("#download");
@@ -73,8 +83,23 @@ await browserTest(async ({ proxy, browser }) => {
   log(`GLB: ${glb.length} bytes, valid (${report.issues.numWarnings} warnings), two strokes with their pen data`);
 
   // --- 2. STL ---------------------------------------------------------------------------
+  await page.evaluate(() => {
+    window.exportStatuses.length = 0;
+    window.exportBar.length = 0;
+  });
   const [stlDownload] = await Promise.all([page.waitForEvent("download"), page.click("#export-stl")]);
   const stl = readFileSync(await stlDownload.path());
+  // The proxy's progress lines moved the bar through each stage: the strokes meshed one by one,
+  // then their union.
+  const stlStatuses = await page.evaluate(() => window.exportStatuses);
+  for (const stage of ["reading", "solids", "union"]) {
+    assert.ok(stlStatuses.some((s) => s.startsWith(`STL: ${stage}`)), `the ${stage} stage shown: ${stlStatuses}`);
+  }
+  const solids = stlStatuses.filter((s) => s.startsWith("STL: solids")).map((s) => Number(s.split(" ")[2]));
+  assert.deepEqual(solids, [...solids].sort((a, b) => a - b), `the strokes meshed count up: ${solids}`);
+  const positions = await page.evaluate(() => [...window.exportBar, document.getElementById("export-progress").getAttribute("value")]);
+  assert.ok(new Set(positions.filter((v) => v !== null)).size >= 3, `the bar moved: ${positions}`);
+  assert.ok(stlStatuses.at(-1).startsWith("STL ready"), `${stlStatuses}`);
   const triangles = stl.readUInt32LE(80);
   assert.ok(triangles > 100, `${triangles} triangles`);
   assert.equal(stl.length, 84 + 50 * triangles, "a whole binary STL");

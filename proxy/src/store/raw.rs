@@ -1,7 +1,7 @@
 //! A stroke's raw samples as stored: its `stroke_chunks` rows and its entries in the append log,
 //! read together and decoded one stored piece at a time ([`RawSamples`]).
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -34,6 +34,46 @@ impl Store {
             log::StrokeEntries::new()
         };
         read_raw(&mut conn, stroke, &log).await
+    }
+
+    /// The raw samples of the done strokes `strokes`, in one query (a print reads a thousand
+    /// at once): a done stroke's samples are all in `stroke_chunks`, moved there by the commit
+    /// that finished it. A stroke with no chunk is absent.
+    pub async fn done_raw_samples_many(
+        &self,
+        strokes: &[Uuid],
+    ) -> anyhow::Result<HashMap<Uuid, Vec<Sample>>> {
+        if strokes.is_empty() {
+            return Ok(HashMap::new());
+        }
+        let places: Vec<String> = (1..=strokes.len()).map(|i| format!("${i}")).collect();
+        let sql = format!(
+            "SELECT stroke_id, seq, n, layout, data FROM stroke_chunks \
+             WHERE stroke_id IN ({}) ORDER BY stroke_id, seq",
+            places.join(", ")
+        );
+        let mut query = sqlx::query(&sql);
+        for stroke in strokes {
+            query = query.bind(stroke.to_string());
+        }
+        let rows = query.fetch_all(&self.pool).await?;
+        let mut chunks: HashMap<Uuid, Vec<Stored>> = HashMap::with_capacity(strokes.len());
+        for row in rows {
+            let stroke = super::parse_uuid(&row.try_get::<String, _>("stroke_id")?)?;
+            chunks.entry(stroke).or_default().push(Stored::Chunk {
+                seq: row.try_get::<i64, _>("seq")? as u64,
+                n: row.try_get::<i64, _>("n")? as u64,
+                layout: row.try_get("layout")?,
+                data: row.try_get("data")?,
+            });
+        }
+        chunks
+            .into_iter()
+            .map(|(stroke, pieces)| {
+                let raw = RawSamples { stroke, pieces: pieces.into_iter(), last: None, next: 0 };
+                Ok((stroke, raw.collect_all()?))
+            })
+            .collect()
     }
 
     /// A stroke's raw samples from its chunks and its entries in `log` (read by the caller).

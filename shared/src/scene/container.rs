@@ -4,11 +4,8 @@
 use serde_json::Value;
 
 use super::SceneError;
+use crate::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC};
 use crate::placement::IDENTITY_MATRIX;
-
-pub(super) const GLB_MAGIC: &[u8; 4] = b"glTF";
-pub(super) const CHUNK_JSON: u32 = 0x4E4F_534A;
-pub(super) const CHUNK_BIN: u32 = 0x004E_4942;
 
 /// A node's local transform, column-major: its `matrix`, or its translation, rotation and
 /// scale composed (`T · R · S`), or the identity.

@@ -3,8 +3,9 @@
 
 use serde_json::{Map, Value, json};
 
-use super::container::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, node_matrix, parse_glb};
+use super::container::{node_matrix, parse_glb};
 use super::*;
+use crate::glb::{CHUNK_BIN, CHUNK_JSON, GLB_MAGIC};
 use crate::placement::IDENTITY_MATRIX;
 
 const MESHOPT: &str = "EXT_meshopt_compression";

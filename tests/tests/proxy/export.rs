@@ -101,3 +101,43 @@ async fn bad_export_requests_are_refused_naming_what_is_wrong() {
     let response = proxy.http.get(proxy.url(&format!("{base}?format=stl"))).send().await.unwrap();
     assert_eq!(response.status(), 401);
 }
+
+#[tokio::test]
+async fn a_scene_is_exported_while_a_print_is_being_made() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let mut drawer = proxy.connect(&session).await;
+    drawer.hello(vec![]).await;
+    // Enough long strokes that the print takes a while.
+    for i in 0..24 {
+        let samples: Vec<_> = stroke_samples(400)
+            .into_iter()
+            .map(|s| {
+                let (dx, dy) = (f64::from(i % 6) * 60.0, f64::from(i / 6) * 60.0);
+                penmesh::protocol::quantize_sample(&penmesh::Sample::new(
+                    s.x + dx,
+                    s.y + dy,
+                    s.t,
+                    s.p,
+                ))
+            })
+            .collect();
+        draw_stroke(&mut drawer, Uuid::new_v4(), &samples, 100).await;
+    }
+    let path = |format: &str| format!("/v1/sessions/{}/export?format={format}", session.session);
+    // A print asked with its progress: once it answers, it holds its slot until its file.
+    let print = proxy.get(&path("stl"), &session).header("accept", "application/x-ndjson");
+    let print = print.send().await.unwrap();
+    assert_eq!(print.status(), 200);
+    // A scene is not held up by it.
+    let scene = proxy.get(&path("glb"), &session).send().await.unwrap();
+    assert_eq!(scene.status(), 200, "{}", scene.text().await.unwrap());
+    assert_eq!(scene.headers()["content-type"], "model/gltf-binary");
+    // The print was still being made: a second print is refused busy.
+    let second = proxy.get(&path("stl"), &session).send().await.unwrap();
+    assert_eq!(second.status(), 503);
+    assert!(second.text().await.unwrap().contains("1 print(s) are being made"));
+    let lines = print.text().await.unwrap();
+    let last: serde_json::Value = serde_json::from_str(lines.lines().last().unwrap()).unwrap();
+    assert_eq!(last["file"]["content_type"], "model/stl", "{last}");
+}

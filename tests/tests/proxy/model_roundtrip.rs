@@ -6,9 +6,10 @@
 
 use penmesh::protocol::{KEY_HEADER, ServerMessage};
 use penmesh::{ReadStroke, Sample, read_scene};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
 use penmesh_e2e::{
-    TestDatabase, TestProxy, TestSession, count_rows, draw_stroke, spawn_proxy, spawn_proxy_with,
-    stroke_samples,
+    TestDatabase, TestProxy, TestSession, count_rows, draw_stroke, spawn_faulty_proxy_on,
+    spawn_proxy, spawn_proxy_with, stroke_samples,
 };
 use serde_json::{Value, json};
 use uuid::Uuid;
@@ -165,6 +166,31 @@ async fn a_3d_session_exported_imported_and_exported_again_has_the_same_pen_data
         assert_eq!(info["participant"], importer.to_string());
         assert_eq!(info["has_mesh"], true, "its mesh is built as for the page");
     }
+
+    // The duplicate and its source came in the same file: the new duplicate names the new
+    // source.
+    let copy_of = |id: Uuid| {
+        again
+            .iter()
+            .find(|s| s.extras.imported_from.as_ref().map(|f| f.stroke) == Some(id))
+            .unwrap()
+            .extras
+            .stroke
+    };
+    let new_duplicate = again.iter().find(|s| s.extras.stroke == copy_of(ids[4])).unwrap();
+    assert_eq!(new_duplicate.extras.duplicate_of, Some(copy_of(ids[0])));
+    let plain = again.iter().filter(|s| s.extras.duplicate_of.is_none()).count();
+    assert_eq!(plain, 4, "only the duplicate is one");
+    // The duplicate alone: its source is not in the file, so it comes in as a plain stroke.
+    let alone = proxy.create_session().await;
+    let path = format!("/v1/sessions/{}/export?format=glb&strokes={}", first.session, ids[4]);
+    let response = proxy.get(&path, &first).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    let (status, body) = import(&proxy, &alone, response.bytes().await.unwrap().to_vec()).await;
+    assert_eq!(status, 201, "{body}");
+    let single = read_scene(&export_glb(&proxy, &alone).await).unwrap();
+    assert_eq!(single.len(), 1);
+    assert_eq!(single[0].extras.duplicate_of, None);
 
     // Imported once more: the first origin stays.
     let third = proxy.create_session().await;
@@ -333,4 +359,39 @@ async fn an_import_past_the_session_mesh_quota_stores_nothing() {
     assert_eq!(answer["error"], "quota_exceeded");
     assert!(answer["message"].as_str().unwrap().contains("nothing imported"), "{answer}");
     assert_eq!(strokes_of(&proxy.db, &session).await, 1);
+}
+
+#[tokio::test]
+async fn a_storage_failure_during_an_import_stores_nothing_and_a_lost_mesh_loses_no_stroke() {
+    let faults = CommitFaults::new();
+    let proxy =
+        spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
+    let (first, _) = three_d_session(&proxy).await;
+    let glb = export_glb(&proxy, &first).await;
+    let target = proxy.create_session().await;
+
+    // The strokes' one transaction fails: the import fails, nothing is stored.
+    faults.fail_transaction(1, Fault::Fail);
+    let (status, answer) = import(&proxy, &target, glb.clone()).await;
+    assert_eq!(status, 500, "{answer}");
+    assert_eq!(strokes_of(&proxy.db, &target).await, 0, "all or nothing");
+
+    // The strokes commit, then the first mesh's write fails: the import has happened and says
+    // so; every stroke is stored, that one without its mesh.
+    faults.fail_transaction(2, Fault::Fail);
+    let (status, answer) = import(&proxy, &target, glb).await;
+    assert_eq!(status, 201, "{answer}");
+    let strokes = answer["strokes"].as_array().unwrap();
+    assert_eq!(strokes.len(), 5);
+    assert_eq!(strokes_of(&proxy.db, &target).await, 5);
+    let mut meshless = 0;
+    for stroke in strokes {
+        let id: Uuid = stroke["stroke"].as_str().unwrap().parse().unwrap();
+        let info = proxy.stroke_info(&target, id).await;
+        assert_eq!(info["status"], "done");
+        if info["has_mesh"] == false {
+            meshless += 1;
+        }
+    }
+    assert_eq!(meshless, 1, "only the mesh whose write failed is missing");
 }

@@ -133,3 +133,5 @@ async fn native_clients_behind_the_sessions_events_go_on_drawing() {
     assert_eq!(listed.len(), 6 * 20);
     assert!(listed.iter().all(|s| s["status"] == "done" && s["has_mesh"] == true));
 }
+
+mod model;
