@@ -41,8 +41,11 @@ impl Connection {
                 let removed = matches!(event.kind, EventKind::Removed { .. });
                 if self.told_removed(*stroke, removed) { Admit::Whole } else { Admit::Skip }
             }
-            // Likewise a placement of its own stroke set elsewhere.
-            EventKind::Placed { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
+            // Likewise a placement of its own stroke set elsewhere, when newer than what it
+            // holds.
+            EventKind::Placed { stroke, id, .. } if self.own.contains(stroke) => {
+                if self.view.tell_placement(*stroke, *id) { Admit::Whole } else { Admit::Skip }
+            }
             _ if self.is_own(event) => return,
             _ => self.view.admit(event),
         };
