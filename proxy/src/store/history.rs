@@ -251,7 +251,8 @@ impl Store {
         rows.iter()
             .map(|row| {
                 let matrix: Vec<u8> = row.try_get("matrix")?;
-                let placement = penmesh::Placement::from_bytes(&matrix).context("stored placement")?;
+                let placement =
+                    penmesh::Placement::from_bytes(&matrix).context("stored placement")?;
                 Ok((row.try_get("id")?, placement))
             })
             .collect()

@@ -28,7 +28,8 @@ impl Connection {
             Some(self.id),
         );
         let committed = self.state.writer.submit_with(vec![op], vec![event]).await;
-        let answer = PeerPlacement { participant: row.participant, stroke, placement: set.placement };
+        let answer =
+            PeerPlacement { participant: row.participant, stroke, placement: set.placement };
         self.pending.push(committed, AfterCommit::Placed { answer });
         Ok(())
     }
