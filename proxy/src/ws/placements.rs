@@ -37,11 +37,17 @@ impl Connection {
     /// The answer to the client's own placement `id`, in order with the stroke's other
     /// placements: those committed before it that the client does not hold yet (their events
     /// can be behind the answer: queued, or another replica's notification still on its way)
-    /// are read and told first, and each is told once (the view then skips their events). A
+    /// are read and told first, and each is told once (the view then skips their events); so
+    /// is the stroke itself, if the client lacks it. A
     /// client that holds a newer placement already (set elsewhere at the same moment, and
     /// committed after) is not told this older one.
     pub(super) async fn answer_placement(&mut self, id: i64, answer: PeerPlacement) {
         let stroke = answer.stroke;
+        // A stroke the client was not told of yet (made over HTTP, its events still on their
+        // way): sent whole first, with its current placement, as a history sends it.
+        if !self.own.contains(&stroke) && !self.view.has_stroke(&stroke) {
+            self.send_whole_stroke(stroke).await;
+        }
         let held = self.view.placement_held(&stroke);
         if id <= held {
             return;
