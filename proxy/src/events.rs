@@ -16,8 +16,8 @@ use uuid::Uuid;
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
 /// 4: strokes taken back and brought back (`removed`, `restored`), names changed (`renamed`),
 /// brushes with a colour, and the replica and connection that caused an event (`from`).
-/// 5: placements (`placed`).
-pub const NOTIFY_VERSION: u16 = 5;
+/// 5: placements (`placed`). 6: a placement carries its row's id (`placed.id`).
+pub const NOTIFY_VERSION: u16 = 6;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -96,11 +96,14 @@ pub enum EventKind {
         by: ParticipantId,
     },
     /// The stroke's placement is now `placement` (set by its drawer `participant`, or the
-    /// work plane it was begun on).
+    /// work plane it was begun on). `id` is its `stroke_placements` row's: the order of a
+    /// stroke's placements (the current one has the highest), set by the writer when it
+    /// inserts the row (0 until then).
     Placed {
         participant: ParticipantId,
         stroke: StrokeId,
         placement: Placement,
+        id: i64,
     },
 }
 
@@ -258,7 +261,7 @@ impl SessionEvent {
                     by: *by,
                 })
             }
-            EventKind::Placed { participant, stroke, placement } => {
+            EventKind::Placed { participant, stroke, placement, .. } => {
                 ServerMessage::PeerPlacement(PeerPlacement {
                     participant: *participant,
                     stroke: *stroke,

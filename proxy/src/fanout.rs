@@ -268,6 +268,10 @@ pub struct PeerView {
     /// The connections of each participant present: `PeerJoined` when the first appears,
     /// `PeerLeft` when the last goes (the name is the first connection's).
     present: HashMap<ParticipantId, HashSet<Uuid>>,
+    /// The id of the newest placement the client holds of each stroke, a peer's or its own
+    /// (told by a history, an event, or as the answer to its request): an older one or a
+    /// repeat is not told, so that its strokes only ever move forward to their current one.
+    placed: HashMap<StrokeId, i64>,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -397,10 +401,11 @@ impl PeerView {
                 Some(_) => Admit::Skip,
                 None => Admit::Fetch(*stroke),
             },
-            // Of a stroke the client has: placements are whole states, so a repeat is
-            // harmless. Of one it lacks: its history (or its begin, to come) carries it.
-            EventKind::Placed { stroke, .. } => {
-                if self.strokes.contains_key(stroke) {
+            // Of a stroke the client has, when newer than what it holds (a history and the live
+            // events overlap; another replica's notification can arrive after a newer
+            // placement). Of one it lacks: its history (or its begin, to come) carries it.
+            EventKind::Placed { stroke, id, .. } => {
+                if self.strokes.contains_key(stroke) && self.tell_placement(*stroke, *id) {
                     Admit::Whole
                 } else {
                     Admit::Skip
@@ -419,6 +424,22 @@ impl PeerView {
             }
             _ => false,
         }
+    }
+
+    /// Records that the client holds placement `id` (a `stroke_placements` row id) of `stroke`;
+    /// `false` when it holds that one or a newer one already (then it is not to be told).
+    pub fn tell_placement(&mut self, stroke: StrokeId, id: i64) -> bool {
+        let held = self.placed.entry(stroke).or_default();
+        if id <= *held {
+            return false;
+        }
+        *held = id;
+        true
+    }
+
+    /// The id of the newest placement of `stroke` the client holds (0: none).
+    pub fn placement_held(&self, stroke: &StrokeId) -> i64 {
+        self.placed.get(stroke).copied().unwrap_or(0)
     }
 
     /// Whether the client has heard of the peer stroke `stroke`.
@@ -497,6 +518,30 @@ mod tests {
         let mesh = EventKind::Mesh { participant: Uuid::nil(), stroke: unknown, created_at: 1 };
         assert_eq!(view.admit(&SessionEvent::new(Uuid::nil(), mesh)), Admit::Skip);
         assert_eq!(view.admit(&removal(unknown, false)), Admit::Fetch(unknown));
+    }
+
+    fn placed(stroke: Uuid, id: i64) -> SessionEvent {
+        let placement = penmesh::Placement::IDENTITY;
+        let kind = EventKind::Placed { participant: Uuid::nil(), stroke, placement, id };
+        SessionEvent::new(Uuid::nil(), kind)
+    }
+
+    // A placement is told once, and never after a newer one: a history and the live events
+    // overlap, and another replica's notification can come after a newer placement.
+    #[test]
+    fn placements_are_told_once_and_never_an_older_one_after_a_newer_one() {
+        let (stroke, unknown) = (Uuid::new_v4(), Uuid::new_v4());
+        let mut view = PeerView::default();
+        assert_eq!(view.admit(&placed(stroke, 3)), Admit::Skip, "a stroke never had");
+        assert_eq!(view.admit(&begin(stroke)), Admit::Whole);
+        assert_eq!(view.admit(&placed(stroke, 3)), Admit::Whole);
+        assert_eq!(view.admit(&placed(stroke, 3)), Admit::Skip, "a repeat");
+        assert_eq!(view.admit(&placed(stroke, 2)), Admit::Skip, "an older one");
+        assert!(view.tell_placement(stroke, 7), "the client's own change, answered");
+        assert_eq!(view.admit(&placed(stroke, 5)), Admit::Skip, "older than its answer");
+        assert_eq!(view.admit(&placed(stroke, 8)), Admit::Whole);
+        assert_eq!(view.placement_held(&stroke), 8);
+        assert_eq!(view.placement_held(&unknown), 0);
     }
 
     fn joined(participant: Uuid, connection: Uuid) -> SessionEvent {

@@ -63,7 +63,7 @@ pub fn request(
     cause: &'static str,
     origin: Option<u64>,
 ) -> (WriteOp, SessionEvent) {
-    let kind = EventKind::Placed { participant, stroke, placement };
+    let kind = EventKind::Placed { participant, stroke, placement, id: 0 };
     let event = match origin {
         Some(connection) => SessionEvent::from_connection(connection, session, kind),
         None => SessionEvent::new(session, kind),

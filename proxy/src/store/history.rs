@@ -145,6 +145,7 @@ impl Store {
                         participant: row.participant,
                         stroke: row.id,
                         placement: row.placement,
+                        id: row.placement_id.unwrap_or(0),
                     },
                 ));
             }
@@ -227,6 +228,34 @@ impl Store {
         let kept = crate::ingest::StrokeState::replay(row.params, &raw);
         let points = kept.kept().iter().map(|k| k.sample).collect();
         Ok((row, Some(points)))
+    }
+
+    /// The placements of `stroke` with ids after `after` and before `before`, oldest first,
+    /// as `(id, placement)`: what a client that holds placement `after` lacks before its own
+    /// placement `before` is answered.
+    pub async fn placements_between(
+        &self,
+        stroke: Uuid,
+        after: i64,
+        before: i64,
+    ) -> anyhow::Result<Vec<(i64, penmesh::Placement)>> {
+        let rows = sqlx::query(
+            "SELECT id, matrix FROM stroke_placements WHERE stroke_id = $1 AND id > $2 \
+             AND id < $3 ORDER BY id",
+        )
+        .bind(stroke.to_string())
+        .bind(after)
+        .bind(before)
+        .fetch_all(self.pool())
+        .await?;
+        rows.iter()
+            .map(|row| {
+                let matrix: Vec<u8> = row.try_get("matrix")?;
+                let placement =
+                    penmesh::Placement::from_bytes(&matrix).context("stored placement")?;
+                Ok((row.try_get("id")?, placement))
+            })
+            .collect()
     }
 }
 

@@ -51,4 +51,6 @@ use rows::{STROKE_SELECT, parse_uuid, stroke_from_row};
 pub use sessions::hash_token;
 #[cfg(feature = "fault-injection")]
 pub use writer::{CommitFaults, Fault};
-pub use writer::{Committed, InjectedFaults, WriteError, WriteOp, Writer, WriterTask};
+pub use writer::{
+    Committed, InjectedFaults, PlacementIds, WriteError, WriteOp, Writer, WriterTask,
+};

@@ -26,6 +26,9 @@ pub struct StrokeRow {
     pub removed: Option<penmesh::protocol::Removal>,
     /// Its current placement (the latest of `stroke_placements`; the identity when none).
     pub placement: penmesh::Placement,
+    /// That placement's row id (`None` when it has none): what orders it among the stroke's
+    /// placement events (`EventKind::Placed::id`).
+    pub placement_id: Option<i64>,
     /// The stroke it is a duplicate of, if any.
     pub duplicate_of: Option<Uuid>,
 }
@@ -66,6 +69,7 @@ pub(super) const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant
      s.status, s.n_retained, s.created_at, s.updated_at, s.removed_at, s.removed_by, \
      s.duplicate_of, (SELECT p.matrix FROM stroke_placements p WHERE p.stroke_id = s.id \
      ORDER BY p.id DESC LIMIT 1) AS placement, \
+     (SELECT MAX(p.id) FROM stroke_placements p WHERE p.stroke_id = s.id) AS placement_id, \
      COALESCE((SELECT c.seq + c.n FROM stroke_chunks c WHERE c.stroke_id = s.id \
      ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
      (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = COALESCE(s.mesh_of, s.id)) AS n_meshes FROM strokes s";
@@ -122,6 +126,7 @@ pub(super) fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeR
             Some(bytes) => penmesh::Placement::from_bytes(&bytes).context("stored placement")?,
             None => penmesh::Placement::IDENTITY,
         },
+        placement_id: row.try_get("placement_id")?,
         duplicate_of: row
             .try_get::<Option<String>, _>("duplicate_of")?
             .map(|id| parse_uuid(&id))

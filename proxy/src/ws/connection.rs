@@ -7,7 +7,7 @@ use std::task::Poll;
 use std::time::Duration;
 
 use penmesh::Kept;
-use penmesh::protocol::{ErrorMessage, ServerMessage, StrokeId};
+use penmesh::protocol::{ErrorMessage, PeerPlacement, ServerMessage, StrokeId};
 use tokio::time::Instant;
 use uuid::Uuid;
 
@@ -18,7 +18,7 @@ use super::serve::Heartbeat;
 use crate::fanout::{PeerView, Subscription};
 use crate::ingest::StrokeState;
 use crate::state::{AppState, ConnectionClaims, SessionGuard};
-use crate::store::{Committed, WriteError};
+use crate::store::{Committed, PlacementIds, WriteError};
 
 /// What to send once a write request commits. The retained samples the request's batch
 /// decided go out with its answer, in the same write to the socket: one write per batch, as
@@ -39,6 +39,11 @@ pub(super) enum AfterCommit {
     Answer {
         stroke: StrokeId,
         answer: ServerMessage,
+    },
+    /// A stroke placed anew (`SetPlacement`): this answer, in order with the stroke's other
+    /// placements ([`Connection::answer_placement`]).
+    Placed {
+        answer: PeerPlacement,
     },
 }
 
@@ -72,7 +77,7 @@ impl InFlight {
     /// The oldest request's answer, once it has one (`None` when none is in flight).
     pub fn next(
         &mut self,
-    ) -> impl Future<Output = Option<(Result<(), WriteError>, AfterCommit)>> + '_ {
+    ) -> impl Future<Output = Option<(Result<PlacementIds, WriteError>, AfterCommit)>> + '_ {
         std::future::poll_fn(move |cx| {
             let Some((committed, _)) = self.queue.front_mut() else {
                 return Poll::Ready(None);

@@ -41,8 +41,11 @@ impl Connection {
                 let removed = matches!(event.kind, EventKind::Removed { .. });
                 if self.told_removed(*stroke, removed) { Admit::Whole } else { Admit::Skip }
             }
-            // Likewise a placement of its own stroke set elsewhere.
-            EventKind::Placed { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
+            // Likewise a placement of its own stroke set elsewhere, when newer than what it
+            // holds.
+            EventKind::Placed { stroke, id, .. } if self.own.contains(stroke) => {
+                if self.view.tell_placement(*stroke, *id) { Admit::Whole } else { Admit::Skip }
+            }
             _ if self.is_own(event) => return,
             _ => self.view.admit(event),
         };
@@ -65,15 +68,16 @@ impl Connection {
             }
             Admit::Fetch(stroke) => {
                 self.state.counters.fanout_events.increment(1);
-                self.send_brought_back(stroke).await;
+                self.send_whole_stroke(stroke).await;
             }
         }
     }
 
-    /// A stroke the client never had, brought back: read from storage and sent whole, as a
-    /// history sends it (`PeerStrokes`). Taken back again meanwhile, nothing is sent (its
-    /// events that follow are skipped). A read that fails falls back to a resync.
-    async fn send_brought_back(&mut self, stroke: StrokeId) {
+    /// A stroke the client never had (brought back, or placed by the client before its events
+    /// reached it): read from storage and sent whole, as a history sends it (`PeerStrokes`,
+    /// then its placement). Taken back meanwhile, nothing is sent (its events that follow are
+    /// skipped). A read that fails falls back to a resync.
+    pub(super) async fn send_whole_stroke(&mut self, stroke: StrokeId) {
         metrics::counter!("penmesh_fanout_fetches_total").increment(1);
         let events = match self.state.store.stroke_history(stroke).await {
             Ok(Some(events)) => events,

@@ -28,13 +28,48 @@ impl Connection {
             Some(self.id),
         );
         let committed = self.state.writer.submit_with(vec![op], vec![event]).await;
-        let answer = ServerMessage::PeerPlacement(PeerPlacement {
-            participant: row.participant,
-            stroke,
-            placement: set.placement,
-        });
-        self.pending.push(committed, AfterCommit::Answer { stroke, answer });
+        let answer =
+            PeerPlacement { participant: row.participant, stroke, placement: set.placement };
+        self.pending.push(committed, AfterCommit::Placed { answer });
         Ok(())
+    }
+
+    /// The answer to the client's own placement `id`, in order with the stroke's other
+    /// placements: those committed before it that the client does not hold yet (their events
+    /// can be behind the answer: queued, or another replica's notification still on its way)
+    /// are read and told first, and each is told once (the view then skips their events); so
+    /// is the stroke itself, if the client lacks it. A
+    /// client that holds a newer placement already (set elsewhere at the same moment, and
+    /// committed after) is not told this older one.
+    pub(super) async fn answer_placement(&mut self, id: i64, answer: PeerPlacement) {
+        let stroke = answer.stroke;
+        // A stroke the client was not told of yet (made over HTTP, its events still on their
+        // way): sent whole first, with its current placement, as a history sends it.
+        if !self.own.contains(&stroke) && !self.view.has_stroke(&stroke) {
+            self.send_whole_stroke(stroke).await;
+        }
+        let held = self.view.placement_held(&stroke);
+        if id <= held {
+            return;
+        }
+        match self.state.store.placements_between(stroke, held, id).await {
+            Ok(earlier) => {
+                for (earlier_id, placement) in earlier {
+                    if self.view.tell_placement(stroke, earlier_id) {
+                        let participant = answer.participant;
+                        let told = PeerPlacement { participant, stroke, placement };
+                        self.send(ServerMessage::PeerPlacement(told));
+                    }
+                }
+            }
+            // Its answer all the same: the client misses the placements in between, not the
+            // current one.
+            Err(err) => {
+                tracing::warn!(connection = self.id, %stroke, error = %err, "reading the placements before an answer");
+            }
+        }
+        self.view.tell_placement(stroke, id);
+        self.send(ServerMessage::PeerPlacement(answer));
     }
 
     /// The frame of a published event for this connection: encoded once for the session in

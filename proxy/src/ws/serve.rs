@@ -81,7 +81,7 @@ pub async fn serve<Si, St, E>(
                 End::Close(close_code::GOING_AWAY, "shutting down".into()),
             )),
             Some((result, after)) = conn.pending.next(), if !conn.pending.is_empty() => {
-                conn.after_commit(result, after);
+                conn.after_commit(result, after).await;
             }
             event = super::peers::next_event(&mut conn.events), if can_forward => match event {
                 // A page that watches a session being drawn in is in use, though it says
@@ -438,7 +438,7 @@ impl Connection {
         }
         while let Some((result, after)) = self.pending.next().await {
             if matches!(self.end, Some(End::Close(..))) {
-                self.after_commit(result, after);
+                self.after_commit(result, after).await;
             } else {
                 self.after_commit_unheard(result, after);
             }

@@ -14,7 +14,7 @@ use super::connection::{AfterCommit, Connection, Decided};
 use super::error::ConnError;
 use crate::events::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
-use crate::store::{StrokeRow, WriteError, WriteOp};
+use crate::store::{PlacementIds, StrokeRow, WriteError, WriteOp};
 
 /// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
 type Resumed = (Vec<ResumeState>, Vec<(StrokeId, Vec<Kept>)>);
@@ -373,24 +373,44 @@ impl Connection {
     }
 
     /// The answer to a committed (or failed) write.
-    pub(super) fn after_commit(&mut self, result: Result<(), WriteError>, after: AfterCommit) {
+    pub(super) async fn after_commit(
+        &mut self,
+        result: Result<PlacementIds, WriteError>,
+        after: AfterCommit,
+    ) {
         match (result, after) {
-            (Ok(()), AfterCommit::Ack { stroke, upto_seq, retained }) => {
+            (Ok(placed), AfterCommit::Ack { stroke, upto_seq, retained }) => {
+                // The placement its begin carried: the client holds it.
+                for id in placed {
+                    self.view.tell_placement(stroke, id);
+                }
                 if let Some(state) = self.strokes.get_mut(&stroke) {
                     state.committed_seq = state.committed_seq.max(upto_seq);
                 }
                 self.send_retained(stroke, retained.first, &retained.kept);
                 self.send(ServerMessage::Ack(Ack { stroke, upto_seq }));
             }
-            (Ok(()), AfterCommit::Done { stroke, n_retained, retained }) => {
+            (Ok(_), AfterCommit::Done { stroke, n_retained, retained }) => {
                 self.stroke_done(stroke);
                 self.send_retained(stroke, retained.first, &retained.kept);
                 self.send(ServerMessage::StrokeDone(done_message(stroke, n_retained)));
             }
-            (Ok(()), AfterCommit::Answer { stroke, answer }) => {
+            (Ok(_), AfterCommit::Answer { stroke, answer }) => {
                 // Answered whatever the client knew: it asked.
                 self.told_removed(stroke, matches!(answer, ServerMessage::StrokeRemoved(_)));
                 self.send(answer)
+            }
+            (Ok(placed), AfterCommit::Placed { answer }) => {
+                let id = placed.first().copied().unwrap_or_default();
+                self.answer_placement(id, answer).await;
+            }
+            (Err(err), AfterCommit::Placed { answer }) => {
+                self.fail(ConnError::internal(
+                    "storing a stroke's placement",
+                    err,
+                    "storing that failed, so nothing changed; try again",
+                    Some(answer.stroke),
+                ));
             }
             (Err(err), AfterCommit::Answer { stroke, .. }) => {
                 self.fail(ConnError::internal(
@@ -405,6 +425,7 @@ impl Connection {
                     AfterCommit::Ack { stroke, .. }
                     | AfterCommit::Done { stroke, .. }
                     | AfterCommit::Answer { stroke, .. } => stroke,
+                    AfterCommit::Placed { answer } => answer.stroke,
                 };
                 // The in-memory state is ahead of the database: drop it, so the client
                 // resumes from what is committed.
@@ -429,10 +450,10 @@ impl Connection {
     /// is done and let go.
     pub(super) fn after_commit_unheard(
         &mut self,
-        result: Result<(), WriteError>,
+        result: Result<PlacementIds, WriteError>,
         after: AfterCommit,
     ) {
-        if let (Ok(()), AfterCommit::Done { stroke, .. }) = (result, after) {
+        if let (Ok(_), AfterCommit::Done { stroke, .. }) = (result, after) {
             self.stroke_done(stroke);
         }
     }

@@ -8,8 +8,9 @@
 //! client's live view, a late joiner's, the strokes list and each stroke's placement history
 //! hold exactly what the drawers had acknowledged, bit for bit and in order; every import is
 //! there whole; the proxy answered no request with a 5xx. Three watchers join mid-storm. Two
-//! replicas with PostgreSQL (`PENMESH_TEST_POSTGRES_URL`), one proxy on SQLite. Two known
-//! defects of the proxy are allowed for, where named (docs/reliability.md, "A model storm").
+//! replicas with PostgreSQL (`PENMESH_TEST_POSTGRES_URL`), one proxy on SQLite. Each view is
+//! told each placement once, never an older one after a newer one: the proxy orders a stroke's
+//! placements by their row ids (docs/reliability.md, "A model storm").
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
@@ -328,10 +329,8 @@ impl Modeller {
         });
         let import = r == 1 && IMPORTERS.contains(&self.i);
 
-        // What it did to that stroke over HTTP (another replica) reaches its socket first: the
-        // proxy does not order a socket's answers after the events they follow (a known
-        // defect, docs/reliability.md, "A model storm").
-        self.told_current(on_socket).await;
+        // No wait for what it did to that stroke over HTTP (on another replica) to reach its
+        // socket: the proxy tells the socket those placements before its answers.
         let i = self.i;
         let proxy = ctx.http_proxy_of(i);
         let Modeller { ws, seen, me, .. } = self;
@@ -379,14 +378,6 @@ impl Modeller {
             // Its mesh built by the proxy, as the page asks for it.
             let built = ctx.http_proxy_of(self.i).build_mesh(&self.me, stroke).send().await;
             assert_eq!(built.unwrap().status(), 200, "client {}: its mesh built", self.i);
-        }
-    }
-
-    /// Reads until this connection has been told the current placement of its own `stroke`.
-    async fn told_current(&mut self, stroke: StrokeId) {
-        let wanted = self.to_be_told(&stroke, &self.mine[&stroke]);
-        while self.seen.strokes.get(&stroke).map(|told| told.last()) != Some(wanted.last()) {
-            self.recv().await;
         }
     }
 
@@ -596,20 +587,15 @@ async fn import_glb(
 }
 
 /// Whether a connection that was `told` these placements of a stroke was told `wanted` (what
-/// its drawer acknowledged) in order: the one its history held (or the first, for a stroke
-/// made after it joined), then every later one live, in order, to the last. The live ones may
-/// begin with some the history already held: those committed while it was read, which the
-/// connection had subscribed to just before (a known defect: the stroke is told a placement
-/// again, or goes back for a moment; docs/reliability.md, "A model storm"). Else the number of
-/// each placement told (`usize::MAX`: never acknowledged).
+/// its drawer acknowledged) exactly: the one its history held (or the first, for a stroke made
+/// after it joined), then every later one, once each, in order, to the last. Else the number
+/// of each placement told (`usize::MAX`: never acknowledged). None to be told, none told.
 fn told_in_order(told: &[Exact], wanted: &[Exact]) -> Result<(), Vec<usize>> {
     let at: Vec<usize> =
         told.iter().map(|p| wanted.iter().position(|w| w == p).unwrap_or(usize::MAX)).collect();
-    let live = at.get(1..).unwrap_or_default();
     let in_order = at.iter().all(|&k| k < wanted.len())
-        && live.windows(2).all(|w| w[1] == w[0] + 1)
-        && live.first().is_none_or(|&first| first <= at[0] + 1)
-        && told.last() == wanted.last();
+        && at.windows(2).all(|w| w[1] == w[0] + 1)
+        && at.last().copied() == wanted.len().checked_sub(1);
     if in_order { Ok(()) } else { Err(at) }
 }
 

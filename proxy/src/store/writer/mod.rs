@@ -62,7 +62,7 @@ pub type InjectedFaults = Option<std::convert::Infallible>;
 use known::Known;
 pub use ops::{WriteError, WriteOp};
 use queue::WriteRequest;
-pub use queue::{Committed, Writer};
+pub use queue::{Committed, PlacementIds, Writer};
 
 use super::{Backend, Store};
 use crate::events::SessionEvent;
@@ -267,7 +267,7 @@ impl WriterLoop {
         }
         self.commit_batch(&mut batch).await;
         // And leave the log empty: every stroke's samples in `stroke_chunks`.
-        if let Err(err) = self.commit(&[], true).await {
+        if let Err(err) = self.commit(&mut [], true).await {
             tracing::warn!(error = %err, "moving the strokes out of the log at stop");
         }
     }
@@ -283,8 +283,8 @@ impl WriterLoop {
     async fn commit_group(&mut self, batch: &mut Vec<WriteRequest>) {
         let started = Instant::now();
         let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
-        let all: Vec<&WriteRequest> = batch.iter().collect();
-        let result = self.commit(&all, false).await;
+        let mut all: Vec<&mut WriteRequest> = batch.iter_mut().collect();
+        let result = self.commit(&mut all, false).await;
         metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
         metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
         metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
@@ -309,8 +309,8 @@ impl WriterLoop {
                 // the failure, so each append is checked against what is really stored: a group
                 // that did commit after all makes its appends repeats (stored, nothing written),
                 // and an append after one that failed would leave a hole, so it is refused.
-                for req in batch.drain(..) {
-                    let result = match self.commit(&[&req], false).await {
+                for mut req in batch.drain(..) {
+                    let result = match self.commit(&mut [&mut req], false).await {
                         Ok(mut refused) => refused.pop().flatten().map_or(Ok(()), Err),
                         Err(err) => {
                             tracing::error!(error = %err, "write failed");
@@ -344,13 +344,14 @@ impl WriterLoop {
 
     /// Tells a requester how its request went, and publishes its events if it is committed.
     fn answer(&self, req: WriteRequest, result: Result<(), WriteError>) {
+        let WriteRequest { events, placed, done, .. } = req;
         match &result {
-            Ok(()) => self.publish(req.events),
+            Ok(()) => self.publish(events),
             Err(_) => {
                 metrics::counter!("penmesh_commit_failures_total").increment(1);
             }
         }
-        let _ = req.done.send(result);
+        let _ = done.send(result.map(|()| placed));
     }
 
     /// With SQLite, hands committed events to the local fan-out (PostgreSQL notified them).
@@ -367,7 +368,7 @@ impl WriterLoop {
     /// a hole), or `None`: committed.
     async fn commit(
         &mut self,
-        requests: &[&WriteRequest],
+        requests: &mut [&mut WriteRequest],
         move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         let deadline = self.deadline;

@@ -6,7 +6,11 @@ use std::sync::Arc;
 use tokio::sync::{mpsc, oneshot};
 
 use super::{WriteError, WriteOp};
-use crate::events::SessionEvent;
+use crate::events::{EventKind, SessionEvent};
+
+/// What a committed request learns that only the database could tell: the ids of the
+/// `stroke_placements` rows its `Place` ops inserted, in their order.
+pub type PlacementIds = Vec<i64>;
 
 /// The answer to a submitted request: ready once it is committed (or failed). A named type, not
 /// a boxed future, so that a connection keeps its requests in a plain queue (one allocation
@@ -14,11 +18,11 @@ use crate::events::SessionEvent;
 #[derive(Debug)]
 pub struct Committed {
     /// `None`: the request never reached the writer.
-    pub(super) answer: Option<oneshot::Receiver<Result<(), WriteError>>>,
+    pub(super) answer: Option<oneshot::Receiver<Result<PlacementIds, WriteError>>>,
 }
 
 impl Future for Committed {
-    type Output = Result<(), WriteError>;
+    type Output = Result<PlacementIds, WriteError>;
 
     fn poll(
         mut self: std::pin::Pin<&mut Self>,
@@ -36,7 +40,9 @@ impl Future for Committed {
 pub(super) struct WriteRequest {
     pub(super) ops: Vec<WriteOp>,
     pub(super) events: Vec<SessionEvent>,
-    pub(super) done: oneshot::Sender<Result<(), WriteError>>,
+    /// Set once its `Place` ops are written ([`WriteRequest::number_placements`]).
+    pub(super) placed: PlacementIds,
+    pub(super) done: oneshot::Sender<Result<PlacementIds, WriteError>>,
     /// The request's share of the queue's bytes, given back when the request is dropped.
     pub(super) _bytes: Option<tokio::sync::OwnedSemaphorePermit>,
 }
@@ -82,14 +88,14 @@ impl Writer {
             }
             None => None,
         };
-        let request = WriteRequest { ops, events, done, _bytes: bytes };
+        let request = WriteRequest { ops, events, placed: Vec::new(), done, _bytes: bytes };
         let queued = self.tx.send(request).await.is_ok();
         Committed { answer: queued.then_some(rx) }
     }
 
     /// Queues `ops` and waits for the commit.
     pub async fn write(&self, ops: Vec<WriteOp>) -> Result<(), WriteError> {
-        self.submit(ops).await.await
+        self.submit(ops).await.await.map(drop)
     }
 
     /// Queues `ops` with their `events` and waits for the commit.
@@ -98,7 +104,30 @@ impl Writer {
         ops: Vec<WriteOp>,
         events: Vec<SessionEvent>,
     ) -> Result<(), WriteError> {
-        self.submit_with(ops, events).await.await
+        self.submit_with(ops, events).await.await.map(drop)
+    }
+}
+
+impl WriteRequest {
+    /// Numbers the request's placements with the ids of the rows its `Place` ops inserted
+    /// (taken from `ids`, every `Place` of the transaction in order): each `Placed` event
+    /// gets the id of its stroke's next `Place`, so that the fan-out can tell an older
+    /// placement from a newer one.
+    pub(super) fn number_placements(&mut self, ids: &mut impl Iterator<Item = i64>) {
+        let mut rows: Vec<(uuid::Uuid, i64)> = Vec::new();
+        for op in &self.ops {
+            if let WriteOp::Place { stroke, .. } = op {
+                rows.extend(ids.next().map(|id| (*stroke, id)));
+            }
+        }
+        self.placed = rows.iter().map(|(_, id)| *id).collect();
+        for event in &mut self.events {
+            if let EventKind::Placed { stroke, id, .. } = &mut event.kind
+                && let Some(k) = rows.iter().position(|(s, _)| s == stroke)
+            {
+                *id = rows.remove(k).1;
+            }
+        }
     }
 }
 

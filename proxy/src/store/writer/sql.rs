@@ -180,7 +180,27 @@ pub(super) async fn put_mesh(
     ))))
 }
 
-/// Applies an op other than an append or a finish. `true`: it created a stroke.
+/// Inserts a `Place` op's row of `stroke_placements`: its id, which orders the stroke's
+/// placements (the fan-out skips one not newer than what a client was told).
+pub(super) async fn place(conn: &mut AnyConnection, op: &WriteOp) -> anyhow::Result<i64> {
+    let WriteOp::Place { stroke, placement, by, at, cause } = op else {
+        anyhow::bail!("not a placement: {op:?}");
+    };
+    let id = sqlx::query_scalar(
+        "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
+         VALUES ($1, $2, $3, $4, $5) RETURNING id",
+    )
+    .bind(stroke.to_string())
+    .bind(placement.to_bytes())
+    .bind(by.to_string())
+    .bind(*at)
+    .bind(*cause)
+    .fetch_one(&mut *conn)
+    .await?;
+    Ok(id)
+}
+
+/// Applies an op other than an append, a finish or a placement. `true`: it created a stroke.
 pub(super) async fn apply(
     conn: &mut AnyConnection,
     op: &WriteOp,
@@ -262,19 +282,7 @@ pub(super) async fn apply(
             .execute(&mut *conn)
             .await?;
         }
-        WriteOp::Place { stroke, placement, by, at, cause } => {
-            sqlx::query(
-                "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
-                 VALUES ($1, $2, $3, $4, $5)",
-            )
-            .bind(stroke.to_string())
-            .bind(placement.to_bytes())
-            .bind(by.to_string())
-            .bind(*at)
-            .bind(*cause)
-            .execute(&mut *conn)
-            .await?;
-        }
+        WriteOp::Place { .. } => anyhow::bail!("a placement goes through `place`"),
         WriteOp::MarkDuplicate { stroke, source, mesh_of } => {
             sqlx::query("UPDATE strokes SET duplicate_of = $1, mesh_of = $2 WHERE id = $3")
                 .bind(source.to_string())

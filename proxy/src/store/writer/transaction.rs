@@ -13,7 +13,7 @@ use uuid::Uuid;
 use super::Fault;
 use super::known::{Known, load_stroke, recover};
 use super::plan::{Plan, Planned};
-use super::sql::{apply, finish, insert_chunks};
+use super::sql::{apply, finish, insert_chunks, place};
 use super::{IDLE_CHECK, TRIM_RECORDS, WriteError, WriteOp, WriteRequest, WriterLoop};
 use crate::events::SessionEvent;
 use crate::store::log::{self, MOVE_AFTER};
@@ -44,12 +44,14 @@ impl WriterLoop {
     /// forgets what the writer knew when it fails).
     pub(super) async fn try_commit(
         &mut self,
-        requests: &[&WriteRequest],
+        requests: &mut [&mut WriteRequest],
         move_all: bool,
     ) -> anyhow::Result<Vec<Option<WriteError>>> {
         self.idle_moved = false;
+        // Read while planned and written; numbered (their placements' ids) once written.
+        let planned: Vec<&WriteRequest> = requests.iter().map(|r| &**r).collect();
         #[cfg(feature = "fault-injection")]
-        let fault = self.faults.as_ref().and_then(|f| f.hit(requests));
+        let fault = self.faults.as_ref().and_then(|f| f.hit(&planned));
         // Taken for the transaction, given back once it commits: one that failed is dropped.
         let mut conn = match self.conn.take() {
             Some(conn) => conn,
@@ -66,9 +68,9 @@ impl WriterLoop {
             self.recover = false;
         }
         let now = now_ms();
-        let plan = Plan::make(&mut tx, requests, &self.strokes, self.writer_id).await?;
+        let plan = Plan::make(&mut tx, &planned, &self.strokes, self.writer_id).await?;
         let (appended, record) = (plan.appended(), plan.record());
-        let (begun, mut moves) = self.write_ops(&mut tx, &plan, &appended, now).await?;
+        let (begun, mut moves, placed) = self.write_ops(&mut tx, &plan, &appended, now).await?;
         // Strokes that sat in the log long enough move too (all of them when stopping).
         let idle_checked = move_all || self.idle_checked.elapsed() >= IDLE_CHECK;
         let moved = match idle_checked {
@@ -80,6 +82,10 @@ impl WriterLoop {
         insert_chunks(&mut tx, self.store.backend(), &rows).await?;
         let record_id = self.write_record(&mut tx, &record).await?;
         let Plan { refused, loaded, closed, .. } = plan;
+        let mut placed = placed.into_iter();
+        for (req, _) in requests.iter_mut().zip(&refused).filter(|(_, r)| r.is_none()) {
+            req.number_placements(&mut placed);
+        }
         let written = Written {
             loaded,
             begun,
@@ -92,7 +98,7 @@ impl WriterLoop {
         };
         let trimmed_below = self.trim(&mut tx, &written, move_all).await?;
         if self.store.backend() == Backend::Postgres {
-            notify_committed(&mut tx, requests, &refused, self.fanout.tag()).await?;
+            notify_committed(&mut tx, &*requests, &refused, self.fanout.tag()).await?;
         }
         #[cfg(feature = "fault-injection")]
         if fault == Some(Fault::Fail) {
@@ -110,16 +116,17 @@ impl WriterLoop {
 
     /// Writes the planned ops other than appends, in order. `Finish` moves its stroke out of
     /// the log itself; `SetStatus` adds its stroke's samples in the log to `moves`. Returns the
-    /// strokes created, and `moves`.
+    /// strokes created, `moves`, and the ids of the placements inserted, in order.
     async fn write_ops(
         &self,
         tx: &mut AnyConnection,
         plan: &Plan<'_>,
         appended: &HashMap<Uuid, Vec<Sample>>,
         now: i64,
-    ) -> anyhow::Result<(Vec<Uuid>, Vec<(Uuid, u64, Vec<Sample>)>)> {
+    ) -> anyhow::Result<(Vec<Uuid>, Vec<(Uuid, u64, Vec<Sample>)>, Vec<i64>)> {
         let backend = self.store.backend();
         let mut begun: Vec<Uuid> = Vec::new();
+        let mut placed: Vec<i64> = Vec::new();
         let mut moves: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
         for op in &plan.ops {
             let Planned::Other(op) = op else { continue };
@@ -149,12 +156,13 @@ impl WriterLoop {
                         begun.push(*stroke);
                     }
                 }
+                WriteOp::Place { .. } => placed.push(place(tx, op).await?),
                 _ => {
                     apply(tx, op, now).await?;
                 }
             }
         }
-        Ok((begun, moves))
+        Ok((begun, moves, placed))
     }
 
     /// Adds to `moves` the strokes not closed by the plan whose samples sat in the log for
@@ -276,7 +284,7 @@ impl WriterLoop {
 /// each with its origin on this replica (tagged `replica`).
 async fn notify_committed(
     tx: &mut AnyConnection,
-    requests: &[&WriteRequest],
+    requests: &[&mut WriteRequest],
     refused: &[Option<WriteError>],
     replica: u64,
 ) -> anyhow::Result<()> {
