@@ -210,7 +210,8 @@ pub fn print_mesh(
             progress(done, total);
         }
     });
-    to_millimetres(&merged(&united), options.size_mm)
+    let mesh = united.to_mesh();
+    to_millimetres(&mesh, options.size_mm)
 }
 
 impl PrintOptions {
@@ -355,19 +356,6 @@ fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
     united
 }
 
-/// The united print made again from its own mesh. Manifold's union keeps, for every triangle,
-/// the piece it came from, and never merges triangles of different pieces, so the coplanar
-/// faces of overlapping strokes stay cut up along every seam; a Manifold made from a mesh is
-/// one piece, whose coplanar triangles merge (Manifold's `CreateFaces` and `SimplifyTopology`,
-/// within its own precision): the same solid in fewer triangles.
-fn merged(united: &Manifold) -> Mesh {
-    let mesh = united.to_mesh();
-    let props = mesh.num_props() as usize;
-    let xyz: Vec<f32> =
-        mesh.vertices().chunks_exact(props).flat_map(|v| [v[0], v[1], v[2]]).collect();
-    Mesh::new(&xyz, &mesh.indices()).to_manifold().to_mesh()
-}
-
 /// Manifold's output mesh scaled so its longest side is `size_mm`, its lowest corner moved to
 /// the origin.
 fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
@@ -392,54 +380,4 @@ fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
         })
         .collect();
     Ok(PrintMesh { positions: apart(positions), indices: mesh.indices() })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn corners(mesh: &Mesh) -> Vec<[u32; 3]> {
-        let props = mesh.num_props() as usize;
-        let mut corners: Vec<[u32; 3]> = mesh
-            .vertices()
-            .chunks_exact(props)
-            .map(|v| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits()])
-            .collect();
-        corners.sort_unstable();
-        corners.dedup();
-        corners
-    }
-
-    fn volume(mesh: &Mesh) -> f64 {
-        let props = mesh.num_props() as usize;
-        let vertices = mesh.vertices();
-        let v = |i: u32| {
-            let p = &vertices[i as usize * props..];
-            DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
-        };
-        mesh.indices().chunks_exact(3).map(|t| v(t[0]).dot(v(t[1]).cross(v(t[2])))).sum::<f64>()
-            / 6.0
-    }
-
-    // Four slabs overlapping on one plane, as strokes on a board do: their union keeps every
-    // seam between them; made again from its mesh, the same solid has fewer triangles, every
-    // corner one of the union's.
-    #[test]
-    fn merging_keeps_the_solid_with_fewer_triangles() {
-        let slab = Manifold::cube(2.0, 1.0, 0.25);
-        let united = (1..4).fold(slab.translate(0.0, 0.0, 0.0), |all, k| {
-            all.union(&slab.translate(0.7 * f64::from(k), 0.3 * f64::from(k), 0.0))
-        });
-        let before = united.to_mesh();
-        let after = merged(&united);
-        assert!(
-            after.indices().len() < before.indices().len(),
-            "{} triangles, before {}",
-            after.indices().len() / 3,
-            before.indices().len() / 3
-        );
-        let kept = corners(&before);
-        assert!(corners(&after).iter().all(|c| kept.binary_search(c).is_ok()));
-        assert!((volume(&after) - volume(&before)).abs() < 1e-6 * volume(&before));
-    }
 }
