@@ -28,6 +28,11 @@ pub struct SessionHistory {
     /// The strokes taken back, left out of `events`, as `Removed` events: a client resynced
     /// after a gap is told of those it has shown.
     pub removed: Vec<SessionEvent>,
+    /// The placements that are current and exactly the board (the identity), left out of
+    /// `events` (every stroke's default needs no message), as `Placed` events: a connection
+    /// records their ids, so that an older placement arriving after the history is not told,
+    /// and tells a client that was told an older placement before a gap.
+    pub on_board: Vec<SessionEvent>,
 }
 
 impl Store {
@@ -138,16 +143,21 @@ impl Store {
         // same in both protocol versions; a version-4 client is not sent them).
         let mut placed = Vec::new();
         for (row, points) in parts {
-            if !row.placement.is_identity() {
-                placed.push(SessionEvent::new(
+            if let Some(id) = row.placement_id {
+                let placed_event = SessionEvent::new(
                     session,
                     EventKind::Placed {
                         participant: row.participant,
                         stroke: row.id,
                         placement: row.placement,
-                        id: row.placement_id.unwrap_or(0),
+                        id,
                     },
-                ));
+                );
+                if row.placement.is_identity() {
+                    history.on_board.push(placed_event);
+                } else {
+                    placed.push(placed_event);
+                }
             }
             let points = match points {
                 Some(points) => points,

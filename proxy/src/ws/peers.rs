@@ -224,6 +224,21 @@ impl Connection {
         if let Some(msg) = whole.flush() {
             self.send_wait(msg).await;
         }
+        // The strokes back on the board: told only to a client that was told an older
+        // placement (it shows that one); for the others only the id is kept, so that an older
+        // placement arriving late (another replica's notification) is not told after it.
+        for placed in history.on_board {
+            if let EventKind::Placed { stroke, id, .. } = &placed.kind
+                && !self.is_own(&placed)
+                && self.view.has_stroke(stroke)
+            {
+                if self.view.placement_held(stroke) > 0 {
+                    self.send_history_event(placed, batch).await;
+                } else {
+                    self.view.tell_placement(*stroke, *id);
+                }
+            }
+        }
         // The strokes the client has shown that were taken back while it was not listening.
         for removed in history.removed {
             if let EventKind::Removed { stroke, .. } = removed.kind

@@ -2,8 +2,10 @@
 //! listening when it happened: a late joiner, who never had a stroke taken back before it came,
 //! hears of that stroke's mesh uploads nothing and gets it whole when it is brought back, with
 //! no resync (issue 35's first defect, issue 38's sixth point); a watcher that fell behind
-//! (`lagged`) or lost events (a PostgreSQL listener gap) ends with exactly the stored state.
+//! (`lagged`) or lost events (a PostgreSQL listener gap) ends with exactly the stored state,
+//! placements included.
 
+use penmesh::Placement;
 use penmesh::protocol::{ServerMessage, StrokeId};
 use penmesh_e2e::{
     TestDatabase, TestSession, batch_simplified, execute_sql, minimal_glb, spawn_proxy_with,
@@ -11,6 +13,7 @@ use penmesh_e2e::{
 use uuid::Uuid;
 
 use crate::helpers::{Participant, View, one_or_two_replicas, put_mesh, samples_for};
+use crate::placement::{bits, draw_on, matrix_body, put_placement, standing};
 use crate::removal::http_removal;
 use crate::slow_reader::{join_slow_reader, next_message};
 
@@ -108,6 +111,40 @@ async fn a_lagged_watcher_is_told_of_the_removals_and_restores_it_missed() {
     assert_eq!(view.n_done(), 22);
     assert!(view.strokes[&first].removed, "a stroke taken back while it lagged stays shown");
     assert!(!view.strokes[&second].removed, "a stroke brought back while it lagged stays hidden");
+    drop(to_server);
+    let _ = tokio::time::timeout(penmesh_e2e::TIMEOUT, slow).await;
+}
+
+/// A watcher told a stroke's standing plane, then cut off (`lagged`) while the stroke is put
+/// back on the board: the resync tells it the board. Before, a history left out every current
+/// placement that is the board (the default), so the watcher kept showing the standing plane.
+#[tokio::test]
+async fn a_lagged_watcher_is_told_a_stroke_put_back_on_the_board() {
+    let proxy = spawn_proxy_with(|c| c.outgoing_queue = QUEUE).await;
+    let session = proxy.create_session().await;
+    let mut drawer = Participant::join(&proxy, &session, "drawer").await;
+    let as_drawer = TestSession { key: drawer.key.clone(), ..session.clone() };
+    let (to_server, mut from_server, slow) = join_slow_reader(&proxy, &session).await;
+    let stroke = Uuid::new_v4();
+    draw_on(&mut drawer, stroke, 0, standing()).await;
+    let placed =
+        |view: &View| view.strokes.get(&stroke).and_then(|s| s.placement).map(|p| bits(&p));
+    let mut view = View::default();
+    while placed(&view) != Some(bits(&standing())) {
+        view.apply(&next_message(&mut from_server).await);
+    }
+    // Far more events than the watcher's queues hold: it lags. Meanwhile, back on the board.
+    for k in 0..20 {
+        drawer.draw(Uuid::new_v4(), &samples_for(k + 2, 200), 4).await;
+    }
+    let board = matrix_body(&Placement::IDENTITY);
+    assert_eq!(put_placement(&proxy, &as_drawer, stroke, board).await.0, 204);
+
+    while view.n_lagged == 0 || view.n_synced < 1 + view.n_lagged || view.n_done() < 21 {
+        view.apply(&next_message(&mut from_server).await);
+    }
+    assert!(view.n_lagged >= 1, "the watcher did not lag");
+    assert_eq!(placed(&view), Some(bits(&Placement::IDENTITY)), "still on the standing plane");
     drop(to_server);
     let _ = tokio::time::timeout(penmesh_e2e::TIMEOUT, slow).await;
 }

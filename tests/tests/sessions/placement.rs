@@ -18,7 +18,7 @@ use uuid::Uuid;
 use crate::helpers::{Participant, one_or_two_replicas, put_mesh, samples_for};
 
 /// The front plane: the board stood up about x (its y becomes the world's z).
-fn standing() -> Placement {
+pub(crate) fn standing() -> Placement {
     Placement::new([
         1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
     ])
@@ -65,12 +65,12 @@ fn mirrored() -> Placement {
     Placement::new(m).unwrap()
 }
 
-fn bits(p: &Placement) -> Vec<u8> {
+pub(crate) fn bits(p: &Placement) -> Vec<u8> {
     p.to_bytes()
 }
 
 /// Draws `samples` as `stroke` on the work plane `placement`, and waits for its end.
-async fn draw_on(p: &mut Participant, stroke: StrokeId, k: usize, placement: Placement) {
+pub(crate) async fn draw_on(p: &mut Participant, stroke: StrokeId, k: usize, placement: Placement) {
     let samples = samples_for(k, 90);
     p.ws.send(&ClientMessage::StrokeBegin(StrokeBegin {
         stroke,
@@ -106,7 +106,7 @@ async fn set_placement(
 }
 
 /// `PUT /v1/strokes/{stroke}/placement` with `body` as `who`: the status and the message.
-async fn put_placement(
+pub(crate) async fn put_placement(
     proxy: &TestProxy,
     who: &TestSession,
     stroke: StrokeId,
@@ -126,7 +126,7 @@ async fn put_placement(
     (status, response.text().await.unwrap())
 }
 
-fn matrix_body(p: &Placement) -> String {
+pub(crate) fn matrix_body(p: &Placement) -> String {
     serde_json::json!({ "matrix": p.matrix() }).to_string()
 }
 
