@@ -125,11 +125,17 @@ async fn a_lagged_watcher_is_told_a_stroke_put_back_on_the_board() {
     let mut drawer = Participant::join(&proxy, &session, "drawer").await;
     let as_drawer = TestSession { key: drawer.key.clone(), ..session.clone() };
     let (to_server, mut from_server, slow) = join_slow_reader(&proxy, &session).await;
+    // Joined before the stroke begins (its history read and `Synced`): a join that races the
+    // begin can miss the placement altogether, an open defect (docs/reliability.md), not this
+    // test's.
+    let mut view = View::default();
+    while view.n_synced == 0 {
+        view.apply(&next_message(&mut from_server).await);
+    }
     let stroke = Uuid::new_v4();
     draw_on(&mut drawer, stroke, 0, standing()).await;
     let placed =
         |view: &View| view.strokes.get(&stroke).and_then(|s| s.placement).map(|p| bits(&p));
-    let mut view = View::default();
     while placed(&view) != Some(bits(&standing())) {
         view.apply(&next_message(&mut from_server).await);
     }
@@ -139,6 +145,11 @@ async fn a_lagged_watcher_is_told_a_stroke_put_back_on_the_board() {
     }
     let board = matrix_body(&Placement::IDENTITY);
     assert_eq!(put_placement(&proxy, &as_drawer, stroke, board).await.0, 204);
+    // The drawer is told of it through the same fan-out, after every event before it (in
+    // commit order, through PostgreSQL's notifications too): from then on nothing more comes
+    // to the watcher's queue, so the resync's history alone tells it.
+    let on_board = |m: &ServerMessage| matches!(m, ServerMessage::PeerPlacement(p) if p.stroke == stroke && p.placement.is_identity());
+    drawer.recv_until(on_board).await;
 
     while view.n_lagged == 0 || view.n_synced < 1 + view.n_lagged || view.n_done() < 21 {
         view.apply(&next_message(&mut from_server).await);
