@@ -14,8 +14,9 @@ const SIZE = 24;
 const RESPONSE = 0.5;
 // The page asks the proxy to keep the pressure within 0.5 px of width interpolated in time
 // (protocol.js WIDTH_TOLERANCE_PX); along the line, the pen's time and place differ a little
-// (the events' timing): 0.25 px more.
-const WIDTH_SLACK_PX = 0.75;
+// (the events' timing): 0.5 px more. (0.25 px was passed in 4 runs of 20 on a shared machine,
+// by 0.76-0.77 px in all; the defect this guards against stepped by 4.56 px.)
+const WIDTH_SLACK_PX = 1.0;
 
 /// A straight pen stroke along y = `y`, pressure `pressure(t)` for t in [0, 1].
 async function straightStroke(cdp, { x0, x1, y, n, pressure, lift = true }) {
