@@ -103,12 +103,20 @@ function withDefaults(message) {
 
 // 3. The compact batch's worked example ("The compact point batch"): its samples, its bytes.
 {
-  const example = DOC.match(/The batch of the first `points` frame above, `(\[\[[^`]*\]\])`/);
+  const example = DOC.match(/The batch of the JSON conversation's first `points` message, `(\[\[[^`]*\]\])`/);
   const bytesOf = DOC.match(/That is `([0-9a-f ]+)`\./);
   assert.ok(example && bytesOf, "the compact batch's worked example is in the doc");
   const points = JSON.parse(example[1].replace(/\s+/g, ""));
   check("the batch's worked example: encoded", () => assert.equal(hex(encodeBatch(points)), bytesOf[1]));
   check("the batch's worked example: decoded", () => assert.deepStrictEqual(readBatch(fromHex(bytesOf[1]), 0), { points, end: fromHex(bytesOf[1]).length }));
+}
+
+// The first binary `points` frame, "byte by byte": its batch is the frame's tail.
+{
+  const said = DOC.match(/The first `points` frame above, byte by byte:[\s\S]*?then the point batch\s+`([0-9a-f ]+)`/);
+  assert.ok(said, "the doc takes the first points frame byte by byte");
+  const first = frames.find((f) => f.side === "client" && f.json.startsWith('{"points"'));
+  check("the first points frame, byte by byte", () => assert.ok(hex(fromHex(first.hex)).endsWith(` 00 ${said[1]}`), `its batch ${said[1]} after seq 00`));
 }
 
 // 4. The doc's index tables are the codec's variants, in order.
