@@ -515,6 +515,7 @@ const MAX_STEPS = 2 ** 48;
 export const MAX_BATCH_SAMPLES = 2 ** 20;
 const MAX_CODE_BITS = 62;
 const T = 2; // t's channel
+const POW2 = Array.from({ length: 64 }, (_, i) => 2 ** i);
 
 const zigzag = (v) => (v >= 0 ? 2 * v : -2 * v - 1);
 const unzigzag = (u) => (u % 2 === 0 ? u / 2 : -(u + 1) / 2);
@@ -525,85 +526,119 @@ function bitLength(v) {
 }
 
 /// The length in bits of the Exp-Golomb code of order `k` of `u`.
-const codeLength = (u, k) => 2 * bitLength(u + 2 ** k) - 1 - k;
+const codeLength = (u, k) => 2 * bitLength(u + POW2[k]) - 1 - k;
 
 /// LOCO-I's running order of a channel's second differences: the smallest `k` with
-/// `count · 2^k ≥ sum` (at most 40). `sum` turns into a BigInt in the rare batch where it
-/// would pass 2^53, so the order is exact whatever the values.
+/// `count · 2^k ≥ sum` (at most 40). `sum` is a number while it is below 2^53; in the rare
+/// batch where it would pass, it goes on as the BigInt `big`, so the order is exact whatever
+/// the values.
 class Adaptive {
   constructor(channel) {
     this.sum = 2 * 2 ** K_SECOND[channel];
+    this.big = null;
     this.count = 2;
   }
 
   order() {
     let k = 0;
-    if (typeof this.sum === "bigint") {
-      while (BigInt(this.count) << BigInt(k) < this.sum && k < MAX_ORDER) k++;
+    if (this.big === null) {
+      for (let c = this.count; c < this.sum && k < MAX_ORDER; c *= 2) k++;
     } else {
-      while (this.count * 2 ** k < this.sum && k < MAX_ORDER) k++;
+      while (BigInt(this.count) << BigInt(k) < this.big && k < MAX_ORDER) k++;
     }
     return k;
   }
 
   add(u) {
-    if (typeof this.sum === "bigint") this.sum += BigInt(u);
-    else if (this.sum + u > Number.MAX_SAFE_INTEGER) this.sum = BigInt(this.sum) + BigInt(u);
+    if (this.big !== null) this.big += BigInt(u);
+    else if (this.sum + u > Number.MAX_SAFE_INTEGER) this.big = BigInt(this.sum) + BigInt(u);
     else this.sum += u;
     this.count += 1;
     if (this.count === 64) {
       this.count = 32;
-      if (typeof this.sum === "bigint") {
-        this.sum /= 2n;
-        if (this.sum <= BigInt(Number.MAX_SAFE_INTEGER)) this.sum = Number(this.sum);
-      } else {
+      if (this.big === null) {
         this.sum = Math.floor(this.sum / 2);
+      } else {
+        this.big /= 2n;
+        if (this.big <= BigInt(Number.MAX_SAFE_INTEGER)) {
+          this.sum = Number(this.big);
+          this.big = null;
+        }
       }
     }
   }
 }
 
+/// The batch's bits, most significant first, read a byte's worth at a time. `sample` and
+/// `channel` say where it is, for an error's words (set by the caller, cheaply).
 class BitReader {
   constructor(data, pos, path) {
     this.data = data;
-    this.pos = pos; // the byte
-    this.bit = 0; // bits of it already read
+    this.at = pos * 8; // the next bit
+    this.limit = data.length * 8;
     this.path = path;
+    this.sample = -1; // -1: the batch's header
+    this.channel = 0;
+  }
+
+  where() {
+    if (this.sample < 0) return `${this.path}: the batch's header`;
+    const what = this.sample === 0 ? "head" : this.sample === 1 ? "first difference" : "second difference";
+    return `${this.path}: sample ${this.sample}'s ${what} of ${"xytp"[this.channel]}`;
+  }
+
+  truncated() {
+    return new FrameError(`${this.where()}: truncated frame: the point batch goes past the frame's end (byte ${this.data.length})`);
   }
 
   one() {
-    if (this.pos >= this.data.length) {
-      throw new FrameError(`${this.path}: truncated frame: the point batch goes past the frame's end (byte ${this.data.length})`);
-    }
-    const b = (this.data[this.pos] >> (7 - this.bit)) & 1;
-    if (++this.bit === 8) {
-      this.bit = 0;
-      this.pos++;
-    }
+    if (this.at >= this.limit) throw this.truncated();
+    const b = (this.data[this.at >> 3] >> (7 - (this.at & 7))) & 1;
+    this.at++;
     return b;
   }
 
   /// `n` bits (at most 53) as a number.
   bits(n) {
+    if (this.at + n > this.limit) throw this.truncated();
     let v = 0;
-    for (let i = 0; i < n; i++) v = v * 2 + this.one();
+    while (n > 0) {
+      const left = 8 - (this.at & 7); // bits left in this byte
+      const take = left < n ? left : n;
+      const byte = this.data[this.at >> 3];
+      v = v * (1 << take) + ((byte >> (left - take)) & ((1 << take) - 1));
+      this.at += take;
+      n -= take;
+    }
     return v;
   }
 
-  /// An Exp-Golomb code of order `k`.
-  golomb(k, what) {
+  /// An Exp-Golomb code of order `k`: its zeros counted a byte at a time.
+  golomb(k) {
     let zeros = 0;
-    // "A code is at most 62 bits": its value part (a head of 2^48 steps, on the grid, is 35 zero
-    // bits and a 50-bit value), so at most 61 zeros before the one.
-    while (this.one() === 0) {
-      zeros++;
-      if (zeros + k + 1 > MAX_CODE_BITS) throw new FrameError(`${this.path}: ${what}: an Exp-Golomb value longer than ${MAX_CODE_BITS} bits`);
+    for (;;) {
+      if (this.at >= this.limit) throw this.truncated();
+      const offset = this.at & 7;
+      const rest = (this.data[this.at >> 3] << offset) & 0xff; // this byte's unread bits, first at bit 7
+      if (rest === 0) {
+        zeros += 8 - offset;
+        this.at += 8 - offset;
+      } else {
+        const lead = Math.clz32(rest) - 24;
+        zeros += lead;
+        this.at += lead + 1; // past the one bit
+        break;
+      }
+      // "A code is at most 62 bits": its value part (a head of 2^48 steps, on the grid, is 35
+      // zero bits and a 50-bit value), so at most 61 zeros before the one.
+      if (zeros + k + 1 > MAX_CODE_BITS) break;
     }
+    if (zeros + k + 1 > MAX_CODE_BITS) throw new FrameError(`${this.where()}: an Exp-Golomb value longer than ${MAX_CODE_BITS} bits`);
     if (zeros + k > 52) {
-      throw new FrameError(`${this.path}: ${what}: a value of ${zeros + k + 1} bits, past what a sample on the grid needs (the page reads up to 53)`);
+      throw new FrameError(`${this.where()}: a value of ${zeros + k + 1} bits, past what a sample on the grid needs (the page reads up to 53)`);
     }
     // The leading one bit was read: v = 2^(zeros + k) + r, u = v − 2^k.
-    return 2 ** (zeros + k) + this.bits(zeros + k) - 2 ** k;
+    return POW2[zeros + k] + this.bits(zeros + k) - POW2[k];
   }
 
   f64() {
@@ -612,12 +647,12 @@ class BitReader {
     return new DataView(bytes.buffer).getFloat64(0, false);
   }
 
-  /// Ends the batch: the padding up to the byte boundary must be zero bits.
+  /// Ends the batch: the padding up to the byte boundary must be zero bits; the byte after it.
   end() {
-    while (this.bit !== 0) {
+    while (this.at & 7) {
       if (this.one() !== 0) throw new FrameError(`${this.path}: the point batch's padding bits are not zero`);
     }
-    return this.pos;
+    return this.at >> 3;
   }
 }
 
@@ -628,10 +663,10 @@ export function readBatch(data, pos, path = "points") {
   if (r.one() === 1) signedHeads = false;
   else if (r.one() === 1) signedHeads = true;
   else return { points: [], end: r.end() };
-  const n = r.golomb(0, "n − 1") + 1;
+  const n = r.golomb(0) + 1;
   if (n > MAX_BATCH_SAMPLES) throw new FrameError(`${path}: a batch of ${n} samples (at most ${MAX_BATCH_SAMPLES})`);
   // Each sample takes at least one bit per channel: a count past the frame's bits is truncated.
-  if (4 * n > (data.length - r.pos) * 8) throw new FrameError(`${path}: truncated frame: ${n} samples cannot fit in the ${data.length - r.pos} bytes left`);
+  if (4 * n > r.limit - r.at) throw new FrameError(`${path}: truncated frame: ${n} samples cannot fit in the ${r.limit - r.at} bits left`);
   const shifts = GROUPS.map((_, g) => (r.one() === 1 ? DEFAULT_SHIFT[g] : r.bits(3)));
   const points = new Array(n);
   const prev = [0, 0, 0, 0]; // v[i-1] per channel, in steps
@@ -640,22 +675,24 @@ export function readBatch(data, pos, path = "points") {
   const scale = shifts.map((s) => 2 ** s);
   for (let i = 0; i < n; i++) {
     const sample = [0, 0, 0, 0];
+    r.sample = i;
     for (let c = 0; c < 4; c++) {
       const g = GROUP_OF[c];
+      r.channel = c;
       if (shifts[g] === RAW) {
         sample[c] = r.f64();
         continue;
       }
       let v;
       if (i === 0) {
-        const u = r.golomb(K_HEAD[c], `sample 0's head of channel ${"xytp"[c]}`);
+        const u = r.golomb(K_HEAD[c]);
         v = (signedHeads ? unzigzag(u) : u) * scale[g];
       } else if (i === 1) {
-        const u = r.golomb(K_DELTA[c], `sample 1's difference of channel ${"xytp"[c]}`);
+        const u = r.golomb(K_DELTA[c]);
         v = prev[c] + (signedHeads || c !== T ? unzigzag(u) : u) * scale[g];
       } else {
         const a = adaptive[c];
-        const u = r.golomb(a.order(), `sample ${i}'s second difference of channel ${"xytp"[c]}`);
+        const u = r.golomb(a.order());
         a.add(u);
         v = 2 * prev[c] - prev2[c] + unzigzag(u) * scale[g];
       }
@@ -685,15 +722,27 @@ class BitWriter {
     }
   }
 
-  /// `value` (a non-negative integer below 2^53) in `n` bits, most significant first.
+  /// `value` (a non-negative integer below 2^53) in `n` bits, most significant first, a byte's
+  /// worth at a time.
   bits(value, n) {
-    for (let i = n - 1; i >= 0; i--) this.one(Math.floor(value / 2 ** i) % 2);
+    while (n > 0) {
+      const take = Math.min(8 - this.n, n);
+      n -= take;
+      const chunk = Math.floor(value / POW2[n]) % POW2[take];
+      this.cur = (this.cur << take) | chunk;
+      this.n += take;
+      if (this.n === 8) {
+        this.out.push(this.cur);
+        this.cur = 0;
+        this.n = 0;
+      }
+    }
   }
 
   golomb(u, k) {
-    const v = u + 2 ** k;
+    const v = u + POW2[k];
     const length = bitLength(v);
-    for (let i = 0; i < length - 1 - k; i++) this.one(0);
+    this.bits(0, length - 1 - k);
     this.bits(v, length);
   }
 
@@ -704,7 +753,7 @@ class BitWriter {
   }
 
   bytes() {
-    while (this.n !== 0) this.one(0);
+    if (this.n) this.bits(0, 8 - this.n);
     return Uint8Array.from(this.out);
   }
 }

@@ -277,7 +277,7 @@ const BAD = [
     return at(f, f.length - 1, 2);
   })(), /peer_strokes.strokes\[0\].mesh: bool byte 2/],
   ["a list count past the frame", Uint8Array.from([5, 16, 252, 0, 0, 0, 1]), /peer_strokes.strokes \(16777216 elements\): truncated frame/],
-  ["a batch cut short", retained.subarray(0, retained.length - 1), /retained.points: truncated frame/],
+  ["a batch cut short", retained.subarray(0, retained.length - 1), /retained.points: sample 1.s first difference of t: truncated frame/],
   // An empty batch is '00' and six bits of padding: byte 00; 01 has a padding bit set.
   ["a batch whose padding is not zero", at(emptyRetained, emptyRetained.length - 1, 1), /retained.points: the point batch's padding bits are not zero/],
   ["a batch of more samples than the frame holds", Uint8Array.from([...retained.subarray(0, 20), 0b10000000, 0b00000000, 0b00000100, 0]), /samples cannot fit|truncated/],

@@ -99,7 +99,17 @@ browserTest(async ({ proxy, browser }) => {
   await until("Ada's stroke done with its mesh", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
   const [stroke] = Object.keys(await placements(ada));
   await until("the stroke on Bob's page", async () => stroke in (await placements(bob)));
-  assert.ok(framesOf(ada, "sent", "points").every((f) => f.binary), "Ada's points went as binary frames");
+  const points = framesOf(ada, "sent", "points");
+  assert.ok(points.length && points.every((f) => f.binary), "Ada's points went as binary frames");
+  // What they cost against the same messages in JSON (what the page sent before codec.js).
+  const drawn = points.reduce((n, f) => n + f.message.points.points.length, 0);
+  const drawing = {
+    samples: drawn,
+    frames: points.length,
+    binary_bytes: points.reduce((n, f) => n + f.bytes, 0),
+    json_bytes: points.reduce((n, f) => n + Buffer.byteLength(JSON.stringify(f.message)), 0),
+  };
+  log(`drawing: ${drawn} samples in ${points.length} points frames, ${drawing.binary_bytes} B binary against ${drawing.json_bytes} B as JSON`);
 
   // 1. The move, with the gizmo's X handle (Select, a click on the stroke, a drag).
   await ada.keyboard.press("v");
@@ -188,6 +198,6 @@ browserTest(async ({ proxy, browser }) => {
   assert.deepStrictEqual(decoded, { retained: { stroke, first: 0, points: asJson.samples } }, "/raw's binary frame decodes to its JSON samples");
   log(`/raw: ${asJson.samples.length} samples in a ${frame.length}-byte frame decode to the JSON's`);
 
-  const report = { move, undo, redo, json, raw: { samples: asJson.samples.length, frame_bytes: frame.length } };
+  const report = { move, undo, redo, json, drawing, raw: { samples: asJson.samples.length, frame_bytes: frame.length } };
   console.log(`move-bytes: ${JSON.stringify(report)}`);
 });
