@@ -1,14 +1,15 @@
 // What a move costs the page on the wire (issue 37: at most 200 bytes), measured in Debian's
 // Chromium: two pages of one session (Ada draws and moves, Bob watches), every WebSocket frame
 // of both read through CDP (Network.webSocketFrameSent / Received; a binary payload comes in
-// base64). Ada moves her stroke with the gizmo; her `set_placement` and Bob's `peer_placement`
-// are binary frames (src/codec.js) of at most 200 bytes with the WebSocket framing (RFC 6455:
-// 2 header bytes, 2 more for a payload of 126 to 65535, and a client's 4 mask bytes), and both
-// pages end with the proxy's placement. Undo and redo are moves too. Then the page reads both
-// encodings at every moment: Bob switches to JSON (the proxy answers him in text from his next
-// frame) and the moves still reach him, then back to binary; Ada sends one move in JSON, for the
-// comparison. Last, the page's decoder against the proxy's encoder on a long batch: the stroke's
-// `/raw` as one binary `retained` frame decodes to the samples of its JSON.
+// base64). Ada moves her stroke with the gizmo's X handle, then turns it by an odd angle with
+// its Z ring; each time her `set_placement` and Bob's `peer_placement` are binary frames
+// (src/codec.js) of at most 200 bytes with the WebSocket framing (RFC 6455: 2 header bytes, 2
+// more for a payload of 126 to 65535, and a client's 4 mask bytes), and both pages end with the
+// proxy's placement. Undo and redo are moves too. Then the page reads both encodings at every
+// moment: Bob switches to JSON (the proxy answers him in text from his next frame) and Ada's
+// moves still reach him, then back to binary; Ada sends the turn once more in JSON, for the
+// comparison. Last, the page's decoder against the proxy's encoder on a long batch: the
+// stroke's `/raw` as one binary `retained` frame decodes to the samples of its JSON.
 // Run by scripts/test.sh as `node client/web/test/move-bytes.mjs`.
 import assert from "node:assert/strict";
 import { decodeClient, decodeServer } from "../src/codec.js";
@@ -138,19 +139,38 @@ browserTest(async ({ proxy, browser }) => {
     assert.ok(m.wire <= GOAL, `${what}: ${m.wire} bytes on the wire, over ${GOAL}`);
   }
 
-  // 2. Undo and redo are moves too.
+  // 2. A turn (R, a drag along the Z ring, no snap): the matrix's elements are 17-digit cosines
+  //    and sines, which JSON writes out in full and binary in 8 bytes as any.
+  await ada.keyboard.press("r");
+  const ring = await ada.evaluate(() => window.penmesh.gizmoHandle("Z"));
+  assert.ok(ring, "no Z ring on the selected stroke");
+  marks = marksOf(ada, bob);
+  await ada.mouse.move(...ring);
+  await ada.mouse.down();
+  await ada.mouse.move(ring[0] - 43, ring[1] - 29, { steps: 12 });
+  await ada.mouse.up();
+  const turned = (await placements(ada))[stroke];
+  assert.ok(turned[1] !== 0 && String(turned[0]).length > 10, `the ring turned the stroke by an odd angle: ${JSON.stringify(turned)}`);
+  await agree(base, s, [ada, bob], stroke, turned, "turned");
+  const turn = oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: true, what: "the gizmo's turn" });
+  log(`a turn: set_placement ${turn.set_placement.payload} B (${turn.set_placement.wire} B on the wire), peer_placement ${turn.peer_placement.payload} B (${turn.peer_placement.wire} B)`);
+
+  // 3. Undo and redo are moves too.
   marks = marksOf(ada, bob);
   await ada.keyboard.press("Control+z");
-  await agree(base, s, [ada, bob], stroke, IDENTITY, "the move undone");
+  await agree(base, s, [ada, bob], stroke, moved, "the turn undone");
   const undo = oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: true, what: "undo" });
   marks = marksOf(ada, bob);
   await ada.keyboard.press("Control+Shift+z");
-  await agree(base, s, [ada, bob], stroke, moved, "the move redone");
+  await agree(base, s, [ada, bob], stroke, turned, "the turn redone");
   const redo = oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: true, what: "redo" });
-  for (const m of [undo, redo]) for (const [what, b] of Object.entries(m)) assert.ok(b.wire <= GOAL, `undo/redo ${what}: ${b.wire} bytes`);
+  for (const m of [move, turn, undo, redo]) {
+    for (const [what, b] of Object.entries(m)) assert.ok(b.wire <= GOAL, `${what}: ${b.wire} bytes on the wire, over ${GOAL}`);
+  }
 
-  // 3. Both encodings at every moment: Bob says JSON (a Ping in text), so the proxy answers him
-  //    in text; Ada's moves still reach him. Ada sends one move in JSON (the comparison).
+  // 4. Both encodings at every moment: Bob says JSON (a Ping in text), so the proxy answers him
+  //    in text; Ada's binary moves still reach him. Then Ada sends the turn again in JSON: the
+  //    same move as in 2, for the comparison.
   await bob.evaluate(() => {
     window.penmesh.encoding = "json";
     window.penmesh.ping();
@@ -158,17 +178,17 @@ browserTest(async ({ proxy, browser }) => {
   await until("Bob's pong in text", () => framesOf(bob, "received", "pong").some((f) => !f.binary));
   marks = marksOf(ada, bob);
   await ada.keyboard.press("Control+z");
-  await agree(base, s, [ada, bob], stroke, IDENTITY, "undone, Bob in JSON");
+  await agree(base, s, [ada, bob], stroke, moved, "undone, Bob in JSON");
   const textIn = oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: false, what: "undo, Bob in JSON" });
   await ada.evaluate(() => {
     window.penmesh.encoding = "json";
   });
   marks = marksOf(ada, bob);
   await ada.keyboard.press("Control+Shift+z");
-  await agree(base, s, [ada, bob], stroke, moved, "redone in JSON");
+  await agree(base, s, [ada, bob], stroke, turned, "redone in JSON");
   const json = oneMove(ada, bob, marks, stroke, { adaBinary: false, bobBinary: false, what: "redo, both in JSON" });
-  log(`the same move in JSON: set_placement ${json.set_placement.payload} B (${json.set_placement.wire} B on the wire), peer_placement ${json.peer_placement.payload} B (${json.peer_placement.wire} B)`);
-  assert.equal(textIn.peer_placement.payload, json.peer_placement.payload, "a peer_placement in text is the same size either way");
+  log(`the move in JSON: set_placement ${textIn.set_placement.payload} B binary, Bob's peer_placement ${textIn.peer_placement.payload} B (${textIn.peer_placement.wire} B) in text`);
+  log(`the turn in JSON: set_placement ${json.set_placement.payload} B (${json.set_placement.wire} B on the wire), peer_placement ${json.peer_placement.payload} B (${json.peer_placement.wire} B)`);
   // Back to binary: the next frame each page sends says so.
   for (const page of [ada, bob]) {
     await page.evaluate(() => {
@@ -179,14 +199,14 @@ browserTest(async ({ proxy, browser }) => {
   await until("pongs in binary again", () => [ada, bob].every((p) => framesOf(p, "received", "pong").some((f) => f.binary)));
   marks = marksOf(ada, bob);
   await ada.keyboard.press("Control+z");
-  await agree(base, s, [ada, bob], stroke, IDENTITY, "undone, both in binary again");
+  await agree(base, s, [ada, bob], stroke, moved, "undone, both in binary again");
   oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: true, what: "undo, binary again" });
   for (const [name, page] of [["Ada", ada], ["Bob", bob]]) {
     const errors = await page.evaluate(() => window.penmesh.errors);
     assert.deepEqual(errors, [], `${name}'s page reported no error`);
   }
 
-  // 4. The page's decoder against the proxy's encoder: the stroke's samples (150 and more, a
+  // 5. The page's decoder against the proxy's encoder: the stroke's samples (150 and more, a
   //    batch past the order's 64-sample halving) as one binary `retained` frame, and as JSON.
   const headers = { authorization: `Bearer ${s.token}` };
   const asJson = await (await fetch(`${base}/v1/strokes/${stroke}/raw`, { headers })).json();
@@ -198,6 +218,6 @@ browserTest(async ({ proxy, browser }) => {
   assert.deepStrictEqual(decoded, { retained: { stroke, first: 0, points: asJson.samples } }, "/raw's binary frame decodes to its JSON samples");
   log(`/raw: ${asJson.samples.length} samples in a ${frame.length}-byte frame decode to the JSON's`);
 
-  const report = { move, undo, redo, json, drawing, raw: { samples: asJson.samples.length, frame_bytes: frame.length } };
+  const report = { move, turn, undo, redo, move_bob_text: textIn, turn_json: json, drawing, raw: { samples: asJson.samples.length, frame_bytes: frame.length } };
   console.log(`move-bytes: ${JSON.stringify(report)}`);
 });
