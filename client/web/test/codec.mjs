@@ -2,7 +2,9 @@
 // browser. It executes the doc's examples: every ```frames``` block (a JSON line, then its frame
 // in hex) decodes to exactly what JSON.parse gives and encodes back to the same bytes, both
 // directions; every ```json``` message goes through a binary round trip unchanged; the compact
-// batch's worked example gives its bytes; the index tables name the codec's variants. Then a
+// batch's worked example gives its bytes; the index tables name the codec's variants. Long
+// batches the proxy wrote (test/raw-frames.json) decode to their JSON and encode back to the
+// proxy's bytes: a fault the encoder and decoder share shows there. Then a
 // round trip of generated messages of every variant (seeded), and frames that must not decode
 // (each with the words of its error). Run by scripts/test.sh as `node client/web/test/codec.mjs`.
 import assert from "node:assert/strict";
@@ -117,6 +119,21 @@ function withDefaults(message) {
   assert.ok(said, "the doc takes the first points frame byte by byte");
   const first = frames.find((f) => f.side === "client" && f.json.startsWith('{"points"'));
   check("the first points frame, byte by byte", () => assert.ok(hex(fromHex(first.hex)).endsWith(` 00 ${said[1]}`), `its batch ${said[1]} after seq 00`));
+}
+
+// Frames the proxy's Rust codec wrote (test/raw-frames.json, recorded by record-raw.mjs):
+// three long strokes' `/raw` as one `retained` frame each, 948 to 1,660 samples, far past the
+// doc's examples (the running order's sum is halved every 32 second differences). Each decodes
+// to its JSON samples, and its JSON encodes to the proxy's very bytes (the same shifts chosen).
+{
+  const { frames: recorded } = JSON.parse(readFileSync(join(root, "client/web/test/raw-frames.json"), "utf8"));
+  assert.ok(recorded.length >= 3 && recorded.every((f) => f.message.retained.points.length > 900), "three long recorded frames");
+  for (const { message, hex: text } of recorded) {
+    const bytes = fromHex(text);
+    const n = message.retained.points.length;
+    check(`the proxy's frame of ${n} samples: decoded`, () => assert.deepStrictEqual(decodeServer(bytes), message));
+    check(`the proxy's frame of ${n} samples: encoded`, () => assert.ok(Buffer.from(encodeServer(message)).equals(Buffer.from(bytes)), "not the proxy's bytes"));
+  }
 }
 
 // 4. The doc's index tables are the codec's variants, in order.
@@ -319,4 +336,4 @@ assert.equal(sent, 147, "set_placement: 147 bytes");
 assert.equal(received, 164, "peer_placement: 164 bytes");
 assert.equal(PROTOCOL_VERSION, 5);
 
-console.log(`PASS codec: ${checks} checks (${frames.length} frames of docs/protocol.md, both ways; every JSON example; generated messages of all ${messageNames("client").length} client and ${messageNames("server").length} server variants; ${BAD.length} malformed frames); a move: ${sent} B sent, ${received} B received`);
+console.log(`PASS codec: ${checks} checks (${frames.length} frames of docs/protocol.md, both ways; every JSON example; 3 long frames the proxy wrote, both ways; generated messages of all ${messageNames("client").length} client and ${messageNames("server").length} server variants; ${BAD.length} malformed frames); a move: ${sent} B sent, ${received} B received`);
