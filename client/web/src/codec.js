@@ -629,8 +629,8 @@ class BitReader {
         this.at += lead + 1; // past the one bit
         break;
       }
-      // "A code is at most 62 bits": its value part (a head of 2^48 steps, on the grid, is 35
-      // zero bits and a 50-bit value), so at most 61 zeros before the one.
+      // "A code's value `v` is at most 62 bits" (its zeros + k + 1); the zeros come on top: a
+      // head of 2^48 steps is 35 zeros and a 50-bit value, which the proxy reads.
       if (zeros + k + 1 > MAX_CODE_BITS) break;
     }
     if (zeros + k + 1 > MAX_CODE_BITS) throw new FrameError(`${this.where()}: an Exp-Golomb value longer than ${MAX_CODE_BITS} bits`);
