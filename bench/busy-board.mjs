@@ -212,8 +212,10 @@ async function measurePage(context, url, expected) {
   cdp.on("Network.requestWillBeSent", () => (traffic.requests += 1));
   cdp.on("Network.responseReceived", (e) => (traffic.statuses[e.response.status] = (traffic.statuses[e.response.status] || 0) + 1));
   cdp.on("Network.loadingFinished", (e) => (traffic.httpBytes += e.encodedDataLength));
-  cdp.on("Network.webSocketFrameReceived", (e) => (traffic.wsBytes += Buffer.byteLength(e.response.payloadData)));
-  cdp.on("Network.webSocketFrameSent", (e) => (traffic.wsBytes += Buffer.byteLength(e.response.payloadData)));
+  // A binary frame's payload comes base64 (the page speaks binary frames, codec.js).
+  const payloadBytes = ({ opcode, payloadData }) => (opcode === 2 ? Buffer.from(payloadData, "base64").length : Buffer.byteLength(payloadData));
+  cdp.on("Network.webSocketFrameReceived", (e) => (traffic.wsBytes += payloadBytes(e.response)));
+  cdp.on("Network.webSocketFrameSent", (e) => (traffic.wsBytes += payloadBytes(e.response)));
   page.on("pageerror", (e) => console.error("page error:", e.message));
   // The page's main-thread tasks over 50 ms (the Long Tasks API), from before its script runs.
   await page.addInitScript(() => {

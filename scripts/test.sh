@@ -45,6 +45,15 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/first-minutes.mjs
 # The mesh's width against the ink's along straight strokes (issue 36, item 6).
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/stroke-width.mjs
+# The page's binary codec (client/web/src/codec.js; Node, no browser): the examples of
+# docs/protocol.md executed both ways, generated messages of every variant, malformed frames.
+node client/web/test/codec.mjs
+# The page's connection with a stand-in WebSocket (Node): binary and text frames into one
+# receive, a frame that does not decode said and dropped, moves sent binary (or JSON).
+node client/web/test/connection.mjs
+# What a move costs the page on the wire (issue 37: at most 200 bytes), read through CDP from
+# two pages; undo and redo; both encodings read at every moment; the codec against /raw.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/move-bytes.mjs
 # The page as a modelling tool (issue 37): a placed copy stays wound outward (a mirror flips
 # it; Node, no browser); then two planes, the gizmo, duplicate, undo, mirror: two pages, a late
 # joiner and the proxy's placements agree.

@@ -93,6 +93,11 @@ export function startSession(session, token) {
     get pending() { return conn.pending; },
     get unfinished() { return conn.unfinished.length; }, // our strokes not yet done
     get wsBytes() { return conn.wsBytes; },
+    // How the page sends ("binary" or "json"), and a Ping to say it: the proxy answers in the
+    // form of the page's latest frame (the tests check the page reads both at every moment).
+    get encoding() { return conn.encoding; },
+    set encoding(e) { conn.encoding = e; },
+    ping: () => conn.send({ ping: { nonce: 0 } }),
     get strokes() { return view.strokes; },
     get meshes() { return view.meshCount; },
     get frames() { return view.frames; },

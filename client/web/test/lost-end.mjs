@@ -11,6 +11,7 @@
 //    the stroke is taken over.
 // Run by scripts/test.sh.
 import assert from "node:assert/strict";
+import { decodeClient, decodeServer } from "../src/codec.js";
 import { browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
 
 await browserTest(async ({ proxy, browser }) => {
@@ -35,16 +36,18 @@ await browserTest(async ({ proxy, browser }) => {
     page.onClose((code, reason) => {
       if (!connection.keepServer) server.close({ code, reason });
     });
+    // The page speaks binary frames (src/codec.js); a text frame is JSON.
     page.onMessage((message) => {
-      if (loseEnd && String(message).includes('"stroke_end"')) {
+      const m = typeof message === "string" ? JSON.parse(message) : decodeClient(message);
+      if (loseEnd && m.stroke_end) {
         loseEnd = false;
-        lost = JSON.parse(message).stroke_end.stroke;
+        lost = m.stroke_end.stroke;
         return;
       }
       server.send(message);
     });
     server.onMessage((message) => {
-      const m = JSON.parse(message);
+      const m = typeof message === "string" ? JSON.parse(message) : decodeServer(message);
       if (m.error && m.error.code === "stroke_conflict") conflicts.push(m.error.stroke);
       page.send(message);
     });

@@ -2,7 +2,7 @@
 //   node client/web/test/measure.mjs
 // 1. pen-up to the mesh on screen, p50/p99 over 50 pen strokes drawn through CDP;
 // 2. bytes the page downloads to open a 100-stroke session (HTTP bodies as transferred, plus
-//    the WebSocket's text frames).
+//    the WebSocket's payloads: binary frames since codec.js, text before).
 // A 1,000-stroke board (frames per second while orbiting among its numbers) is
 // bench/busy-board.mjs.
 import { drawStroke, launch, log, newSession, requireTools, runPenmesh, startProxy, until } from "./harness.mjs";
@@ -48,7 +48,7 @@ try {
   await until("100 meshes", () => counted.evaluate(() => window.penmesh.meshes >= 100), 120000);
   await counted.waitForTimeout(500);
   const ws = await counted.evaluate(() => window.penmesh.wsBytes);
-  log(`100-stroke session: ${http} bytes over HTTP (page, script, the meshes), ${ws} bytes of WebSocket text, ${http + ws} in all`);
+  log(`100-stroke session: ${http} bytes over HTTP (page, script, the meshes), ${ws} bytes of WebSocket payloads, ${http + ws} in all`);
   await counted.close();
 } finally {
   for (const c of children) if (c.exitCode === null) c.kill("SIGTERM");
