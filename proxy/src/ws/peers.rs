@@ -202,7 +202,12 @@ impl Connection {
             {
                 let stroke = *stroke;
                 let mut parts = vec![event];
-                while let Some(next) = events.next_if(|e| e.stroke() == Some(stroke)) {
+                // Its placement is not part of its whole form (`HistoryStroke` has none): it
+                // follows as its own event, even when it comes right after the stroke's.
+                let part_of_whole = |e: &SessionEvent| {
+                    e.stroke() == Some(stroke) && !matches!(e.kind, EventKind::Placed { .. })
+                };
+                while let Some(next) = events.next_if(part_of_whole) {
                     parts.push(next);
                 }
                 if let Some(rest) = whole.take(&mut self.view, parts, batch) {

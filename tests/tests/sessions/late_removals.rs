@@ -125,13 +125,7 @@ async fn a_lagged_watcher_is_told_a_stroke_put_back_on_the_board() {
     let mut drawer = Participant::join(&proxy, &session, "drawer").await;
     let as_drawer = TestSession { key: drawer.key.clone(), ..session.clone() };
     let (to_server, mut from_server, slow) = join_slow_reader(&proxy, &session).await;
-    // Joined before the stroke begins (its history read and `Synced`): a join that races the
-    // begin can miss the placement altogether, an open defect (docs/reliability.md), not this
-    // test's.
     let mut view = View::default();
-    while view.n_synced == 0 {
-        view.apply(&next_message(&mut from_server).await);
-    }
     let stroke = Uuid::new_v4();
     draw_on(&mut drawer, stroke, 0, standing()).await;
     let placed =

@@ -353,6 +353,23 @@ impl OldClient {
 // A version-4 client still draws (its binary stroke_begin has no placement: its strokes lie
 // on the board) and watches: it sees every stroke in its own plane's coordinates, and is never
 // sent a placement, neither in the history nor live.
+/// A late joiner of a session whose last stroke (here its only one) is on a standing plane is
+/// told that plane. Before, the history's placement event came right after that stroke's own
+/// events, was taken into the stroke's whole form (`peer_strokes`, which has no placement) and
+/// dropped, so the joiner showed the stroke on the board.
+#[tokio::test]
+async fn a_late_joiner_is_told_the_plane_of_the_last_stroke() {
+    let proxies = one_or_two_replicas(|_| {}).await;
+    let (a, b) = (&proxies[0], proxies.last().unwrap());
+    let session = a.create_session().await;
+    let mut drawer = Participant::join(a, &session, "drawer").await;
+    let stroke = Uuid::new_v4();
+    draw_on(&mut drawer, stroke, 0, standing()).await;
+    let late = Participant::join(b, &session, "late").await;
+    let told = late.view.strokes[&stroke].placement.map(|p| bits(&p));
+    assert_eq!(told, Some(bits(&standing())), "the last stroke shown on the board");
+}
+
 #[tokio::test]
 async fn a_version_4_client_draws_and_watches_and_is_never_sent_a_placement() {
     let proxies = one_or_two_replicas(|_| {}).await;
