@@ -132,8 +132,11 @@ browserTest(async ({ proxy, browser }) => {
   assert.ok(moved && moved[12] !== 0, `the gizmo moved the stroke: ${JSON.stringify(moved)}`);
   await agree(base, s, [ada, bob], stroke, moved, "moved");
   const move = oneMove(ada, bob, marks, stroke, { adaBinary: true, bobBinary: true, what: "the gizmo's move" });
-  const echo = framesOf(ada, "received", "peer_placement", marks.ada);
-  assert.ok(echo.length === 1 && echo[0].binary, "Ada's answer, the peer_placement of her move, comes binary");
+  // Ada's page placed the stroke itself, so the pages agree before her answer need have come.
+  const answers = () => framesOf(ada, "received", "peer_placement", marks.ada).filter((f) => f.message.peer_placement.stroke === stroke);
+  await until("Ada's answer to her move", () => answers().length > 0);
+  const echo = answers();
+  assert.ok(echo.length === 1 && echo[0].binary, `Ada's answer, the peer_placement of her move, comes binary, once: ${echo.length} answers`);
   log(`a move: set_placement ${move.set_placement.payload} B (${move.set_placement.wire} B on the wire), peer_placement ${move.peer_placement.payload} B (${move.peer_placement.wire} B)`);
   for (const [what, m] of Object.entries(move)) {
     assert.ok(m.wire <= GOAL, `${what}: ${m.wire} bytes on the wire, over ${GOAL}`);
