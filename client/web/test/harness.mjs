@@ -1,6 +1,7 @@
 // What the browser test and the measurements share: a real proxy (`penmesh-proxy` on a
 // fresh SQLite file), Debian's Chromium through playwright-core, and a pen through CDP.
 import { chromium } from "playwright-core";
+import assert from "node:assert/strict";
 import { spawn } from "node:child_process";
 import { existsSync, mkdirSync, mkdtempSync } from "node:fs";
 import { createServer } from "node:net";
@@ -194,4 +195,19 @@ export async function browserTest(main) {
     await cleanup();
     process.exit(1);
   }
+}
+
+/// Clicks the middle sample of `stroke` on `page` (the Select tool on), checks that it alone is
+/// selected, and returns where the gizmo's `axis` handle is on the page.
+export async function selectForGizmo(page, stroke, axis = "X") {
+  const mid = await page.evaluate((id) => {
+    const st = window.penmesh.strokes.get(id);
+    const p = st.points[Math.floor(st.points.length / 2)];
+    return window.penmesh.toPage(p.x, p.y, st.placement);
+  }, stroke);
+  await page.mouse.click(...mid);
+  assert.deepEqual(await page.evaluate(() => window.penmesh.selected), [stroke], "a click selects the stroke under it");
+  const handle = await page.evaluate((a) => window.penmesh.gizmoHandle(a), axis);
+  assert.ok(handle, "no gizmo on the selected stroke");
+  return handle;
 }

@@ -9,7 +9,7 @@
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, until } from "./harness.mjs";
 
 const VIEW = { width: 1000, height: 700 };
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
@@ -167,15 +167,7 @@ browserTest(async ({ proxy, browser }) => {
   await until("zoomed in", async () => (await ada.evaluate(() => window.penmesh.camera.scale)) > turned.scale * 1.1);
   await ada.mouse.wheel(0, 100);
   await until("zoomed out", async () => Math.abs((await ada.evaluate(() => window.penmesh.camera.scale)) - turned.scale) < 1e-9);
-  const mid = await ada.evaluate((id) => {
-    const s = window.penmesh.strokes.get(id);
-    const p = s.points[Math.floor(s.points.length / 2)];
-    return window.penmesh.toPage(p.x, p.y, s.placement);
-  }, front);
-  await ada.mouse.click(...mid);
-  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [front], "a click selects the stroke under it");
-  const handle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
-  assert.ok(handle, "no gizmo on the selected stroke");
+  const handle = await selectForGizmo(ada, front);
   const before = await placements(ada);
   await drag(ada, handle, [handle[0] + 150, handle[1]], 15);
   const moved = (await placements(ada))[front];

@@ -13,7 +13,7 @@
 // Run by scripts/test.sh as `node client/web/test/move-bytes.mjs`.
 import assert from "node:assert/strict";
 import { decodeClient, decodeServer } from "../src/codec.js";
-import { browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
+import { browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, until } from "./harness.mjs";
 
 const VIEW = { width: 1000, height: 700 };
 const GOAL = 200;
@@ -114,15 +114,7 @@ browserTest(async ({ proxy, browser }) => {
 
   // 1. The move, with the gizmo's X handle (Select, a click on the stroke, a drag).
   await ada.keyboard.press("v");
-  const mid = await ada.evaluate((id) => {
-    const st = window.penmesh.strokes.get(id);
-    const p = st.points[Math.floor(st.points.length / 2)];
-    return window.penmesh.toPage(p.x, p.y, st.placement);
-  }, stroke);
-  await ada.mouse.click(...mid);
-  assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [stroke], "a click selects the stroke");
-  const handle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
-  assert.ok(handle, "no gizmo on the selected stroke");
+  const handle = await selectForGizmo(ada, stroke);
   let marks = marksOf(ada, bob);
   await ada.mouse.move(...handle);
   await ada.mouse.down();
