@@ -16,6 +16,7 @@ mod latency;
 mod names;
 mod placement;
 mod placement_latency;
+mod placement_replicas;
 mod removal;
 mod replicas;
 mod sessions;

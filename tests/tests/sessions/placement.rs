@@ -131,7 +131,7 @@ pub(crate) fn matrix_body(p: &Placement) -> String {
 }
 
 /// The placement history of `stroke`: (placement, by, cause) each, oldest first.
-async fn history(
+pub(crate) async fn history(
     proxy: &TestProxy,
     session: &TestSession,
     stroke: StrokeId,
@@ -143,7 +143,7 @@ async fn history(
 }
 
 /// The placement of each stroke of the session's strokes list.
-async fn listed(proxy: &TestProxy, session: &TestSession) -> Vec<(StrokeId, Vec<u8>)> {
+pub(crate) async fn listed(proxy: &TestProxy, session: &TestSession) -> Vec<(StrokeId, Vec<u8>)> {
     let list = proxy.get_json(&format!("/v1/sessions/{}/strokes", session.session), session).await;
     let list: penmesh::protocol::StrokeList = serde_json::from_value(list).unwrap();
     list.strokes.iter().map(|s| (s.id, bits(&s.placement))).collect()
