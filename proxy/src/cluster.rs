@@ -73,6 +73,42 @@ enum Beat {
     Sent(Instant),
 }
 
+/// At most one resync of every local session per this time for unreadable notifications: a
+/// replica of another release (a rolling deploy) notifies every commit, and resyncing for each
+/// would read every watcher's history from the database over and over while the deploy lasts.
+const UNREADABLE_RESYNC_INTERVAL: Duration = Duration::from_secs(1);
+
+/// Notifications this replica could not read, and when it last resynced for them: the first
+/// resyncs at once, the ones after within [`UNREADABLE_RESYNC_INTERVAL`] together at its end
+/// (after the last of them, so nothing they told is missed).
+#[derive(Debug, Default)]
+struct Unreadable {
+    pending: u64,
+    last_resync: Option<Instant>,
+}
+
+impl Unreadable {
+    /// When the pending ones are to be resynced for, if any are.
+    fn due(&self) -> Option<Instant> {
+        (self.pending > 0)
+            .then(|| self.last_resync.map_or_else(Instant::now, |t| t + UNREADABLE_RESYNC_INTERVAL))
+    }
+
+    /// Resyncs every local session if the pending notifications are due.
+    fn resync_if_due(&mut self, fanout: &Fanout) {
+        if self.due().is_some_and(|at| Instant::now() >= at) {
+            tracing::warn!(
+                unreadable = self.pending,
+                "session events: notifications this replica cannot read (another release?); resyncing"
+            );
+            fanout.gap_all();
+            metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+            self.pending = 0;
+            self.last_resync = Some(Instant::now());
+        }
+    }
+}
+
 /// Starts listening (returns once `LISTEN` is in place) and dispatches until `stop`, checking
 /// the connection with a heartbeat every `heartbeat`; `deadline` bounds each (re)connection.
 pub async fn start_listener(
@@ -92,7 +128,9 @@ pub async fn start_listener(
     Ok(tokio::spawn(async move {
         let mut listener = Some(listener);
         let mut beat = Beat::Due(Instant::now() + heartbeat);
+        let mut unreadable = Unreadable::default();
         loop {
+            unreadable.resync_if_due(&fanout);
             let Some(current) = listener.as_mut() else {
                 // Listen again before resyncing, so nothing falls between the two.
                 match listen(&options, &beat_channel, deadline).await {
@@ -136,16 +174,19 @@ pub async fn start_listener(
                     }
                 }
             }
-            let wake = match beat {
+            let beat_at = match beat {
                 Beat::Due(at) => at,
                 Beat::Sent(at) => at + heartbeat,
             };
+            let wake = unreadable.due().map_or(beat_at, |at| at.min(beat_at));
             let received = tokio::select! {
                 _ = stop.cancelled() => return,
                 received = tokio::time::timeout_at(wake.into(), current.try_recv()) => received,
             };
             let Ok(received) = received else {
-                if let Beat::Sent(at) = beat {
+                if let Beat::Sent(at) = beat
+                    && Instant::now() >= beat_at
+                {
                     tracing::warn!(
                         waited_ms = at.elapsed().as_millis() as u64,
                         "session events: a heartbeat did not come back; listening again"
@@ -168,9 +209,8 @@ pub async fn start_listener(
                         Err(err) => {
                             // An event this replica cannot read is an event its clients miss:
                             // resync them from the database rather than lose it in silence.
-                            tracing::warn!(error = %err, "session events: unreadable payload; resyncing");
-                            fanout.gap_all();
-                            metrics::counter!("penmesh_listener_resyncs_total").increment(1);
+                            tracing::debug!(error = %err, "session events: unreadable payload");
+                            unreadable.pending += 1;
                         }
                     }
                 }

@@ -1,7 +1,7 @@
 //! Placements across replicas in the hard cases (issue 37): the same stroke placed at the same
 //! moment through both replicas, and a rolling deploy in which a replica of the previous release
-//! (whose `NOTIFY` payloads are of version 5) places a stroke. PostgreSQL only: both need two
-//! replicas, or a notification that only PostgreSQL carries.
+//! (whose `NOTIFY` payloads are of version 5) places a stroke, once and then at every commit.
+//! PostgreSQL only: these need two replicas, or a notification that only PostgreSQL carries.
 
 use penmesh::Placement;
 use penmesh::protocol::{ClientMessage, ServerMessage, SetPlacement, StrokeId};
@@ -165,4 +165,52 @@ async fn a_placement_notified_by_a_replica_of_the_previous_release_reaches_watch
     assert_eq!(watcher.view.strokes[&stroke].placement.map(|p| bits(&p)), Some(bits(&moved)));
     assert_eq!(watcher.view.n_lagged, 0, "a gap, not a lag");
     assert_eq!(listed(&b, &session).await, vec![(stroke, bits(&moved))]);
+}
+
+/// A rolling deploy, as it goes on: the replica of the previous release notifies every commit
+/// (here 100 payloads in about a second). Each is unreadable here; resyncing every connection
+/// for each would read every watcher's whole history from the database over and over while
+/// the deploy lasts. The resyncs are coalesced (at most one a second, the last after the last
+/// payload), and the watcher still ends with what is stored.
+#[tokio::test]
+#[cfg_attr(not(penmesh_postgres), ignore = "needs PostgreSQL: set PENMESH_TEST_POSTGRES_URL")]
+async fn a_stream_of_unreadable_payloads_resyncs_a_watcher_once_a_second_not_once_each() {
+    let (a, b) = two_replicas().await;
+    let session = a.create_session().await;
+    let mut drawer = Participant::join(&a, &session, "drawer").await;
+    let stroke = Uuid::new_v4();
+    draw_on(&mut drawer, stroke, 0, standing()).await;
+    let mut watcher = Participant::join(&b, &session, "watcher").await;
+
+    let by = drawer.welcome.participant;
+    let started = tokio::time::Instant::now();
+    let mut last = standing();
+    for k in 0..100 {
+        last = nth(100 + k);
+        let matrix = hex::encode(last.to_bytes());
+        execute_sql(
+            &a.db,
+            &format!(
+                "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
+                 VALUES ('{stroke}', decode('{matrix}', 'hex'), '{by}', {k}, 'set')"
+            ),
+        )
+        .await;
+        let payload = serde_json::json!({ "v": 5, "events": [] });
+        execute_sql(&a.db, &format!("SELECT pg_notify('penmesh_events', '{payload}')")).await;
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    let sent_for = started.elapsed();
+    watcher
+        .wait_for(|v| v.strokes[&stroke].placement.is_some_and(|p| bits(&p) == bits(&last)))
+        .await;
+    let resyncs = watcher.view.n_synced - 1;
+    // At most one a second while they come, one after the last, and one for the delay of the
+    // notifications on their way.
+    let most = 3 + sent_for.as_secs() as usize;
+    assert!(
+        (1..=most).contains(&resyncs),
+        "{resyncs} resyncs for 100 unreadable payloads in {sent_for:?} (at most {most})"
+    );
+    assert_eq!(watcher.view.n_lagged, 0);
 }
