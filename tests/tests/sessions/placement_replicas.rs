@@ -5,7 +5,7 @@
 
 use penmesh::Placement;
 use penmesh::protocol::{ClientMessage, ServerMessage, SetPlacement, StrokeId};
-use penmesh_e2e::{TestSession, count_rows, execute_sql};
+use penmesh_e2e::{TestDatabase, TestSession, count_rows, execute_sql};
 use uuid::Uuid;
 
 use crate::helpers::{Participant, two_replicas};
@@ -129,6 +129,31 @@ async fn the_same_stroke_placed_at_once_on_two_replicas_ends_the_same_everywhere
     }
 }
 
+/// What a replica of the previous release does when `by` places `stroke`, as its writer does it:
+/// the row, then the notification in version 5 (whose `placed` has no row id).
+async fn place_as_the_previous_release(
+    db: &TestDatabase,
+    session: Uuid,
+    (stroke, by): (StrokeId, Uuid),
+    placement: &Placement,
+    at: usize,
+) {
+    let matrix = hex::encode(placement.to_bytes());
+    execute_sql(
+        db,
+        &format!(
+            "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
+             VALUES ('{stroke}', decode('{matrix}', 'hex'), '{by}', {at}, 'set')"
+        ),
+    )
+    .await;
+    let payload = serde_json::json!({ "v": 5, "events": [{
+        "session": session, "event": "placed", "participant": by, "stroke": stroke,
+        "placement": { "matrix": placement.matrix() },
+    }]});
+    execute_sql(db, &format!("SELECT pg_notify('penmesh_events', '{payload}')")).await;
+}
+
 /// A rolling deploy: a replica of the previous release stores a placement and notifies it as
 /// version 5 (without the row's id). This release cannot read that payload, so it resyncs its
 /// connections from the database, and its watcher ends with the stored placement.
@@ -143,23 +168,9 @@ async fn a_placement_notified_by_a_replica_of_the_previous_release_reaches_watch
     let mut watcher = Participant::join(&b, &session, "watcher").await;
     assert_eq!(watcher.view.strokes[&stroke].placement.map(|p| bits(&p)), Some(bits(&standing())));
 
-    // What the old replica does, as its writer does it: the row, then its version-5 payload.
     let moved = nth(33);
     let by = drawer.welcome.participant;
-    let matrix = hex::encode(moved.to_bytes());
-    execute_sql(
-        &a.db,
-        &format!(
-            "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
-             VALUES ('{stroke}', decode('{matrix}', 'hex'), '{by}', 1, 'set')"
-        ),
-    )
-    .await;
-    let payload = serde_json::json!({ "v": 5, "events": [{
-        "session": session.session, "event": "placed", "participant": by, "stroke": stroke,
-        "placement": { "matrix": moved.matrix() },
-    }]});
-    execute_sql(&a.db, &format!("SELECT pg_notify('penmesh_events', '{payload}')")).await;
+    place_as_the_previous_release(&a.db, session.session, (stroke, by), &moved, 1).await;
 
     watcher.wait_for(|v| v.n_synced >= 2).await;
     assert_eq!(watcher.view.strokes[&stroke].placement.map(|p| bits(&p)), Some(bits(&moved)));
@@ -168,7 +179,7 @@ async fn a_placement_notified_by_a_replica_of_the_previous_release_reaches_watch
 }
 
 /// A rolling deploy, as it goes on: the replica of the previous release notifies every commit
-/// (here 100 payloads in about a second). Each is unreadable here; resyncing every connection
+/// (here 100 payloads in about 3 s). Each is unreadable here; resyncing every connection
 /// for each would read every watcher's whole history from the database over and over while
 /// the deploy lasts. The resyncs are coalesced (at most one a second, the last after the last
 /// payload), and the watcher still ends with what is stored.
@@ -187,17 +198,7 @@ async fn a_stream_of_unreadable_payloads_resyncs_a_watcher_once_a_second_not_onc
     let mut last = standing();
     for k in 0..100 {
         last = nth(100 + k);
-        let matrix = hex::encode(last.to_bytes());
-        execute_sql(
-            &a.db,
-            &format!(
-                "INSERT INTO stroke_placements (stroke_id, matrix, set_by, set_at, cause) \
-                 VALUES ('{stroke}', decode('{matrix}', 'hex'), '{by}', {k}, 'set')"
-            ),
-        )
-        .await;
-        let payload = serde_json::json!({ "v": 5, "events": [] });
-        execute_sql(&a.db, &format!("SELECT pg_notify('penmesh_events', '{payload}')")).await;
+        place_as_the_previous_release(&a.db, session.session, (stroke, by), &last, k).await;
         tokio::time::sleep(std::time::Duration::from_millis(10)).await;
     }
     let sent_for = started.elapsed();
