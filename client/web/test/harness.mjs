@@ -197,15 +197,19 @@ export async function browserTest(main) {
   }
 }
 
-/// Clicks the middle sample of `stroke` on `page` (the Select tool on), checks that it alone is
-/// selected, and returns where the gizmo's `axis` handle is on the page.
-export async function selectForGizmo(page, stroke, axis = "X") {
-  const mid = await page.evaluate((id) => {
+/// Where the middle sample of `stroke` is on `page`, in its plane.
+export function strokeMiddle(page, stroke) {
+  return page.evaluate((id) => {
     const st = window.penmesh.strokes.get(id);
     const p = st.points[Math.floor(st.points.length / 2)];
     return window.penmesh.toPage(p.x, p.y, st.placement);
   }, stroke);
-  await page.mouse.click(...mid);
+}
+
+/// Clicks the middle sample of `stroke` on `page` (the Select tool on), checks that it alone is
+/// selected, and returns where the gizmo's `axis` handle is on the page.
+export async function selectForGizmo(page, stroke, axis = "X") {
+  await page.mouse.click(...(await strokeMiddle(page, stroke)));
   assert.deepEqual(await page.evaluate(() => window.penmesh.selected), [stroke], "a click selects the stroke under it");
   const handle = await page.evaluate((a) => window.penmesh.gizmoHandle(a), axis);
   assert.ok(handle, "no gizmo on the selected stroke");

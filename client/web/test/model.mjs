@@ -9,7 +9,7 @@
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, strokeMiddle, until } from "./harness.mjs";
 
 const VIEW = { width: 1000, height: 700 };
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
@@ -188,12 +188,7 @@ browserTest(async ({ proxy, browser }) => {
   const dot = picked.placement[8] * moved[8] + picked.placement[9] * moved[9] + picked.placement[10] * moved[10];
   assert.ok(Math.abs(Math.abs(dot) - 1) < 1e-6, `the plane through three points of the grid is the grid's (normal · normal = ${dot})`);
   await ada.locator("#plane").selectOption("front");
-  const midNow = await ada.evaluate((id) => {
-    const s = window.penmesh.strokes.get(id);
-    const p = s.points[Math.floor(s.points.length / 2)];
-    return window.penmesh.toPage(p.x, p.y, s.placement);
-  }, front);
-  await ada.mouse.click(...midNow);
+  await ada.mouse.click(...(await strokeMiddle(ada, front)));
   assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [front], "the moved back selected again");
 
   // 4. Duplicate (Ctrl+D): a new stroke of Ada's, offset, selected.
