@@ -12,7 +12,7 @@ use serde::Deserialize;
 use tokio::time::Instant;
 
 use super::Plan;
-use super::pen::{Counters, PenResult, Shared, pen, stroke_pool};
+use super::pen::{AckSecond, Counters, PenResult, Shared, pen, stroke_pool};
 use super::procstat;
 use super::summary::*;
 
@@ -151,6 +151,12 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         total.ack_us.add(&r.ack_us).expect("same histogram bounds");
         total.done_us.add(&r.done_us).expect("same histogram bounds");
         total.run_end_done_us.add(&r.run_end_done_us).expect("same histogram bounds");
+        if total.ack_seconds.len() < r.ack_seconds.len() {
+            total.ack_seconds.resize(r.ack_seconds.len(), AckSecond::default());
+        }
+        for (sum, second) in total.ack_seconds.iter_mut().zip(&r.ack_seconds) {
+            sum.add(second);
+        }
         errors.count += r.errors.len() as u64;
         for e in r.errors {
             if errors.first.len() < 5 && !errors.first.contains(&e) {
@@ -224,6 +230,17 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
             sample_to_ack: Percentiles::of(&total.ack_us),
             pen_up_to_stroke_done: Percentiles::of(&total.done_us),
             run_end_to_stroke_done: Percentiles::of(&total.run_end_done_us),
+            sample_to_ack_by_second: total
+                .ack_seconds
+                .iter()
+                .enumerate()
+                .map(|(second, t)| AcksInSecond {
+                    second: second as u64,
+                    acked: t.acked,
+                    slow: t.slow,
+                    max_ms: t.max_us as f64 / 1000.0,
+                })
+                .collect(),
         },
         errors,
         server,

@@ -70,6 +70,42 @@ pub(super) struct PenResult {
     pub(super) done_us: Histogram<u64>,
     /// The same for the strokes lifted because the run ended.
     pub(super) run_end_done_us: Histogram<u64>,
+    /// The acknowledged samples by the second of the run they were sent in: when a run's slow
+    /// spell was (a p99 alone does not say).
+    pub(super) ack_seconds: Vec<AckSecond>,
+}
+
+/// The samples sent in one second of the run and acknowledged: how many, how many waited
+/// [`SLOW_ACK_US`] or more, and the longest wait.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub(super) struct AckSecond {
+    pub(super) acked: u64,
+    pub(super) slow: u64,
+    pub(super) max_us: u64,
+}
+
+/// An acknowledgement this late is slow (the pinned goal's p99 bound).
+pub(super) const SLOW_ACK_US: u64 = 50_000;
+
+impl AckSecond {
+    pub(super) fn add(&mut self, other: &AckSecond) {
+        self.acked += other.acked;
+        self.slow += other.slow;
+        self.max_us = self.max_us.max(other.max_us);
+    }
+}
+
+/// Adds `n` samples acknowledged after `latency_us` to the tally of `second`.
+fn tally(seconds: &mut Vec<AckSecond>, second: usize, latency_us: u64, n: u64) {
+    if seconds.len() <= second {
+        seconds.resize(second + 1, AckSecond::default());
+    }
+    let tally = &mut seconds[second];
+    tally.acked += n;
+    if latency_us >= SLOW_ACK_US {
+        tally.slow += n;
+    }
+    tally.max_us = tally.max_us.max(latency_us);
 }
 
 impl PenResult {
@@ -85,6 +121,7 @@ impl PenResult {
             ack_us: histogram(),
             done_us: histogram(),
             run_end_done_us: histogram(),
+            ack_seconds: Vec::new(),
         }
     }
 }
@@ -287,7 +324,10 @@ async fn draw(
                                 }
                                 let n = end - u.acked.min(end);
                                 u.batches.pop_front();
-                                let _ = result.ack_us.record_n(elapsed_us(sent_at, now), n);
+                                let latency_us = elapsed_us(sent_at, now);
+                                let _ = result.ack_us.record_n(latency_us, n);
+                                let second = sent_at.saturating_duration_since(shared.start).as_secs();
+                                tally(&mut result.ack_seconds, second as usize, latency_us, n);
                                 u.acked = end;
                                 result.acked += n;
                                 counters.acked.fetch_add(n, Ordering::Relaxed);
@@ -334,5 +374,26 @@ async fn draw(
             }
             _ = tokio::time::sleep_until(shared.deadline), if shared.idle && !finished => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn acks_are_tallied_in_the_second_they_were_sent_and_slow_from_the_bound_on() {
+        let mut seconds = Vec::new();
+        tally(&mut seconds, 2, SLOW_ACK_US - 1, 3);
+        tally(&mut seconds, 2, SLOW_ACK_US, 2);
+        tally(&mut seconds, 0, 10, 1);
+        let second = |acked, slow, max_us| AckSecond { acked, slow, max_us };
+        assert_eq!(
+            seconds,
+            vec![second(1, 0, 10), AckSecond::default(), second(5, 2, SLOW_ACK_US)]
+        );
+        let mut sum = second(1, 1, 70_000);
+        sum.add(&seconds[2]);
+        assert_eq!(sum, second(6, 3, 70_000));
     }
 }

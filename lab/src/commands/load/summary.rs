@@ -76,6 +76,21 @@ pub struct Latencies {
     /// apart so that it does not pass for the latency of ordinary pen-ups.
     #[serde(default)]
     pub run_end_to_stroke_done: Percentiles,
+    /// Sample to `Ack` second by second (by the second each sample was sent in, from the
+    /// run's start): where in the run the slow acknowledgements were.
+    #[serde(default)]
+    pub sample_to_ack_by_second: Vec<AcksInSecond>,
+}
+
+/// The samples sent in one second of a run and acknowledged.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct AcksInSecond {
+    /// Seconds from the run's start.
+    pub second: u64,
+    pub acked: u64,
+    /// Of those, acknowledged `SLOW_ACK_US` or more after they were sent (`pen.rs`).
+    pub slow: u64,
+    pub max_ms: f64,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
