@@ -70,6 +70,11 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         clients: plan.clients,
         counters: Counters::default(),
     });
+    // The proxy's commits and CPU second by second (the ceiling has no writer to read).
+    let (stop_reading, stop) = tokio::sync::oneshot::channel();
+    let reader = (!is_ceiling).then(|| {
+        tokio::spawn(super::commits::read_until(http.clone(), base.to_string(), pid, start, stop))
+    });
     let mut pens = tokio::task::JoinSet::new();
     for pen_idx in 0..plan.clients {
         let session = &sessions[pen_idx % sessions.len()];
@@ -136,6 +141,11 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         }
     }
     progress.finish_and_clear();
+    let _ = stop_reading.send(());
+    let server_by_second = match reader {
+        Some(reader) => super::commits::by_second(&reader.await.context("the /metrics reader")?),
+        None => Vec::new(),
+    };
 
     let mut total = PenResult::new();
     let mut connections = Connections::default();
@@ -253,6 +263,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
             peak_rss_kb: self_hwm,
             kb_per_connection: None,
         },
+        server_by_second,
     })
 }
 

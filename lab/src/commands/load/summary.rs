@@ -20,6 +20,22 @@ pub struct Summary {
     pub errors: Errors,
     pub server: Option<ProcessStats>,
     pub load_tool: ProcessStats,
+    /// The proxy second by second (not for the ceiling, which has no writer).
+    #[serde(default)]
+    pub server_by_second: Vec<ServerSecond>,
+}
+
+/// The proxy in one second of a run: its writer's commits (from its `/metrics`) and its CPU.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ServerSecond {
+    /// Seconds from the run's start, at the end of this second.
+    pub second: u64,
+    pub commits: u64,
+    pub mean_commit_ms: f64,
+    pub samples_per_commit: f64,
+    pub requests_per_commit: f64,
+    /// Of one core; 0 when the run did not start the proxy.
+    pub cpu_percent: f64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
