@@ -12,7 +12,7 @@ use serde::Deserialize;
 use tokio::time::Instant;
 
 use super::Plan;
-use super::pen::{AckSecond, Counters, PenResult, Shared, pen, stroke_pool};
+use super::pen::{Counters, PenResult, Shared, pen, stroke_pool};
 use super::procstat;
 use super::summary::*;
 
@@ -161,12 +161,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
         total.ack_us.add(&r.ack_us).expect("same histogram bounds");
         total.done_us.add(&r.done_us).expect("same histogram bounds");
         total.run_end_done_us.add(&r.run_end_done_us).expect("same histogram bounds");
-        if total.ack_seconds.len() < r.ack_seconds.len() {
-            total.ack_seconds.resize(r.ack_seconds.len(), AckSecond::default());
-        }
-        for (sum, second) in total.ack_seconds.iter_mut().zip(&r.ack_seconds) {
-            sum.add(second);
-        }
+        total.ack_seconds.merge(&r.ack_seconds);
         errors.count += r.errors.len() as u64;
         for e in r.errors {
             if errors.first.len() < 5 && !errors.first.contains(&e) {
@@ -242,6 +237,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
             run_end_to_stroke_done: Percentiles::of(&total.run_end_done_us),
             sample_to_ack_by_second: total
                 .ack_seconds
+                .0
                 .iter()
                 .enumerate()
                 .map(|(second, t)| AcksInSecond {

@@ -72,7 +72,7 @@ pub(super) struct PenResult {
     pub(super) run_end_done_us: Histogram<u64>,
     /// The acknowledged samples by the second of the run they were sent in: when a run's slow
     /// spell was (a p99 alone does not say).
-    pub(super) ack_seconds: Vec<AckSecond>,
+    pub(super) ack_seconds: AckSeconds,
 }
 
 /// The samples sent in one second of the run and acknowledged: how many, how many waited
@@ -88,24 +88,38 @@ pub(super) struct AckSecond {
 pub(super) const SLOW_ACK_US: u64 = 50_000;
 
 impl AckSecond {
-    pub(super) fn add(&mut self, other: &AckSecond) {
+    fn add(&mut self, other: &AckSecond) {
         self.acked += other.acked;
         self.slow += other.slow;
         self.max_us = self.max_us.max(other.max_us);
     }
 }
 
-/// Adds `n` samples acknowledged after `latency_us` to the tally of `second`.
-fn tally(seconds: &mut Vec<AckSecond>, second: usize, latency_us: u64, n: u64) {
-    if seconds.len() <= second {
-        seconds.resize(second + 1, AckSecond::default());
+/// [`AckSecond`]s, one for each second of the run from its start.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub(super) struct AckSeconds(pub(super) Vec<AckSecond>);
+
+impl AckSeconds {
+    /// The tally of `second`, made (with those before it) when it is the first.
+    fn at(&mut self, second: usize) -> &mut AckSecond {
+        if self.0.len() <= second {
+            self.0.resize(second + 1, AckSecond::default());
+        }
+        &mut self.0[second]
     }
-    let tally = &mut seconds[second];
-    tally.acked += n;
-    if latency_us >= SLOW_ACK_US {
-        tally.slow += n;
+
+    /// Adds `n` samples acknowledged after `latency_us` to the tally of `second`.
+    fn record(&mut self, second: usize, latency_us: u64, n: u64) {
+        let slow = if latency_us >= SLOW_ACK_US { n } else { 0 };
+        self.at(second).add(&AckSecond { acked: n, slow, max_us: latency_us });
     }
-    tally.max_us = tally.max_us.max(latency_us);
+
+    /// Adds another pen's tallies, second by second.
+    pub(super) fn merge(&mut self, other: &AckSeconds) {
+        for (second, tally) in other.0.iter().enumerate() {
+            self.at(second).add(tally);
+        }
+    }
 }
 
 impl PenResult {
@@ -121,7 +135,7 @@ impl PenResult {
             ack_us: histogram(),
             done_us: histogram(),
             run_end_done_us: histogram(),
-            ack_seconds: Vec::new(),
+            ack_seconds: AckSeconds::default(),
         }
     }
 }
@@ -327,7 +341,7 @@ async fn draw(
                                 let latency_us = elapsed_us(sent_at, now);
                                 let _ = result.ack_us.record_n(latency_us, n);
                                 let second = sent_at.saturating_duration_since(shared.start).as_secs();
-                                tally(&mut result.ack_seconds, second as usize, latency_us, n);
+                                result.ack_seconds.record(second as usize, latency_us, n);
                                 u.acked = end;
                                 result.acked += n;
                                 counters.acked.fetch_add(n, Ordering::Relaxed);
@@ -383,17 +397,18 @@ mod tests {
 
     #[test]
     fn acks_are_tallied_in_the_second_they_were_sent_and_slow_from_the_bound_on() {
-        let mut seconds = Vec::new();
-        tally(&mut seconds, 2, SLOW_ACK_US - 1, 3);
-        tally(&mut seconds, 2, SLOW_ACK_US, 2);
-        tally(&mut seconds, 0, 10, 1);
+        let mut seconds = AckSeconds::default();
+        seconds.record(2, SLOW_ACK_US - 1, 3);
+        seconds.record(2, SLOW_ACK_US, 2);
+        seconds.record(0, 10, 1);
         let second = |acked, slow, max_us| AckSecond { acked, slow, max_us };
         assert_eq!(
-            seconds,
+            seconds.0,
             vec![second(1, 0, 10), AckSecond::default(), second(5, 2, SLOW_ACK_US)]
         );
-        let mut sum = second(1, 1, 70_000);
-        sum.add(&seconds[2]);
-        assert_eq!(sum, second(6, 3, 70_000));
+        let mut sum = AckSeconds(vec![second(1, 1, 70_000)]);
+        sum.merge(&seconds);
+        assert_eq!(sum.0[0], second(2, 1, 70_000));
+        assert_eq!(sum.0[2], second(5, 2, SLOW_ACK_US));
     }
 }
