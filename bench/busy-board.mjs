@@ -1,6 +1,6 @@
 // A busy board (issue 26): ten people's 1,000 real strokes drawn into one session through the
 // real protocol, then the session's page opened in headless Chromium (SwiftShader WebGL), and
-// the five numbers of docs/performance.md ("A busy board"):
+// the five numbers of docs/performance.md ("The busy board"):
 //   1. time until the view is complete (every mesh in the scene and drawn), from navigation start;
 //   2. bytes transferred to open it (HTTP as received, headers included, and WebSocket frames);
 //   3. HTTP requests (the WebSocket is one connection more);
@@ -22,7 +22,7 @@
 // What bounds an orbit frame: `--orbit-profile` writes the first open's CPU profile during the
 // orbit; `--frame-costs` times frames drawn back to back in the page (each waited for with a
 // one-pixel readPixels), the view turned a little between them, as the page is and with one
-// thing changed at a time (docs/performance.md "What bounds an orbit frame").
+// thing changed at a time (docs/performance-log.md "What bounds an orbit frame").
 // `--page DIR` serves the page's script from DIR/app.js (`node client/web/build.mjs DIR` in a
 // checkout of another commit) instead of the proxy's, so two pages can be paired with one
 // build of the Rust; both arms of a pair should then use it (it is sent unzipped).
@@ -258,7 +258,8 @@ async function measurePage(context, url, expected) {
     ),
   );
   // The main thread's long tasks from the bundle's arrival until the view was complete: the
-  // longest is the one that reads the bundle's GLBs and merges them (docs/performance.md).
+  // longest is the one that reads the bundle's GLBs and merges them (docs/performance-log.md,
+  // "A GLB reader of our own layout").
   const longTasks = await page.evaluate(() => window.__longTasks);
   const afterBundle = longTasks.filter(([start, duration]) => start + duration >= (arrived.bundle_ms ?? 0) && start <= completeMs);
   const mainThread = {

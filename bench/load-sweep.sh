@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The load sweep of docs/performance.md: the proxy and the ceiling server at rising pen counts,
+# The load sweep of docs/performance-log.md: the proxy and the ceiling server at rising pen counts,
 # the same settings for both (200 Hz, 12 ms batches, 30 s, one session per pen), then the idle
 # memory run, the table and the plots.
 # Usage: bench/load-sweep.sh [OUT_DIR] [PENS...]   (default docs/load, 250 500 1000 1500 2000)

@@ -1,4 +1,4 @@
-// The page's work to merge a board's meshes (docs/performance.md, "What bounds an orbit frame"
+// The page's work to merge a board's meshes (docs/performance-log.md, "What bounds an orbit frame"
 // and the three planes): the CPU time of putting every mesh of a saved bundle into the merged
 // geometries, in Node (no WebGL: only the page's JavaScript, the part that runs before the GPU
 // upload), for this checkout's client/web/src/batch.js (groups per person and placement) and an

@@ -136,7 +136,7 @@ pub struct Config {
 
     /// How much lower than the group-commit writer's the priority of the threads that serve the
     /// connections is (Linux nice steps, 0 to 19; 0: the same). Past the knee every connection
-    /// waits for the writer, so the writer should get the CPU first (see docs/performance.md).
+    /// waits for the writer, so the writer should get the CPU first (see docs/performance-log.md).
     #[arg(long, env = "PENMESH_WORKER_NICE", default_value_t = 10, value_parser = clap::value_parser!(i32).range(0..=19))]
     pub worker_nice: i32,
 

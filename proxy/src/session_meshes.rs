@@ -1,7 +1,7 @@
 //! `GET /v1/sessions/{session}/meshes`: every stored mesh of a session in one response (a mesh
 //! bundle, `penmesh::protocol::encode_mesh_bundle`), so a page opens a session with one
 //! request instead of one per mesh. Gzipped for a client that accepts it: plain GLBs (float
-//! positions and normals) shrink to about half (`docs/performance.md`).
+//! positions and normals) shrink to about half (`docs/performance-log.md`, "A busy board").
 //!
 //! What the bundle holds is read first without the meshes ([`BundleEntry`]: stroke, drawer,
 //! size, when stored, counts). The ETag is a hash of that, so a client that sends it back in

@@ -1,7 +1,7 @@
 // A stroke's GLB read straight into the flat arrays the page merges (batch.js): positions and
 // normals in the scene's frame and indices, exactly what `flatten` makes of three.js's
 // GLTFLoader scene, without the scene graph, materials and buffer attributes the loader builds
-// per mesh (docs/performance.md, "A GLB reader of our own layout"). It reads what penmesh
+// per mesh (docs/performance-log.md, "A GLB reader of our own layout"). It reads what penmesh
 // writes (shared/src/glb.rs: quantised attributes with KHR_mesh_quantization, buffer views
 // compressed with EXT_meshopt_compression, or plain floats) and the like from other tools:
 // any component type and normalised flag for POSITION, NORMAL and the indices, interleaved or

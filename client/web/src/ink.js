@@ -52,7 +52,7 @@ export class Ink {
 
   redraw() {
     // An empty overlay stays as it is: clearing it again on every camera move made the
-    // compositor take the canvas anew each frame (the busy board's orbit, docs/performance.md).
+    // compositor take the canvas anew each frame (the busy board's orbit, docs/performance-log.md).
     if (this.paths.size === 0 && this.blank) return;
     this.blank = this.paths.size === 0;
     const ctx = this.ctx;

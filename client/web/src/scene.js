@@ -52,7 +52,7 @@ const MIN_WIDTH_PX = 1.5;
 // out of the outline: where 2r is under MIN_WIDTH_PX on screen, the vertex moves out along it.
 // The widening costs little per vertex, with no branch (SwiftShader shades vertices on the CPU;
 // the busy board's orbit frame is bound by its work per triangle and per covered pixel, and
-// a plain vertex shader saves about a tenth of it: docs/performance.md, "What bounds an orbit
+// a plain vertex shader saves about a tenth of it: docs/performance-log.md, "What bounds an orbit
 // frame"). `minHalfWidth` is half of
 // MIN_WIDTH_PX in plane units per unit of depth (set by SceneView.resize), so at a vertex the
 // least half-width is minHalfWidth · depth, and the move, made in view space, needs no second
@@ -87,7 +87,7 @@ function softwareWebGL(gl) {
 }
 
 /// The renderer: multisampled on a GPU, not in software WebGL, where multisampling costs a
-/// frame about 2.3 times as much (docs/performance.md). The first context, without
+/// frame about 2.3 times as much (docs/performance-log.md). The first context, without
 /// multisampling, tells which: a software one is kept (another context would cost about 0.4 s
 /// there, before anything is shown); on a GPU the canvas is swapped for a fresh one with a
 /// multisampled context (a context's attributes are fixed when it is made), cheap there.

@@ -55,7 +55,7 @@ export function startSession(session, token) {
   const api = new Api(token);
   // The session's meshes and its history are asked for before the 3D view is set up: creating a
   // WebGL context is slow in software WebGL (about 0.4 s here), and the proxy builds both
-  // meanwhile (docs/performance.md, "A busy board").
+  // meanwhile (docs/performance-log.md, "The busy board again, 2026-11-25").
   const bundleRequest = api.meshBundle(session);
   bundleRequest.catch(() => {}); // its failure is reported where it is awaited (loadBundle)
   // Asked once (the name field is offered first), then kept; a guest name until then.

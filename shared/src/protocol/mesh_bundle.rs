@@ -1,6 +1,6 @@
 //! The body of `GET /v1/sessions/{session}/meshes`: every stored mesh of a session in one
 //! response, [`MESH_BUNDLE_CONTENT_TYPE`]. Binary, since a mesh is a binary GLB and base64 in
-//! JSON would add a third to it (`docs/performance.md` measures both):
+//! JSON would add a third to it (`docs/performance-log.md`, "A busy board", measures both):
 //!
 //! ```text
 //! "PMB1"                       4 bytes: magic and layout version

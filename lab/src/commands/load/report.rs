@@ -1,4 +1,4 @@
-//! `penmesh-lab load-report`: the tables and plots of `docs/performance.md` from several runs.
+//! `penmesh-lab load-report`: the tables and plots of `docs/performance-log.md` from several runs.
 
 use std::path::PathBuf;
 
@@ -8,8 +8,8 @@ use clap::Args;
 use super::summary::Summary;
 use crate::plot::{LineChart, Series, SeriesLabelPosition};
 
-/// `penmesh-lab load-report` (hidden): the tables and plots of `docs/performance.md` from the JSON
-/// summaries of several runs (a sweep of client counts, against the proxy and the ceiling).
+/// `penmesh-lab load-report` (hidden): the tables and plots of `docs/performance-log.md` from the
+/// JSON summaries of several runs (a sweep of client counts, against the proxy and the ceiling).
 #[derive(Debug, Args)]
 pub struct LoadReportArgs {
     /// Summaries written by `penmesh-lab load --json`.
