@@ -62,6 +62,9 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # The Export menu (issue 39): the scene valid to the glTF-Validator and its extras to
 # docs/model-format.schema.json, the STL whole, a GLB dropped on a new session imported.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/export.mjs
+# The model's orientation (issue 50): an F and a standing stroke drawn on the page read the same
+# in the GLB, the STL and the 3MF as on the page.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/orientation.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)
