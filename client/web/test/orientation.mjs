@@ -20,8 +20,6 @@ import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.j
 import { ARTIFACTS, browserTest, log, newSession, until } from "./harness.mjs";
 
 const VIEW = { width: 1000, height: 700 };
-// Orbit: radians per CSS pixel dragged (camera.js ORBIT_PER_PX).
-const ORBIT_PER_PX = 0.006;
 
 /// A pen stroke through page points `corners`, a sample every 6 px or so.
 async function polyline(cdp, corners) {
@@ -129,16 +127,11 @@ browserTest(async ({ proxy, browser }) => {
   await polyline(cdp, [[300, 150], [500, 150]]);
   await polyline(cdp, [[300, 300], [420, 300]]);
   await until("the F's three meshes", () => page.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
-  // The Front plane, seen from 60° above: a stroke drawn up it from the board to well above
-  // it, right of the F.
+  // The Front plane, seen in the three-quarter view (4): a stroke drawn up it from the board
+  // to well above it, right of the F.
   await page.locator("#plane").selectOption("front");
   const plane = (await page.evaluate(() => window.penmesh.workPlane)).placement;
-  await page.keyboard.press("o");
-  await page.mouse.move(500, 200);
-  await page.mouse.down();
-  await page.mouse.move(500, 200 + Math.PI / 3 / ORBIT_PER_PX, { steps: 12 });
-  await page.mouse.up();
-  await page.keyboard.press("Escape");
+  await page.keyboard.press("4");
   // Its foot and top: points of its plane (x, y) with y the height above the board.
   const up = await page.evaluate(([plane]) => [[650, 0], [650, 200]].map(([x, y]) => window.penmesh.toPage(x, y, plane)), [plane]);
   await polyline(cdp, up);
