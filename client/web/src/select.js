@@ -153,30 +153,55 @@ export class Selection {
   }
 
   // --- picking ---------------------------------------------------------------------------------
-  /// The shown, finished stroke with a mesh nearest to page point (`x`, `y`) within its width
-  /// and PICK_PX, or null: its retained points projected through its placement. Of strokes as
-  /// near on the page (within a pixel: a wall standing on the floor's edge, seen from above),
-  /// the one nearer the camera.
+  /// The stroke under page point (`x`, `y`): the first whose mesh the pointer's ray meets (of
+  /// strokes on one line seen from above, such as a wall standing on the floor's edge, the one
+  /// nearer the camera), else the nearest within its width and PICK_PX on the page (a thin
+  /// stroke), else null.
   pick(x, y) {
+    return this.rayPick(x, y) ?? this.nearestPick(x, y);
+  }
+
+  /// The shown stroke whose mesh the ray through page point (`x`, `y`) meets first, or null.
+  rayPick(x, y) {
+    const hit = this.rayHit(x, y);
+    if (!hit) return null;
+    for (const [id, s] of this.view.strokes) {
+      if (s.removed || !s.mesh) continue;
+      if (s.lifted === hit.object) return id;
+      const r = s.mesh;
+      if (!s.lifted && r.group.mesh === hit.object && hit.face.a >= r.firstVertex && hit.face.a < r.firstVertex + r.vertexCount) return id;
+    }
+    return null;
+  }
+
+  /// The first intersection of the ray through page point (`x`, `y`) with the strokes' meshes.
+  rayHit(x, y) {
+    const ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
+    const meshes = [];
+    for (const mesh of this.view.groups.objects) {
+      mesh.geometry.boundingSphere = null; // it grew since: worked out again
+      meshes.push(mesh);
+    }
+    for (const s of this.view.strokes.values()) if (s.lifted && !s.removed) meshes.push(s.lifted);
+    return ray.intersectObjects(meshes, false)[0] || null;
+  }
+
+  /// The shown, finished stroke with a mesh nearest to page point (`x`, `y`) within its width
+  /// and PICK_PX, or null: its retained points projected through its placement.
+  nearestPick(x, y) {
     let best = null;
     let bestDistance = Infinity;
-    let bestDepth = Infinity;
     const scale = this.view.pixelsPerUnit();
-    const camera = this.view.camera.position;
-    const v = new THREE.Vector3();
     for (const [id, s] of this.view.strokes) {
       if (s.removed || !s.mesh) continue;
       const reach = PICK_PX + (s.brush ? s.brush.size / 2 : 4) * scale;
       const page = s.points.map((p) => this.view.toPage(p.x, p.y, s.placement));
-      const m = matrixOf(s.placement);
       for (let i = 0; i < page.length; i++) {
         const d = segmentDistance([x, y], page[i], page[Math.min(i + 1, page.length - 1)]);
-        if (d > reach || d > bestDistance + 1) continue;
-        const depth = v.copy(s.points[i]).applyMatrix4(m).applyMatrix4(FLIP).distanceTo(camera);
-        if (d < bestDistance - 1 || depth < bestDepth) {
+        if (d <= reach && d < bestDistance) {
           best = id;
-          bestDistance = Math.min(d, bestDistance);
-          bestDepth = depth;
+          bestDistance = d;
         }
       }
     }
@@ -198,15 +223,7 @@ export class Selection {
   /// The point of the model under page point (`x`, `y`), in session space: on a stroke's mesh,
   /// else on the work plane; null when neither is there.
   pointAt(x, y) {
-    const ray = new THREE.Raycaster();
-    ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
-    const meshes = [];
-    for (const mesh of this.view.groups.objects) {
-      mesh.geometry.boundingSphere = null; // it grew since: worked out again
-      meshes.push(mesh);
-    }
-    for (const s of this.view.strokes.values()) if (s.lifted) meshes.push(s.lifted);
-    const hit = ray.intersectObjects(meshes, false)[0];
+    const hit = this.rayHit(x, y);
     if (hit) return hit.point.applyMatrix4(FLIP);
     const at = this.view.toStroke(x, y);
     return at ? new THREE.Vector3(at[0], at[1], 0).applyMatrix4(matrixOf(this.view.workPlacement)) : null;
@@ -527,6 +544,7 @@ function segmentDistance([px, py], [ax, ay], [bx, by]) {
 export function selectTool() {
   let state = "idle"; // idle | pointing | boxing | dragging
   let start = null; // the sample where the pointer went down
+  let last = null; // and where it is now
   let shift = false;
   let box = null; // the box's element on the page while boxing
   addEventListener("keydown", (e) => (shift = e.shiftKey));
@@ -567,16 +585,23 @@ export function selectTool() {
     },
     down(editor, pointer, sample) {
       start = sample;
+      last = sample;
       state = editor.selection.grab(sample.clientX, sample.clientY) ? "dragging" : "pointing";
     },
     move(editor, pointer, samples) {
       const s = samples[samples.length - 1];
+      last = s;
       if (state === "dragging") return editor.selection.moveGrab(s.clientX, s.clientY);
       if (state === "pointing" && Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY) >= BOX_SLOP_PX) state = "boxing";
       if (state === "boxing") showBox(start, s);
     },
     up(editor) {
       const selection = editor.selection;
+      // A press on the gizmo that did not move is a click: it picks what is under it.
+      if (state === "dragging" && Math.hypot(last.clientX - start.clientX, last.clientY - start.clientY) < BOX_SLOP_PX) {
+        stop(editor);
+        state = "pointing";
+      }
       if (state === "pointing" && selection.picking) selection.pickPoint(start.clientX, start.clientY);
       else if (state === "pointing") {
         const id = selection.pick(start.clientX, start.clientY);
