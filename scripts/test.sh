@@ -72,6 +72,9 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # on the walls, one manifold STL part, a second page live, undo of typed moves, repeats,
 # duplicates, deletes and imports.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/house.mjs
+# The work plane at the model (the Plane tool, Front through the selection, a typed offset,
+# [ and ] by the camera), the eraser on any plane, arrow nudges, the people list's colours.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/workplane.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

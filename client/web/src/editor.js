@@ -133,6 +133,25 @@ export class Editor {
     }
   }
 
+  // --- the work plane -------------------------------------------------------------------------
+  /// The Plane tool's click at page point (`x`, `y`): the work plane on the stroke there, or on
+  /// the board through the ground's point there; then back to drawing.
+  pickWorkPlane(x, y) {
+    const selection = this.selection;
+    const id = selection.rayPick(x, y) ?? selection.nearestPick(x, y);
+    if (id) {
+      this.workPlane.set("stroke", this.view.strokes.get(id).placement);
+      this.notice("drawing on that stroke's plane");
+    } else {
+      const at = this.view.rig.toPlane(x, y);
+      if (!at) return this.notice("nothing there: click a stroke or the ground");
+      this.workPlane.set("board");
+      this.workPlane.groundPoint = at;
+      this.notice("drawing on the board (Front or Side next go through where you clicked)");
+    }
+    this.setTool("draw");
+  }
+
   // --- undo and redo -------------------------------------------------------------------------
   get canUndo() {
     return this.takeBack.undone.length > 0;

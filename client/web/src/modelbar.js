@@ -5,6 +5,7 @@
 // turn (one ring at a time: z, x, y, off), S snap, M mirror, Ctrl/Cmd+D duplicate (in place;
 // again after a move: the move repeated), D drop onto the work plane, Delete or Backspace take
 // the selection back, arrows nudge it (Shift: x10) (V, the Select tool, is tools.js's).
+import * as THREE from "three";
 import { GRID_CELL, GRID_SNAP } from "./workplane.js";
 
 const $ = (id) => document.getElementById(id);
@@ -13,9 +14,30 @@ const ARROWS = { ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], Arrow
 
 export function attachModelBar(editor, { workPlane, selection }) {
   const plane = $("plane");
+  const offset = $("plane-offset");
   const showPlane = () => {
     plane.value = workPlane.kind;
     plane.title = `the work plane the pen draws on (its grid)${workPlane.offset ? `, moved ${workPlane.offset} along its normal` : ""}`;
+    if (document.activeElement !== offset) offset.value = String(Math.round(workPlane.offset * 10) / 10);
+  };
+  offset.onkeydown = (e) => {
+    e.stopPropagation(); // typing, not the page's keys
+    if (e.key === "Enter" || e.key === "Escape") offset.blur();
+    if (e.key === "Escape") showPlane();
+  };
+  offset.onchange = () => {
+    const v = Number(offset.value);
+    if (offset.value !== "" && Number.isFinite(v)) workPlane.setOffset(v);
+    showPlane();
+  };
+  // Where a named plane (Front, Side) goes through: the selection's centre, else the ground's
+  // point the Plane tool was clicked on, else the model's centre, else what the camera looks at.
+  const anchor = () => {
+    const ground = workPlane.groundPoint;
+    workPlane.groundPoint = null; // used once
+    if (!selection.ids.size && ground) return new THREE.Vector3(ground.x, ground.y, 0);
+    const box = selection.ids.size ? selection.bounds() : editor.view.drawingBox();
+    return box.isEmpty() ? editor.view.rig.target.clone() : box.getCenter(box.min.clone());
   };
   workPlane.onChange = showPlane;
   showPlane();
@@ -36,11 +58,12 @@ export function attachModelBar(editor, { workPlane, selection }) {
       showPlane();
       selection.pickPlane();
     } else {
-      workPlane.set(kind);
+      workPlane.set(kind, undefined, anchor());
     }
     editor.notice(`drawing on the ${plane.options[plane.selectedIndex].text.toLowerCase()} plane`);
   };
-  const move = (sign, big) => workPlane.move(sign * (big ? GRID_CELL : GRID_SNAP));
+  // [ toward the camera, ] away from it.
+  const move = (sign, big) => workPlane.moveAway(sign * (big ? GRID_CELL : GRID_SNAP));
   $("plane-back").onclick = (e) => move(-1, e.shiftKey);
   $("plane-forth").onclick = (e) => move(1, e.shiftKey);
 

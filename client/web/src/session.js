@@ -82,6 +82,7 @@ export function startSession(session, token) {
   const editor = new Editor({ conn, view, ink, takeBack, brush, people });
   // The model: the plane the pen draws on, and the strokes selected to move (select.js).
   const workPlane = new WorkPlane(view);
+  editor.workPlane = workPlane;
   editor.selection = new Selection(editor, { api, workPlane });
   const ground = new Ground(view);
   editor.on("camera", () => {

@@ -37,10 +37,13 @@ export class WorkPlane {
     return m;
   }
 
-  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points").
-  set(kind, base = PLANES[kind]) {
+  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points"). A named
+  /// plane goes through `through` (a THREE.Vector3 of session space: the selection's or the
+  /// model's centre; its foot on the board, so a standing plane's y is the height).
+  set(kind, base = PLANES[kind], through = null) {
     this.kind = kind;
-    this.base = base || IDENTITY;
+    this.base = [...(base || IDENTITY)];
+    if (through && kind !== "board" && kind in PLANES) [this.base[12], this.base[13]] = [through.x, through.y];
     this.offset = 0;
     this.apply();
   }
@@ -49,6 +52,24 @@ export class WorkPlane {
   move(d) {
     this.offset += d;
     this.apply();
+  }
+
+  /// Puts the plane `offset` plane units along its normal from where it was set.
+  setOffset(offset) {
+    this.offset = offset;
+    this.apply();
+  }
+
+  /// Moves the plane by `d` plane units away from the camera (toward it when `d` is negative):
+  /// along its normal, the way that faces away from the camera (a plane seen edge-on: its
+  /// normal's way).
+  moveAway(d) {
+    const m = matrixOf(this.placement);
+    const normal = new THREE.Vector3().setFromMatrixColumn(m, 2).normalize();
+    const camera = this.view.camera.position.clone().applyMatrix4(new THREE.Matrix4().makeScale(1, -1, 1)); // to session space
+    const origin = new THREE.Vector3().setFromMatrixPosition(m);
+    const side = normal.dot(origin.sub(camera));
+    this.move(side < -1e-9 ? -d : d);
   }
 
   apply() {

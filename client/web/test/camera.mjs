@@ -69,12 +69,13 @@ browserTest(async ({ proxy, browser }) => {
   await page.locator("#plane").selectOption("front");
   await page.keyboard.press("4");
   const plane = (await page.evaluate(() => window.penmesh.workPlane)).placement;
-  const up = await page.evaluate((plane) => [[700, 0], [700, 150]].map(([x, y]) => window.penmesh.toPage(x, y, plane)), plane);
+  // (The plane goes through the L's centre: its own x from there; its y is the height.)
+  const up = await page.evaluate((plane) => [[700 - plane[12], 0], [700 - plane[12], 150]].map(([x, y]) => window.penmesh.toPage(x, y, plane)), plane);
   await polyline(cdp, up);
   await until("the standing stroke", () => page.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
   await page.locator("#plane").selectOption("board");
   // Its foot and top in session coordinates (the Front plane takes its y to z).
-  const [foot, top] = [[700, 0, 0], [700, 0, 150]];
+  const [foot, top] = [[700, plane[13], 0], [700, plane[13], 150]];
 
   // 1. The orbit: from above, a drag up tilts, a sideways drag turns about up.
   await page.keyboard.press("1");

@@ -118,9 +118,14 @@ browserTest(async ({ proxy, browser }) => {
 
   // 2. The front plane, moved to the seat's far edge (y = 200: Shift+[ four times, a grid cell
   //    each), seen from 60° above: the pen draws the back on it, and the view stays.
+  //    (Front goes through the model's centre, (400, 260): moved 60 along its normal, typed.)
   await ada.locator("#plane").selectOption("front");
-  for (let i = 0; i < 4; i++) await ada.keyboard.press("Shift+BracketLeft");
-  const onEdge = [...FRONT];
+  const through = [...FRONT];
+  [through[12], through[13]] = [400, 260];
+  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, through, "the front plane through the model's centre");
+  await ada.fill("#plane-offset", "60");
+  await ada.press("#plane-offset", "Enter");
+  const onEdge = [...through];
   onEdge[13] = 200;
   assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, onEdge, "the front plane moved to y = 200");
   await ada.keyboard.press("o");
@@ -131,8 +136,9 @@ browserTest(async ({ proxy, browser }) => {
   assert.ok(Math.abs(turned.pitch - pitch) < 0.01, `orbited to ${turned.pitch} rad, not 60°`);
   await ada.keyboard.press("Escape");
   await ada.waitForTimeout(100);
-  // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height).
-  const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[330, 5], [330, 140], [470, 140], [470, 5]]);
+  // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height, its
+  // x from the plane's origin at the seat's middle).
+  const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[-70, 5], [-70, 140], [70, 140], [70, 5]]);
   const inkBefore = await ada.evaluate(() => window.penmesh.inked);
   await polyline(ada.cdp, back, false);
   // While the pen is down, the ink shows the stroke where it is drawn on the plane: along its
@@ -172,7 +178,7 @@ browserTest(async ({ proxy, browser }) => {
   const before = await placements(ada);
   await drag(ada, handle, [handle[0] + 150, handle[1]], 15);
   const moved = (await placements(ada))[front];
-  assert.ok(moved[12] > 50 && moved[13] === 200 && moved[14] === 0, `the gizmo's X handle moved the back along x: ${JSON.stringify(moved)}`);
+  assert.ok(moved[12] > 400 + 50 && moved[13] === 200 && moved[14] === 0, `the gizmo's X handle moved the back along x: ${JSON.stringify(moved)}`);
   assert.deepEqual(moved.slice(0, 12), onEdge.slice(0, 12), "the move did not turn the back");
   server = await agree(base, s, ada, bob, "moved with the gizmo");
   assert.deepEqual(server[front], moved);

@@ -133,7 +133,8 @@ browserTest(async ({ proxy, browser }) => {
   const plane = (await page.evaluate(() => window.penmesh.workPlane)).placement;
   await page.keyboard.press("4");
   // Its foot and top: points of its plane (x, y) with y the height above the board.
-  const up = await page.evaluate(([plane]) => [[650, 0], [650, 200]].map(([x, y]) => window.penmesh.toPage(x, y, plane)), [plane]);
+  // (The plane goes through the F's centre: its own x from there.)
+  const up = await page.evaluate(([plane]) => [[650 - plane[12], 0], [650 - plane[12], 200]].map(([x, y]) => window.penmesh.toPage(x, y, plane)), [plane]);
   await polyline(cdp, up);
   await until("the standing stroke's mesh", () => page.evaluate(() => window.penmesh.meshes === 4 && !window.penmesh.pending));
   await page.screenshot({ path: join(ARTIFACTS, "orientation-page.png") });
