@@ -544,7 +544,7 @@ function segmentDistance([px, py], [ax, ay], [bx, by]) {
 export function selectTool() {
   let state = "idle"; // idle | pointing | boxing | dragging
   let start = null; // the sample where the pointer went down
-  let last = null; // and where it is now
+  let travelled = 0; // the farthest it went from there (CSS px)
   let shift = false;
   let box = null; // the box's element on the page while boxing
   addEventListener("keydown", (e) => (shift = e.shiftKey));
@@ -585,12 +585,12 @@ export function selectTool() {
     },
     down(editor, pointer, sample) {
       start = sample;
-      last = sample;
+      travelled = 0;
       state = editor.selection.grab(sample.clientX, sample.clientY) ? "dragging" : "pointing";
     },
     move(editor, pointer, samples) {
       const s = samples[samples.length - 1];
-      last = s;
+      travelled = Math.max(travelled, Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY));
       if (state === "dragging") return editor.selection.moveGrab(s.clientX, s.clientY);
       if (state === "pointing" && Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY) >= BOX_SLOP_PX) state = "boxing";
       if (state === "boxing") showBox(start, s);
@@ -598,7 +598,7 @@ export function selectTool() {
     up(editor) {
       const selection = editor.selection;
       // A press on the gizmo that did not move is a click: it picks what is under it.
-      if (state === "dragging" && Math.hypot(last.clientX - start.clientX, last.clientY - start.clientY) < BOX_SLOP_PX) {
+      if (state === "dragging" && travelled < BOX_SLOP_PX) {
         stop(editor);
         state = "pointing";
       }

@@ -125,6 +125,11 @@ await browserTest(async ({ proxy, browser }) => {
   // A print dropped is said so, naming it: the page brings back only GLB scenes (issue 50).
   await drop(Buffer.from("solid x\nendsolid x\n"), "house.stl");
   await until("the page to say the STL cannot be imported", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("house.stl") && e.includes("only a GLB"))));
+  // And one chosen in the menu.
+  await other.click("#download");
+  await other.setInputFiles("#import-file", { name: "house.3mf", mimeType: "model/3mf", buffer: Buffer.from("PK") });
+  await until("the page to say the 3MF cannot be imported", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("house.3mf") && e.includes("only a GLB"))));
+  await other.click("#export-close");
   await drop(Buffer.from("not a model at all"), "junk.glb");
   await until("the page to say why the file is refused", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("junk.glb") && e.includes("not a GLB"))));
   assert.equal((await storedStrokes(base, second)).length, 0, "nothing imported");

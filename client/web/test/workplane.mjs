@@ -5,7 +5,8 @@
 //    toward it (seen from the front); a stroke drawn on it carries its placement;
 // 3. the Plane tool on that stroke: the work plane is the stroke's;
 // 4. the eraser rubs the standing stroke from a 3D view, the work plane being the board;
-// 5. arrow keys nudge the selection (Shift: ten times), each one undo step;
+// 5. a handle's drag shows its distance beside the gizmo; arrow keys nudge the selection
+//    (Shift: ten times), each one undo step;
 // 6. Ada copies Bob's stroke: her dot in the people list keeps her colour.
 // Run by scripts/test.sh as `node client/web/test/workplane.mjs`.
 import assert from "node:assert/strict";
@@ -115,15 +116,28 @@ browserTest(async ({ proxy, browser }) => {
   await ada.keyboard.press("v");
   await ada.mouse.click(...(await ada.evaluate(() => window.penmesh.toPage(300, 350, null))));
   assert.deepEqual(await ada.evaluate(() => window.penmesh.selected), [square]);
+  // While a handle is dragged, the distance shows beside the gizmo (px and the print's mm).
+  const handle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
+  await ada.mouse.move(...handle);
+  await ada.mouse.down();
+  await ada.mouse.move(handle[0] + 40, handle[1], { steps: 5 });
+  const readout = await ada.evaluate(() => { const el = document.getElementById("gizmo-readout"); return el && el.style.display !== "none" ? el.textContent : null; });
+  assert.match(readout || "", /^\d+(\.\d)? px · \d+(\.\d)? mm$/, `the drag's distance beside the gizmo: ${readout}`);
+  await ada.mouse.move(...handle, { steps: 5 }); // back where it was: no move
+  await ada.mouse.up();
+  assert.equal(await ada.evaluate(() => document.getElementById("gizmo-readout").style.display), "none", "the readout goes with the drag");
+  await until("the readout's drag stored, if it moved at all", async () => !(await ada.evaluate(() => window.penmesh.pending)));
+  const m0 = await ada.evaluate((id) => window.penmesh.placements[id] || [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1], square);
+  const near = (a, b) => Math.abs(a - b) < 1e-6;
   await ada.keyboard.press("ArrowRight");
   await ada.keyboard.press("Shift+ArrowDown");
   await until("nudged", async () => {
     const m = (await stored(base, s))[square];
-    return m[12] === 1 && m[13] === 10;
+    return near(m[12], m0[12] + 1) && near(m[13], m0[13] + 10);
   });
   await ada.keyboard.press("Control+z");
-  await until("one nudge undone", async () => (await stored(base, s))[square][13] === 0);
-  assert.equal((await stored(base, s))[square][12], 1, "the other nudge stays");
+  await until("one nudge undone", async () => near((await stored(base, s))[square][13], m0[13]));
+  assert.ok(near((await stored(base, s))[square][12], m0[12] + 1), "the other nudge stays");
 
   // 6. Bob draws; Ada copies his stroke: her dot keeps her colour.
   await bob.bringToFront();
