@@ -11,7 +11,7 @@ import { FRONT, IDENTITY, SIDE, isIdentity, matrixOf } from "./placement.js";
 /// A grid cell, in plane units (one CSS pixel at one to one); the gizmo snaps to GRID_SNAP.
 export const GRID_CELL = 50;
 export const GRID_SNAP = 10;
-const GRID_CELLS = 24;
+const GRID_CELLS = 16;
 
 export const PLANES = { board: IDENTITY, front: FRONT, side: SIDE };
 
