@@ -62,6 +62,19 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # The Export menu (issue 39): the scene valid to the glTF-Validator and its extras to
 # docs/model-format.schema.json, the STL whole, a GLB dropped on a new session imported.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/export.mjs
+# The model's orientation (issue 50): an F and a standing stroke drawn on the page read the same
+# in the GLB, the STL and the 3MF as on the page.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/orientation.mjs
+# The camera keeps up (issue 50): a sideways orbit keeps the up axis vertical, each view (Top,
+# Front, Side, 3D; keys 1-4) shows the model from its side, zoom toward the pointer.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/camera.mjs
+# The user test's house from user actions only (issue 50): walls on the floor's edges, the roof
+# on the walls, one manifold STL part, a second page live, undo of typed moves, repeats,
+# duplicates, deletes and imports.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/house.mjs
+# The work plane at the model (the Plane tool, Front through the selection, a typed offset,
+# [ and ] by the camera), the eraser on any plane, arrow nudges, the people list's colours.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/workplane.mjs
 
 echo "== GLB files of the real strokes: glTF-Validator and three.js (docs/performance.md, issue 26)"
 glbs=$(mktemp -d)

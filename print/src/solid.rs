@@ -44,6 +44,15 @@ pub const MAX_SIZE_MM: f64 = 10_000.0;
 pub const IDENTITY: [f64; 16] =
     [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
 
+/// The one change from penmesh's axes (x right, y down the page, z out of the board) to the
+/// print's (a slicer's bed: X right, Y to the back, Z up), column-major: y is negated, so the
+/// board seen from above reads as the page shows it (the top of the page at the back of the
+/// bed) and a stroke on a standing plane stands up. It is a mirror of the numbers (not of the
+/// model: penmesh's y runs down), so every solid's winding is flipped back with it. The scene's
+/// GLB makes the same turn to glTF's Y up (`penmesh::scene_glb`).
+pub const PRINT_AXES: [f64; 16] =
+    [1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+
 /// One stroke to print: its drawn samples, the indices ACUTS kept of them (as the proxy stores
 /// them; the outline is the stroke mesh's own, `penmesh::fitted_outline`), its brush, and its
 /// placement (glTF's `node.matrix`: a column-major similarity from its plane to the session).
@@ -237,6 +246,7 @@ impl PrintOptions {
     }
 }
 
+/// A stroke's placement followed by [`PRINT_AXES`]: from its plane to the print's axes.
 struct Placement {
     matrix: DMat4,
     /// The similarity's uniform scale.
@@ -248,7 +258,7 @@ fn placement(index: usize, m: &[f64; 16]) -> Result<Placement, PrintError> {
     if m.iter().any(|v| !v.is_finite()) {
         return Err(PrintError::BadPlacement { index, reason: "has a value that is not finite" });
     }
-    let matrix = DMat4::from_cols_array(m);
+    let matrix = DMat4::from_cols_array(&PRINT_AXES) * DMat4::from_cols_array(m);
     let det = glam::DMat3::from_mat4(matrix).determinant();
     if det.abs() <= 1e-12 {
         return Err(PrintError::BadPlacement { index, reason: "is singular" });
@@ -290,8 +300,8 @@ fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
     }
 }
 
-/// The placed solid as a Manifold; a mirror turns the triangles inside out, so their winding
-/// is flipped back.
+/// The placed solid as a Manifold; a mirror (a mirroring placement, or none: [`PRINT_AXES`] is
+/// one) turns the triangles inside out, so their winding is flipped back.
 fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Solid, PrintError> {
     let vertices: Vec<f32> = mesh
         .positions

@@ -167,11 +167,12 @@ fn the_longest_side_is_size_mm_read_back_by_an_independent_stl_reader() {
     assert!((slicer_longest - 42.5).abs() < 1e-4, "prusa-slicer: {slicer_longest} mm");
 }
 
-/// The bounds of the vertices of `mesh` whose y (mm) is above `y_mm`.
-fn bounds_above(mesh: &PrintMesh, y_mm: f32) -> ([f32; 3], [f32; 3]) {
+/// The bounds of the vertices of `mesh` whose Y (mm) is below `y_mm` (toward the bed's front:
+/// further down the page).
+fn bounds_below(mesh: &PrintMesh, y_mm: f32) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for p in mesh.positions.iter().filter(|p| p[1] > y_mm) {
+    for p in mesh.positions.iter().filter(|p| p[1] < y_mm) {
         for axis in 0..3 {
             lo[axis] = lo[axis].min(p[axis]);
             hi[axis] = hi[axis].max(p[axis]);
@@ -196,8 +197,8 @@ fn a_hairline_stroke_comes_out_at_least_min_thickness_thick() {
         for min_thickness_mm in [0.8, 1.5] {
             let options = PrintOptions { min_thickness_mm, ..PrintOptions::default() };
             let mesh = print(&bold_and_hairline(placement), &options);
-            // The hairline's body is the part above the middle of the board (in mm).
-            let (lo, hi) = bounds_above(&mesh, 50.0);
+            // The hairline's body is the part in front of the middle of the bed (in mm).
+            let (lo, hi) = bounds_below(&mesh, 50.0);
             let thickness = hi[2] - lo[2];
             let width = hi[1] - lo[1];
             let floor = min_thickness_mm as f32 - 1e-4;
@@ -214,7 +215,7 @@ fn a_hairline_stroke_comes_out_at_least_min_thickness_thick() {
     // The control: with a floor far below it, the hairline is as thin as drawn.
     let options = PrintOptions { min_thickness_mm: 1e-3, ..PrintOptions::default() };
     let mesh = print(&bold_and_hairline(IDENTITY), &options);
-    let (lo, hi) = bounds_above(&mesh, 50.0);
+    let (lo, hi) = bounds_below(&mesh, 50.0);
     assert!(hi[2] - lo[2] < 0.05, "unfloored hairline {} mm thick", hi[2] - lo[2]);
 }
 

@@ -1,7 +1,8 @@
 // The toolbar and the keys, wired to the editor (editor.js): they call its methods and show
 // what its signals say (the active tool pressed and its cursor, undo and redo greyed out when
 // there is nothing to take back, a notice for an action that did nothing). Shortcuts: each
-// tool's keys (D draw, E erase, O orbit), Esc back to drawing, F fit, Ctrl+Z / Ctrl+Shift+Z /
+// tool's keys (D draw, unless strokes are selected: then it drops them, modelbar.js; E erase,
+// O orbit), Esc back to drawing, F fit, Ctrl+Z / Ctrl+Shift+Z /
 // Ctrl+Y. Also the brush, the name, the link to share, a new session (asked first).
 import { newSession } from "./landing.js";
 import { colourOf, strokeColour } from "./scene.js";
@@ -61,6 +62,8 @@ export function attachControls(editor, { session, name, askName, fail }) {
     if (e.altKey) return;
     if (key === "escape") return editor.setTool("draw");
     if (key === "f") return editor.fit();
+    // With strokes selected, D drops them onto the work plane (TinkerCAD's D; modelbar.js).
+    if (key === "d" && editor.tool.id === "select" && editor.selection.ids.size) return;
     const tool = Object.values(editor.tools).find((t) => t.keys.includes(key));
     if (tool) editor.setTool(tool.id);
   });

@@ -4,7 +4,6 @@
 // "history", "notice" (a sentence for the person: an action that did nothing, and why).
 // The tools act through its methods; the entry module (app.js) only wires.
 import { createTools } from "./tools.js";
-import { radiusOf } from "./ribbon.js";
 
 // Half the eraser's width, in CSS pixels.
 export const ERASER_RADIUS_PX = 8;
@@ -66,6 +65,12 @@ export class Editor {
     this.cameraMoved();
   }
 
+  /// Named view `name` (camera.js VIEWS) of the whole drawing.
+  look(name) {
+    this.view.look(name);
+    this.cameraMoved();
+  }
+
   cameraMoved() {
     this.view.cameraMoved();
     this.ink.redraw();
@@ -110,14 +115,12 @@ export class Editor {
   }
 
   // --- erasing -------------------------------------------------------------------------------
-  /// Erases our strokes under page point (`x`, `y`); `drag` (one per eraser drag) collects
-  /// whose strokes it touched, for one notice when they were only the others', and makes what it
-  /// erased one command of the history (takeback.js).
+  /// Erases our strokes under page point (`x`, `y`), whatever their plane; `drag` (one per
+  /// eraser drag) collects whose strokes it touched, for one notice when they were only the
+  /// others', and makes what it erased one command of the history (takeback.js).
   eraseAt(x, y, drag) {
-    const at = this.view.toStroke(x, y);
-    if (!at || !this.conn.me) return;
-    const radius = ERASER_RADIUS_PX / this.view.pixelsPerUnit() + radiusOf(this.brush, 1);
-    for (const stroke of this.view.strokesAt(at[0], at[1], radius)) {
+    if (!this.conn.me) return;
+    for (const stroke of this.view.strokesUnder(x, y, ERASER_RADIUS_PX)) {
       const owner = this.view.strokes.get(stroke).participant;
       if (owner !== this.conn.me) {
         if (!drag.others.has(owner)) {
@@ -128,6 +131,25 @@ export class Editor {
         this.notice("cannot erase: not connected to the proxy; try again");
       }
     }
+  }
+
+  // --- the work plane -------------------------------------------------------------------------
+  /// The Plane tool's click at page point (`x`, `y`): the work plane on the stroke there, or on
+  /// the board through the ground's point there; then back to drawing.
+  pickWorkPlane(x, y) {
+    const selection = this.selection;
+    const id = selection.rayPick(x, y) ?? selection.nearestPick(x, y);
+    if (id) {
+      this.workPlane.set("stroke", this.view.strokes.get(id).placement);
+      this.notice("drawing on that stroke's plane");
+    } else {
+      const at = this.view.rig.toPlane(x, y);
+      if (!at) return this.notice("nothing there: click a stroke or the ground");
+      this.workPlane.set("board");
+      this.workPlane.groundPoint = at;
+      this.notice("drawing on the board (Front or Side next go through where you clicked)");
+    }
+    this.setTool("draw");
   }
 
   // --- undo and redo -------------------------------------------------------------------------

@@ -12,9 +12,10 @@ const FORMATS = [
 ];
 
 /// Wires the Export menu to `button`. `token` opens the session, `key()` is this tab's
-/// participant key, `name()` its display name; `notice` and `fail` report to the person.
+/// participant key, `name()` its display name; `notice` and `fail` report to the person;
+/// `imported(ids)` is told the strokes an import made (the history makes them one undo step).
 /// Returns `{ exportModel(format, sizeMm), importFile(file) }` for the tests and the curious.
-export function attachExport({ button, session, token, key, name, notice, fail }) {
+export function attachExport({ button, session, token, key, name, notice, fail, imported = () => {} }) {
   const dialog = document.createElement("dialog");
   dialog.id = "export-menu";
   dialog.innerHTML = `
@@ -96,6 +97,9 @@ export function attachExport({ button, session, token, key, name, notice, fail }
       a.download = `penmesh-${session}.${format}`;
       a.click();
       setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+      // The download has started: the menu gets out of the board's way.
+      dialog.close();
+      notice(`${format.toUpperCase()} downloaded: penmesh-${session}.${format}`);
     } catch (err) {
       show("");
       fail(`cannot export: ${err.message}`);
@@ -119,6 +123,7 @@ export function attachExport({ button, session, token, key, name, notice, fail }
     }
     show(`imported ${body.strokes.length} strokes from ${file.name}`);
     notice(`imported ${body.strokes.length} strokes from ${file.name}`);
+    imported(body.strokes.map((s) => s.stroke));
     return body.strokes;
   }
 
@@ -135,7 +140,8 @@ export function attachExport({ button, session, token, key, name, notice, fail }
   }
   $("import-file").onchange = (e) => {
     const file = e.target.files[0];
-    if (file) importChosen(file);
+    if (file && !file.name.toLowerCase().endsWith(".glb")) fail(`cannot import ${file.name}: the page brings back only a GLB scene exported by penmesh (.glb), not ${describe(file.name)}`);
+    else if (file) importChosen(file);
     e.target.value = "";
   };
   button.textContent = "Export";
@@ -145,11 +151,21 @@ export function attachExport({ button, session, token, key, name, notice, fail }
   document.addEventListener("dragover", (e) => {
     if ([...(e.dataTransfer?.items || [])].some((i) => i.kind === "file")) e.preventDefault();
   });
+  // Anything else dropped is said so, naming it (the page brings back only GLB scenes).
   document.addEventListener("drop", (e) => {
-    const file = [...(e.dataTransfer?.files || [])].find((f) => f.name.toLowerCase().endsWith(".glb"));
-    if (!file) return;
+    const files = [...(e.dataTransfer?.files || [])];
+    if (!files.length) return;
     e.preventDefault();
-    importChosen(file);
+    const file = files.find((f) => f.name.toLowerCase().endsWith(".glb"));
+    if (file) return importChosen(file);
+    fail(`cannot import ${files.map((f) => f.name).join(", ")}: the page brings back only a GLB scene exported by penmesh (.glb), not ${describe(files[0].name)}`);
   });
   return { exportModel, importFile };
+}
+
+/// What a file that is not a GLB is, by its name, for the message that refuses it.
+function describe(name) {
+  const ext = name.includes(".") ? name.split(".").pop().toLowerCase() : "";
+  if (ext === "stl" || ext === "3mf") return `a print (${ext.toUpperCase()}: a closed solid has no strokes to bring back)`;
+  return ext ? `a .${ext} file` : "a file without an extension";
 }

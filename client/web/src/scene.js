@@ -15,7 +15,7 @@ import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.j
 import { StrokeGroups, flatten } from "./batch.js";
 import { matrixOf, samePlacement } from "./placement.js";
 import { CameraRig } from "./camera.js";
-import { ribbonGeometry } from "./ribbon.js";
+import { radiusOf, ribbonGeometry } from "./ribbon.js";
 import { readGlb } from "./glb.js";
 
 /// Colours far apart from each other (every two at least 84 apart in RGB, over settings.js's
@@ -33,14 +33,6 @@ export function colourOf(participant) {
 /// A stroke's colour: its brush's (`color`, 0xRRGGBB) when it has one, else its drawer's.
 export function strokeColour(participant, brush) {
   return brush && Number.isInteger(brush.color) ? new THREE.Color(brush.color) : colourOf(participant);
-}
-
-/// The distance from point `p` to the segment `a`-`b` (each with `x` and `y`).
-function segmentDistance(p, a, b) {
-  const [dx, dy] = [b.x - a.x, b.y - a.y];
-  const length2 = dx * dx + dy * dy;
-  const t = length2 > 0 ? Math.max(0, Math.min(1, ((p.x - a.x) * dx + (p.y - a.y) * dy) / length2)) : 0;
-  return Math.hypot(p.x - (a.x + t * dx), p.y - (a.y + t * dy));
 }
 
 // A stroke narrower than this on screen (device pixels) is drawn this wide: a thinner one
@@ -100,6 +92,9 @@ function createRenderer(canvas) {
   canvas.replaceWith(fresh);
   return new THREE.WebGLRenderer({ canvas: fresh, antialias: true, preserveDrawingBuffer: true });
 }
+
+/// The print's default longest side (mm: penmesh_print::DEFAULT_SIZE_MM).
+export const DEFAULT_PRINT_MM = 100;
 
 export class SceneView {
   constructor(canvas) {
@@ -166,17 +161,37 @@ export class SceneView {
     return this.rig.scale;
   }
 
-  /// Fits the front view to what is drawn (the retained points of every stroke, with a
-  /// margin), never closer than one to one.
-  fitToDrawing() {
-    const box = new THREE.Box2();
+  /// The box of what is drawn (the retained points of every stroke shown, placed), in session
+  /// coordinates.
+  drawingBox() {
+    const box = new THREE.Box3();
     const v = new THREE.Vector3();
     for (const s of this.strokes.values()) {
       if (s.removed) continue;
       const m = matrixOf(s.placement);
       for (const p of s.points) box.expandByPoint(v.copy(p).applyMatrix4(m));
     }
-    this.rig.fit(box);
+    return box;
+  }
+
+  /// The print's millimetres per unit of the session: the print's longest side is
+  /// DEFAULT_PRINT_MM (the Export menu's default) over the drawing's (its points: the print
+  /// adds the strokes' radii, so this is within a stroke's width).
+  mmPerUnit() {
+    const size = this.drawingBox().getSize(new THREE.Vector3());
+    const longest = Math.max(size.x, size.y, size.z);
+    return longest > 0 ? DEFAULT_PRINT_MM / longest : 0;
+  }
+
+  /// Fits the view from above to what is drawn (with a margin), never closer than one to one.
+  fitToDrawing() {
+    this.rig.fit(this.drawingBox());
+    this.requestRender();
+  }
+
+  /// Named view `name` (camera.js VIEWS) of what is drawn.
+  look(name) {
+    this.rig.look(name, this.drawingBox());
     this.requestRender();
   }
 
@@ -291,26 +306,24 @@ export class SceneView {
     return this.meshCount - this.hiddenMeshCount;
   }
 
-  /// The shown, finished strokes that pass within `radius` of the point (`x`, `y`) of the
-  /// work plane (their retained points joined by segments, in their own planes: a stroke on
-  /// another plane only where it crosses this one), for the eraser.
-  strokesAt(x, y, radius) {
-    const at = new THREE.Vector3(x, y, 0).applyMatrix4(matrixOf(this.workPlacement));
-    const local = new THREE.Vector3();
-    const inverse = new THREE.Matrix4();
+  /// The shown, finished strokes drawn under page point (`x`, `y`), whatever their plane: their
+  /// retained points joined by segments, as the page shows them, within `reachPx` CSS px
+  /// beyond their width (the eraser: what is under the cursor is what it rubs).
+  strokesUnder(x, y, reachPx) {
     const hits = [];
+    const ppu = this.pixelsPerUnit();
     for (const [id, s] of this.strokes) {
-      if (s.removed || !s.done) continue;
-      local.copy(at).applyMatrix4(inverse.copy(matrixOf(s.placement)).invert());
-      const r = radius / Math.hypot(...(s.placement || [1]).slice(0, 3));
-      if (Math.abs(local.z) > r) continue;
-      const p = local;
-      const pts = s.points;
-      for (let i = 0; i < pts.length; i++) {
-        if (segmentDistance(p, pts[i], pts[Math.min(i + 1, pts.length - 1)]) <= r) {
+      if (s.removed || !s.done || s.points.length === 0) continue;
+      const scale = s.placement ? Math.hypot(s.placement[0], s.placement[1], s.placement[2]) : 1;
+      const reach = reachPx + radiusOf(s.brush, 1) * scale * ppu;
+      let a = this.toPage(s.points[0].x, s.points[0].y, s.placement);
+      for (let i = 0; i < s.points.length; i++) {
+        const b = i + 1 < s.points.length ? this.toPage(s.points[i + 1].x, s.points[i + 1].y, s.placement) : a;
+        if (pageDistance(x, y, a, b) <= reach) {
           hits.push(id);
           break;
         }
+        a = b;
       }
     }
     return hits;
@@ -407,4 +420,12 @@ export class SceneView {
     this.requestRender();
     return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
   }
+}
+
+/// The distance from page point (`px`, `py`) to the segment `a`-`b` ([x, y] each).
+function pageDistance(px, py, [ax, ay], [bx, by]) {
+  const [dx, dy] = [bx - ax, by - ay];
+  const length2 = dx * dx + dy * dy;
+  const t = length2 > 0 ? Math.max(0, Math.min(1, ((px - ax) * dx + (py - ay) * dy) / length2)) : 0;
+  return Math.hypot(px - (ax + t * dx), py - (ay + t * dy));
 }

@@ -6,8 +6,10 @@
 // one dispatcher, so the camera's gestures stay the camera's), never from the DOM. A drag
 // applies at once; at its end every stroke it moved is sent (`set_placement`) and the drag is
 // one command of the page's one history (takeback.js): undo sends each placement it had before,
-// exactly, redo the one after. Duplicate (Ctrl/Cmd+D) copies the selection over HTTP, offset in
-// each stroke's own plane; its undo takes the copies back. Mirror reflects the selection across
+// exactly, redo the one after. Duplicate (Ctrl/Cmd+D) copies the selection over HTTP in place,
+// or moved again by the move given to the last copies (TinkerCAD's repeat); its undo takes the
+// copies back. Typed numbers, turns, drop to the plane, nudges and Delete are one command each
+// (the selection's panel, selpanel.js, and the keys, modelbar.js). Mirror reflects the selection across
 // the plane through its centre across the work plane's x axis. Only one's own strokes move:
 // the proxy refuses the others' (`not_owner`), and the page says so first.
 import * as THREE from "three";
@@ -21,8 +23,6 @@ const PICK_PX = 6;
 const BOX_SLOP_PX = 4;
 // Turns snap to this step when snapping is on.
 const ROTATION_SNAP = THREE.MathUtils.degToRad(15);
-// A duplicate is offset by this much in its own plane (x and y, plane units).
-const DUPLICATE_OFFSET = 30;
 // The session's y is down, the scene's up (scene.js `world`).
 const FLIP = new THREE.Matrix4().makeScale(1, -1, 1);
 
@@ -38,6 +38,7 @@ export class Selection {
     this.snap = false;
     this.onChange = () => {}; // the selection or the snap changed
     this.picking = null; // the points picked so far of a plane through three points, or null
+    this.repeat = null; // {copies, origin: copy -> its source's placement}: the last duplicate
     this.pivot = new THREE.Object3D(); // the gizmo's object, at the selection's centre
     this.view.scene.add(this.pivot);
     this.gizmo = new TransformControls(this.view.camera);
@@ -55,6 +56,13 @@ export class Selection {
 
   get list() {
     return [...this.ids];
+  }
+
+  /// Says the selection, its placements or its modes changed: `onChange` and the editor's
+  /// "selection" signal (the selection's panel listens).
+  changed() {
+    this.onChange(this);
+    this.editor.emit("selection", this);
   }
 
   /// The selection becomes `ids`: strokes no longer in it are put back, new ones lifted out.
@@ -75,7 +83,7 @@ export class Selection {
     }
     this.ids = next;
     this.refresh();
-    this.onChange(this);
+    this.changed();
   }
 
   clear() {
@@ -109,9 +117,10 @@ export class Selection {
     this.pivot.updateMatrixWorld(true);
     if (this.own().length === this.ids.size) this.gizmo.attach(this.pivot);
     else this.gizmo.detach();
-    this.gizmo.setTranslationSnap(this.snap ? GRID_SNAP : null);
+    // (Moves snap by the selection's bounds, dragged(); turns by 15° steps.)
     this.gizmo.setRotationSnap(this.snap ? ROTATION_SNAP : null);
     this.view.requestRender();
+    this.changed();
   }
 
   /// The centre of the selected strokes' boxes, in session space (null when nothing is).
@@ -127,18 +136,60 @@ export class Selection {
   setSnap(on) {
     this.snap = on;
     this.refresh();
-    this.onChange(this);
+    this.changed();
   }
 
-  setMode(mode) {
+  /// The gizmo moves (`translate`) or turns (`rotate`) about one axis at a time, `axis` ("X",
+  /// "Y" or "Z" of the scene; three.js colours its ring red, green, blue).
+  setMode(mode, axis = "Z") {
     this.gizmo.setMode(mode);
+    const one = mode === "rotate";
+    this.gizmo.showX = !one || axis === "X";
+    this.gizmo.showY = !one || axis === "Y";
+    this.gizmo.showZ = !one || axis === "Z";
+    this.turnAxis = one ? axis : null;
     this.view.requestRender();
+    this.changed();
   }
 
   // --- picking ---------------------------------------------------------------------------------
+  /// The stroke under page point (`x`, `y`): the first whose mesh the pointer's ray meets (of
+  /// strokes on one line seen from above, such as a wall standing on the floor's edge, the one
+  /// nearer the camera), else the nearest within its width and PICK_PX on the page (a thin
+  /// stroke), else null.
+  pick(x, y) {
+    return this.rayPick(x, y) ?? this.nearestPick(x, y);
+  }
+
+  /// The shown stroke whose mesh the ray through page point (`x`, `y`) meets first, or null.
+  rayPick(x, y) {
+    const hit = this.rayHit(x, y);
+    if (!hit) return null;
+    for (const [id, s] of this.view.strokes) {
+      if (s.removed || !s.mesh) continue;
+      if (s.lifted === hit.object) return id;
+      const r = s.mesh;
+      if (!s.lifted && r.group.mesh === hit.object && hit.face.a >= r.firstVertex && hit.face.a < r.firstVertex + r.vertexCount) return id;
+    }
+    return null;
+  }
+
+  /// The first intersection of the ray through page point (`x`, `y`) with the strokes' meshes.
+  rayHit(x, y) {
+    const ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
+    const meshes = [];
+    for (const mesh of this.view.groups.objects) {
+      mesh.geometry.boundingSphere = null; // it grew since: worked out again
+      meshes.push(mesh);
+    }
+    for (const s of this.view.strokes.values()) if (s.lifted && !s.removed) meshes.push(s.lifted);
+    return ray.intersectObjects(meshes, false)[0] || null;
+  }
+
   /// The shown, finished stroke with a mesh nearest to page point (`x`, `y`) within its width
   /// and PICK_PX, or null: its retained points projected through its placement.
-  pick(x, y) {
+  nearestPick(x, y) {
     let best = null;
     let bestDistance = Infinity;
     const scale = this.view.pixelsPerUnit();
@@ -172,15 +223,7 @@ export class Selection {
   /// The point of the model under page point (`x`, `y`), in session space: on a stroke's mesh,
   /// else on the work plane; null when neither is there.
   pointAt(x, y) {
-    const ray = new THREE.Raycaster();
-    ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
-    const meshes = [];
-    for (const mesh of this.view.groups.objects) {
-      mesh.geometry.boundingSphere = null; // it grew since: worked out again
-      meshes.push(mesh);
-    }
-    for (const s of this.view.strokes.values()) if (s.lifted) meshes.push(s.lifted);
-    const hit = ray.intersectObjects(meshes, false)[0];
+    const hit = this.rayHit(x, y);
     if (hit) return hit.point.applyMatrix4(FLIP);
     const at = this.view.toStroke(x, y);
     return at ? new THREE.Vector3(at[0], at[1], 0).applyMatrix4(matrixOf(this.view.workPlacement)) : null;
@@ -257,14 +300,58 @@ export class Selection {
     this.pivot.updateMatrixWorld(true);
     // The pivot's motion in the scene, as a motion of session space: FLIP·D·FLIP.
     const motion = this.pivot.matrixWorld.clone().multiply(this.drag.pivot.clone().invert());
-    const session = FLIP.clone().multiply(motion).multiply(FLIP);
+    let session = FLIP.clone().multiply(motion).multiply(FLIP);
+    if (this.snap && this.gizmo.mode === "translate") session = this.snappedByBounds(session);
     for (const [id, before] of this.drag.before) this.view.setPlacement(id, placementOf(session.clone().multiply(matrixOf(before))));
     for (const [id, box] of this.boxes) box.setFromObject(this.view.strokes.get(id).lifted);
+    this.showReadout(session);
+    this.changed();
+  }
+
+  /// `motion` moved on so that the selection's box, moved by it, has its low corner on the grid
+  /// along each axis the gizmo drags (TinkerCAD snaps by the bounds, not the centre: a wall's
+  /// foot lands on a grid line).
+  snappedByBounds(motion) {
+    const box = new THREE.Box3();
+    const v = new THREE.Vector3();
+    for (const [id, before] of this.drag.before) {
+      const m = motion.clone().multiply(matrixOf(before));
+      for (const p of this.view.strokes.get(id).points) box.expandByPoint(v.copy(p).applyMatrix4(m));
+    }
+    const axis = this.gizmo.axis || "";
+    const shift = [0, 1, 2].map((k) => (axis.includes("XYZ"[k]) ? Math.round(box.min.getComponent(k) / GRID_SNAP) * GRID_SNAP - box.min.getComponent(k) : 0));
+    return new THREE.Matrix4().makeTranslation(...shift).multiply(motion);
+  }
+
+  /// The drag's distance (or angle) beside the gizmo, in plane units and the print's mm.
+  showReadout(motion) {
+    let el = document.getElementById("gizmo-readout");
+    if (!el) {
+      el = document.createElement("div");
+      el.id = "gizmo-readout";
+      el.style.cssText = "position:fixed;padding:2px 6px;background:#333;color:#fff;border-radius:4px;font:13px system-ui,sans-serif;pointer-events:none";
+      document.body.append(el);
+    }
+    if (this.gizmo.mode === "rotate") {
+      const q = new THREE.Quaternion().setFromRotationMatrix(motion);
+      el.textContent = `${(THREE.MathUtils.radToDeg(2 * Math.acos(Math.min(1, Math.abs(q.w))))).toFixed(1)}°`;
+    } else {
+      const t = new THREE.Vector3().setFromMatrixPosition(motion);
+      el.textContent = `${t.length().toFixed(1)} px · ${(t.length() * this.view.mmPerUnit()).toFixed(1)} mm`;
+    }
+    const [x, y] = this.view.rig.toPage(...this.centre().toArray());
+    Object.assign(el.style, { left: `${x + 40}px`, top: `${y + 40}px`, display: "block" });
+  }
+
+  hideReadout() {
+    const el = document.getElementById("gizmo-readout");
+    if (el) el.style.display = "none";
   }
 
   /// The drag ended: its placements sent, one command in the history.
   letGo() {
     this.gizmo.pointerUp(this.pointer(0, 0, 0));
+    this.hideReadout();
     const drag = this.drag;
     this.drag = null;
     if (!drag) return;
@@ -310,28 +397,132 @@ export class Selection {
     this.editor.takeBack.push({ undo: () => this.place(before), redo: () => this.place(after) });
   }
 
-  /// Duplicates the selection (anyone's strokes): each copy a new stroke of ours, offset in its
-  /// own plane; the copies are selected once they are shown. One command: undo takes them back.
+  /// Duplicates the selection (anyone's strokes): each copy a new stroke of ours, in place
+  /// (TinkerCAD's Ctrl+D); when the selection is the last copies and they were moved since,
+  /// the copies land moved once more by that same motion (a row of posts, a circle of petals).
+  /// The copies are selected once they are shown. One command: undo takes them back.
   async duplicate() {
     if (!this.ids.size) return this.editor.notice("select strokes first (V, then click or drag a box)");
     const conn = this.editor.conn;
+    const motion = this.repeatMotion();
     const copies = [];
+    const origin = new Map(); // copy -> the placement it was made with
     try {
       for (const id of this.list) {
-        const offset = new THREE.Matrix4().makeTranslation(DUPLICATE_OFFSET, DUPLICATE_OFFSET, 0);
-        const placement = placementOf(matrixOf(this.view.strokes.get(id).placement).multiply(offset));
-        copies.push(await this.api.duplicate(id, crypto.randomUUID(), placement, conn.participantKey()));
+        const placement = placementOf(motion.clone().multiply(matrixOf(this.view.strokes.get(id).placement)));
+        const copy = await this.api.duplicate(id, crypto.randomUUID(), placement, conn.participantKey());
+        copies.push(copy);
+        origin.set(copy, this.view.strokes.get(id).placement);
       }
     } catch (err) {
       this.editor.notice(`cannot duplicate: ${err.message}`);
     }
     if (!copies.length) return;
+    this.repeat = { copies, origin };
     const remove = (removed) => copies.every((id) => conn.setRemoved(id, removed));
     this.editor.takeBack.push({ undo: () => remove(true), redo: () => remove(false) });
     // Selected when their meshes are shown (they come over the connection as any stroke).
     const shown = () => copies.every((id) => this.view.hasMesh(id));
     for (let i = 0; i < 100 && !shown(); i++) await new Promise((r) => setTimeout(r, 50));
     this.set(copies.filter((id) => this.view.hasMesh(id)));
+  }
+
+  /// The motion the next duplicate repeats: how the last copies (when they are the selection)
+  /// moved from where their sources were; none otherwise.
+  repeatMotion() {
+    const none = new THREE.Matrix4();
+    const r = this.repeat;
+    if (!r || r.copies.length !== this.ids.size || !r.copies.every((id) => this.ids.has(id))) return none;
+    const [first] = r.copies;
+    const now = this.view.strokes.get(first).placement;
+    return matrixOf(now).multiply(matrixOf(r.origin.get(first)).invert());
+  }
+
+  // --- placing by numbers, keys ----------------------------------------------------------------
+  /// The box of the selected strokes' retained points, placed (session space); empty when
+  /// nothing is selected. The numbers of the selection's panel are its.
+  bounds() {
+    const box = new THREE.Box3();
+    const v = new THREE.Vector3();
+    for (const id of this.ids) {
+      const s = this.view.strokes.get(id);
+      const m = matrixOf(s.placement);
+      for (const p of s.points) box.expandByPoint(v.copy(p).applyMatrix4(m));
+    }
+    return box;
+  }
+
+  /// Moves the selection by `motion` (a THREE.Matrix4 of session space): one command, sent at
+  /// once; `what` names it in a notice when it cannot be done. False when nothing moved.
+  moveBy(motion, what) {
+    if (!this.ids.size) {
+      this.editor.notice("select strokes first (V, then click or drag a box)");
+      return false;
+    }
+    if (this.own().length !== this.ids.size) {
+      this.editor.notice(`you can ${what} only your own strokes`);
+      return false;
+    }
+    const before = new Map(this.list.map((id) => [id, this.view.strokes.get(id).placement]));
+    const after = new Map([...before].map(([id, m]) => [id, placementOf(motion.clone().multiply(matrixOf(m)))]));
+    if ([...after].every(([id, m]) => same(m, before.get(id)))) return false;
+    if (!this.place(after)) {
+      this.editor.notice(`cannot ${what}: not connected to the proxy; try again`);
+      return false;
+    }
+    this.editor.takeBack.push({ undo: () => this.place(before), redo: () => this.place(after) });
+    return true;
+  }
+
+  /// Moves the selection by (`dx`, `dy`, `dz`) of session space.
+  translate(dx, dy, dz, what = "move") {
+    return this.moveBy(new THREE.Matrix4().makeTranslation(dx, dy, dz), what);
+  }
+
+  /// Turns the selection by `degrees` about the session's `axis` ("x", "y" or "z") through
+  /// the centre of its box.
+  turn(axis, degrees) {
+    const c = this.bounds().getCenter(new THREE.Vector3());
+    const r = new THREE.Matrix4().makeRotationAxis(new THREE.Vector3(axis === "x" ? 1 : 0, axis === "y" ? 1 : 0, axis === "z" ? 1 : 0), THREE.MathUtils.degToRad(degrees));
+    const about = new THREE.Matrix4().makeTranslation(c.x, c.y, c.z).multiply(r).multiply(new THREE.Matrix4().makeTranslation(-c.x, -c.y, -c.z));
+    return this.moveBy(about, "turn");
+  }
+
+  /// Drops the selection onto the work plane (TinkerCAD's D): its lowest point along the
+  /// plane's normal lands on the plane.
+  dropToPlane() {
+    const m = matrixOf(this.view.workPlacement);
+    const origin = new THREE.Vector3().setFromMatrixPosition(m);
+    const normal = new THREE.Vector3().setFromMatrixColumn(m, 2).normalize();
+    let low = Infinity;
+    const v = new THREE.Vector3();
+    for (const id of this.ids) {
+      const s = this.view.strokes.get(id);
+      const placed = matrixOf(s.placement);
+      for (const p of s.points) low = Math.min(low, v.copy(p).applyMatrix4(placed).sub(origin).dot(normal));
+    }
+    if (!Number.isFinite(low)) return this.editor.notice("select strokes first (V, then click or drag a box)");
+    if (!this.translate(-low * normal.x, -low * normal.y, -low * normal.z, "drop")) this.editor.notice("already on the work plane");
+  }
+
+  /// Nudges the selection by (`dx`, `dy`) along the work plane's own x and y.
+  nudge(dx, dy) {
+    const m = matrixOf(this.view.workPlacement);
+    const x = new THREE.Vector3().setFromMatrixColumn(m, 0).normalize();
+    const y = new THREE.Vector3().setFromMatrixColumn(m, 1).normalize();
+    const d = x.multiplyScalar(dx).addScaledVector(y, dy);
+    this.translate(d.x, d.y, d.z);
+  }
+
+  /// Takes the selection back (Delete): one command, undone as one.
+  remove() {
+    if (!this.ids.size) return this.editor.notice("select strokes first (V, then click or drag a box)");
+    if (this.own().length !== this.ids.size) return this.editor.notice("you can delete only your own strokes");
+    const takeBack = this.editor.takeBack;
+    const command = takeBack.strokesCommand(this.list, true);
+    if (!command.redo()) return this.editor.notice("cannot delete: not connected to the proxy; try again");
+    takeBack.push(command);
+    this.clear();
   }
 }
 
@@ -353,6 +544,7 @@ function segmentDistance([px, py], [ax, ay], [bx, by]) {
 export function selectTool() {
   let state = "idle"; // idle | pointing | boxing | dragging
   let start = null; // the sample where the pointer went down
+  let travelled = 0; // the farthest it went from there (CSS px)
   let shift = false;
   let box = null; // the box's element on the page while boxing
   addEventListener("keydown", (e) => (shift = e.shiftKey));
@@ -393,19 +585,27 @@ export function selectTool() {
     },
     down(editor, pointer, sample) {
       start = sample;
+      travelled = 0;
       state = editor.selection.grab(sample.clientX, sample.clientY) ? "dragging" : "pointing";
     },
     move(editor, pointer, samples) {
       const s = samples[samples.length - 1];
+      travelled = Math.max(travelled, Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY));
       if (state === "dragging") return editor.selection.moveGrab(s.clientX, s.clientY);
       if (state === "pointing" && Math.hypot(s.clientX - start.clientX, s.clientY - start.clientY) >= BOX_SLOP_PX) state = "boxing";
       if (state === "boxing") showBox(start, s);
     },
     up(editor) {
       const selection = editor.selection;
+      // A press on the gizmo that did not move is a click: it picks what is under it.
+      if (state === "dragging" && travelled < BOX_SLOP_PX) {
+        stop(editor);
+        state = "pointing";
+      }
       if (state === "pointing" && selection.picking) selection.pickPoint(start.clientX, start.clientY);
       else if (state === "pointing") {
         const id = selection.pick(start.clientX, start.clientY);
+        selection.repeat = null; // a stroke picked by hand: the next duplicate is in place
         if (shift) selection.set(id === null ? selection.list : selection.ids.has(id) ? selection.list.filter((x) => x !== id) : [...selection.list, id]);
         else selection.set(id === null ? [] : [id]);
       } else if (state === "boxing" && box) {

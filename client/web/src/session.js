@@ -7,6 +7,7 @@ import { Api } from "./api.js";
 import { blocked } from "./landing.js";
 import { attachControls } from "./controls.js";
 import { Editor } from "./editor.js";
+import { Ground } from "./ground.js";
 import { attachExport } from "./export.js";
 import { Ink } from "./ink.js";
 import { attachInput } from "./input.js";
@@ -15,7 +16,9 @@ import { Connection } from "./protocol.js";
 import { PALETTE, SceneView, colourOf, strokeColour } from "./scene.js";
 import { colourApart, saveBrush, savedBrush, savedName } from "./settings.js";
 import { Selection } from "./select.js";
+import { SelectionPanel } from "./selpanel.js";
 import { TakeBack } from "./takeback.js";
+import { attachViews } from "./views.js";
 import { WorkPlane } from "./workplane.js";
 
 // A mesh build that fails for a reason that may pass (no answer, the proxy busy or failing:
@@ -79,12 +82,19 @@ export function startSession(session, token) {
   const editor = new Editor({ conn, view, ink, takeBack, brush, people });
   // The model: the plane the pen draws on, and the strokes selected to move (select.js).
   const workPlane = new WorkPlane(view);
+  editor.workPlane = workPlane;
   editor.selection = new Selection(editor, { api, workPlane });
-  editor.on("camera", () => workPlane.follow());
+  const ground = new Ground(view);
+  editor.on("camera", () => {
+    workPlane.follow();
+    ground.follow();
+  });
   attachInput($("ink"), editor);
   const controls = attachControls(editor, { session, name, askName, fail });
   attachModelBar(editor, { workPlane, selection: editor.selection });
-  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail });
+  attachViews(editor);
+  editor.selectionPanel = new SelectionPanel(editor, editor.selection);
+  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail, imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)) });
 
   // For the browser tests and the curious.
   window.penmesh = {
@@ -109,7 +119,7 @@ export function startSession(session, token) {
     get tool() { return editor.tool.id; },
     get inked() { return ink.count; }, // strokes on the ink
     get view() { return view; }, // the 3D view (bench/busy-board.mjs --frame-costs)
-    get camera() { const r = view.rig; return { x: r.target.x, y: r.target.y, scale: r.scale, yaw: r.yaw, pitch: r.pitch }; },
+    get camera() { const r = view.rig; return { x: r.target.x, y: r.target.y, z: r.target.z, scale: r.scale, yaw: r.yaw, pitch: r.pitch }; },
     toStroke: (x, y) => view.toStroke(x, y),
     toPage: (x, y, placement) => view.toPage(x, y, placement),
     // The model (protocol 5): each stroke's placement (null: the board), the work plane's, the
@@ -119,6 +129,8 @@ export function startSession(session, token) {
     get selected() { return editor.selection.list; },
     boxes: () => view.boxes(),
     gizmoHandle: (axis) => editor.selection.handleAt(axis),
+    // The box of the selected strokes' points, placed (what the selection's panel shows).
+    selectionBounds: () => { const b = editor.selection.bounds(); return { min: b.min.toArray(), max: b.max.toArray() }; },
     // Places any stroke here and asks the proxy to (the tests check that it refuses another's
     // and that the page puts the stroke back).
     place: (stroke, placement) => editor.selection.place(new Map([[stroke, placement]])),
@@ -322,7 +334,9 @@ export function startSession(session, token) {
         break;
       case "peer_stroke_begin":
         view.stroke(m.stroke, m.participant, m.brush);
-        brushUsed(m.participant, m.brush);
+        // Our own colour is our brush's (controls.onBrush), not that of a copy we made of
+        // another's stroke (a duplicate keeps its source's brush).
+        if (m.participant !== conn.me) brushUsed(m.participant, m.brush);
         break;
       case "peer_retained":
         view.addRetained(m.stroke, m.participant, m.first, m.points);

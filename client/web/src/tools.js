@@ -125,7 +125,37 @@ function orbitTool() {
   };
 }
 
+/// Work plane (W, TinkerCAD's workplane tool): a click on a stroke puts the work plane on that
+/// stroke's plane, a click on the ground puts it back on the board there (a Front or Side plane
+/// picked next goes through that point); then the pen draws again.
+function planeTool() {
+  let start = null;
+  return {
+    id: "plane",
+    label: "Plane",
+    keys: ["w"],
+    cursor: "copy",
+    onEnter(editor) {
+      editor.notice("click a stroke to draw on its plane, or the ground to draw on the board");
+    },
+    onExit() {
+      start = null;
+    },
+    down(editor, pointer, sample) {
+      start = sample;
+    },
+    move() {},
+    up(editor) {
+      if (start) editor.pickWorkPlane(start.clientX, start.clientY);
+      start = null;
+    },
+    interrupt() {
+      start = null;
+    },
+  };
+}
+
 /// A fresh set of the tools, by id, in the toolbar's order.
 export function createTools() {
-  return { draw: drawTool(), select: selectTool(), erase: eraseTool(), orbit: orbitTool() };
+  return { draw: drawTool(), select: selectTool(), erase: eraseTool(), orbit: orbitTool(), plane: planeTool() };
 }

@@ -2,15 +2,16 @@
 // the two planes standing on it (front, side), the plane of a picked stroke, or the plane
 // through three picked points; moved along its normal by `offset`. Its placement is what a
 // stroke begun on it carries (`stroke_begin.placement`); the view draws the pen's pointer ray
-// onto it (scene.js `toStroke`). The grid follows the camera's target along the plane, and is
-// hidden on the plain board seen from the front, where the page itself is the board.
+// onto it (scene.js `toStroke`). The grid, a finite faded patch (grid.js), follows the
+// camera's target along the plane; on the board itself the ground's grid shows it (ground.js).
 import * as THREE from "three";
+import { fadedGrid } from "./grid.js";
 import { FRONT, IDENTITY, SIDE, isIdentity, matrixOf } from "./placement.js";
 
 /// A grid cell, in plane units (one CSS pixel at one to one); the gizmo snaps to GRID_SNAP.
 export const GRID_CELL = 50;
 export const GRID_SNAP = 10;
-const GRID_CELLS = 40;
+const GRID_CELLS = 16;
 
 export const PLANES = { board: IDENTITY, front: FRONT, side: SIDE };
 
@@ -22,9 +23,7 @@ export class WorkPlane {
     this.base = IDENTITY;
     this.offset = 0; // along the normal, plane units
     this.onChange = () => {};
-    this.grid = gridLines();
-    this.grid.matrixAutoUpdate = false;
-    this.grid.frustumCulled = false;
+    this.grid = fadedGrid(GRID_CELL, GRID_CELLS);
     view.world.add(this.grid);
     this.apply();
   }
@@ -38,10 +37,13 @@ export class WorkPlane {
     return m;
   }
 
-  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points").
-  set(kind, base = PLANES[kind]) {
+  /// One of PLANES by name, or a placement picked (`kind` "stroke" or "points"). A named
+  /// plane goes through `through` (a THREE.Vector3 of session space: the selection's or the
+  /// model's centre; its foot on the board, so a standing plane's y is the height).
+  set(kind, base = PLANES[kind], through = null) {
     this.kind = kind;
-    this.base = base || IDENTITY;
+    this.base = [...(base || IDENTITY)];
+    if (through && kind !== "board" && kind in PLANES) [this.base[12], this.base[13]] = [through.x, through.y];
     this.offset = 0;
     this.apply();
   }
@@ -50,6 +52,24 @@ export class WorkPlane {
   move(d) {
     this.offset += d;
     this.apply();
+  }
+
+  /// Puts the plane `offset` plane units along its normal from where it was set.
+  setOffset(offset) {
+    this.offset = offset;
+    this.apply();
+  }
+
+  /// Moves the plane by `d` plane units away from the camera (toward it when `d` is negative):
+  /// along its normal, the way that faces away from the camera (a plane seen edge-on: its
+  /// normal's way).
+  moveAway(d) {
+    const m = matrixOf(this.placement);
+    const normal = new THREE.Vector3().setFromMatrixColumn(m, 2).normalize();
+    const camera = this.view.camera.position.clone().applyMatrix4(new THREE.Matrix4().makeScale(1, -1, 1)); // to session space
+    const origin = new THREE.Vector3().setFromMatrixPosition(m);
+    const side = normal.dot(origin.sub(camera));
+    this.move(side < -1e-9 ? -d : d);
   }
 
   apply() {
@@ -62,33 +82,11 @@ export class WorkPlane {
   follow() {
     const rig = this.view.rig;
     const m = matrixOf(this.placement);
-    const target = new THREE.Vector3(rig.target.x, rig.target.y, 0).applyMatrix4(m.clone().invert());
+    const target = rig.target.clone().applyMatrix4(m.clone().invert());
     const snap = (v) => Math.round(v / GRID_CELL) * GRID_CELL;
     this.grid.matrix.copy(m.multiply(new THREE.Matrix4().makeTranslation(snap(target.x), snap(target.y), 0)));
-    this.grid.visible = this.placement !== null || !rig.front;
+    // On the board itself, the ground's grid (ground.js) is the plane's.
+    this.grid.visible = this.placement !== null;
     this.view.requestRender();
   }
-}
-
-/// The grid: GRID_CELLS cells a side in the plane's x-y, centred on its origin, its two middle
-/// lines darker. Each line is cut at every cell: a line that passes behind the camera was not
-/// drawn at all in software WebGL (SwiftShader), whole.
-function gridLines() {
-  const half = (GRID_CELL * GRID_CELLS) / 2;
-  const positions = [];
-  const colours = [];
-  const [dark, light] = [new THREE.Color(0x8a8a80), new THREE.Color(0xc8c7bf)];
-  for (let i = 0; i <= GRID_CELLS; i++) {
-    const k = -half + i * GRID_CELL;
-    const c = i === GRID_CELLS / 2 ? dark : light;
-    for (let j = 0; j < GRID_CELLS; j++) {
-      const [a, b] = [-half + j * GRID_CELL, -half + (j + 1) * GRID_CELL];
-      positions.push(a, k, 0, b, k, 0, k, a, 0, k, b, 0);
-      for (let v = 0; v < 4; v++) colours.push(c.r, c.g, c.b);
-    }
-  }
-  const g = new THREE.BufferGeometry();
-  g.setAttribute("position", new THREE.Float32BufferAttribute(positions, 3));
-  g.setAttribute("color", new THREE.Float32BufferAttribute(colours, 3));
-  return new THREE.LineSegments(g, new THREE.LineBasicMaterial({ vertexColors: true, transparent: true, opacity: 0.8, depthWrite: false }));
 }

@@ -82,7 +82,11 @@ await browserTest(async ({ proxy, browser }) => {
   }
   log(`GLB: ${glb.length} bytes, valid (${report.issues.numWarnings} warnings), two strokes with their pen data`);
 
+  // The download started: the menu closed itself, out of the board's way (issue 50).
+  await until("the menu closed after the GLB's download", async () => !(await page.isVisible("#export-menu")));
+
   // --- 2. STL ---------------------------------------------------------------------------
+  await page.click("#download");
   await page.evaluate(() => {
     window.exportStatuses.length = 0;
     window.exportBar.length = 0;
@@ -104,8 +108,7 @@ await browserTest(async ({ proxy, browser }) => {
   assert.ok(triangles > 100, `${triangles} triangles`);
   assert.equal(stl.length, 84 + 50 * triangles, "a whole binary STL");
   log(`STL: ${triangles} triangles`);
-  await page.screenshot({ path: join(ARTIFACTS, "export-menu.png") });
-  await page.click("#export-close");
+  await until("the menu closed after the STL's download", async () => !(await page.isVisible("#export-menu")));
 
   // --- 3. import, by dropping the file on a new session's page ---------------------------
   const second = await newSession(base);
@@ -119,6 +122,14 @@ await browserTest(async ({ proxy, browser }) => {
       data.items.add(new File([bytes], name));
       document.dispatchEvent(new DragEvent("drop", { dataTransfer: data, bubbles: true, cancelable: true }));
     }, [Buffer.from(bytes).toString("base64"), name]);
+  // A print dropped is said so, naming it: the page brings back only GLB scenes (issue 50).
+  await drop(Buffer.from("solid x\nendsolid x\n"), "house.stl");
+  await until("the page to say the STL cannot be imported", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("house.stl") && e.includes("only a GLB"))));
+  // And one chosen in the menu.
+  await other.click("#download");
+  await other.setInputFiles("#import-file", { name: "house.3mf", mimeType: "model/3mf", buffer: Buffer.from("PK") });
+  await until("the page to say the 3MF cannot be imported", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("house.3mf") && e.includes("only a GLB"))));
+  await other.click("#export-close");
   await drop(Buffer.from("not a model at all"), "junk.glb");
   await until("the page to say why the file is refused", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("junk.glb") && e.includes("not a GLB"))));
   assert.equal((await storedStrokes(base, second)).length, 0, "nothing imported");

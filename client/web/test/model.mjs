@@ -118,20 +118,27 @@ browserTest(async ({ proxy, browser }) => {
 
   // 2. The front plane, moved to the seat's far edge (y = 200: Shift+[ four times, a grid cell
   //    each), seen from 60° above: the pen draws the back on it, and the view stays.
+  //    (Front goes through the model's centre, (400, 260): moved 60 along its normal, typed.)
   await ada.locator("#plane").selectOption("front");
-  for (let i = 0; i < 4; i++) await ada.keyboard.press("Shift+BracketLeft");
-  const onEdge = [...FRONT];
+  const through = [...FRONT];
+  [through[12], through[13]] = [400, 260];
+  assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, through, "the front plane through the model's centre");
+  await ada.fill("#plane-offset", "60");
+  await ada.press("#plane-offset", "Enter");
+  const onEdge = [...through];
   onEdge[13] = 200;
   assert.deepEqual((await ada.evaluate(() => window.penmesh.workPlane)).placement, onEdge, "the front plane moved to y = 200");
   await ada.keyboard.press("o");
   const pitch = Math.PI / 3;
-  await drag(ada, [500, 200], [500, 200 + pitch / ORBIT_PER_PX], 12);
+  // (A drag up tilts the view from above toward the front: camera.js, a turntable.)
+  await drag(ada, [500, 200 + pitch / ORBIT_PER_PX], [500, 200], 12);
   const turned = await ada.evaluate(() => window.penmesh.camera);
   assert.ok(Math.abs(turned.pitch - pitch) < 0.01, `orbited to ${turned.pitch} rad, not 60°`);
   await ada.keyboard.press("Escape");
   await ada.waitForTimeout(100);
-  // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height).
-  const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[330, 5], [330, 140], [470, 140], [470, 5]]);
+  // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height, its
+  // x from the plane's origin at the seat's middle).
+  const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[-70, 5], [-70, 140], [70, 140], [70, 5]]);
   const inkBefore = await ada.evaluate(() => window.penmesh.inked);
   await polyline(ada.cdp, back, false);
   // While the pen is down, the ink shows the stroke where it is drawn on the plane: along its
@@ -171,7 +178,7 @@ browserTest(async ({ proxy, browser }) => {
   const before = await placements(ada);
   await drag(ada, handle, [handle[0] + 150, handle[1]], 15);
   const moved = (await placements(ada))[front];
-  assert.ok(moved[12] > 50 && moved[13] === 200 && moved[14] === 0, `the gizmo's X handle moved the back along x: ${JSON.stringify(moved)}`);
+  assert.ok(moved[12] > 400 + 50 && moved[13] === 200 && moved[14] === 0, `the gizmo's X handle moved the back along x: ${JSON.stringify(moved)}`);
   assert.deepEqual(moved.slice(0, 12), onEdge.slice(0, 12), "the move did not turn the back");
   server = await agree(base, s, ada, bob, "moved with the gizmo");
   assert.deepEqual(server[front], moved);
@@ -236,18 +243,16 @@ browserTest(async ({ proxy, browser }) => {
   });
   server = await agree(base, s, ada, bob, "mirrored");
 
-  // Snap (S): a drag of the X handle puts the selection's centre on the 10-unit grid.
+  // Snap (S): a drag of the X handle puts the selection's low edge on the 10-unit grid (snap by
+  // the bounds, issue 50).
   await ada.keyboard.press("s");
   assert.equal(await ada.locator("#snap").getAttribute("aria-pressed"), "true");
   const snapHandle = await ada.evaluate(() => window.penmesh.gizmoHandle("X"));
   await drag(ada, snapHandle, [snapHandle[0] + 37, snapHandle[1]], 8);
   await until("the snapped move stored", async () => (await stored(base, s))[copy][12] !== server[copy][12]);
   server = await agree(base, s, ada, bob, "moved with snapping");
-  const centreX = await ada.evaluate((id) => {
-    const b = window.penmesh.boxes()[id];
-    return (b.min[0] + b.max[0]) / 2;
-  }, copy);
-  assert.ok(Math.abs(centreX / 10 - Math.round(centreX / 10)) < 1e-3, `snapped, the copy's centre is at x = ${centreX}, not on the 10-unit grid`);
+  const lowX = await ada.evaluate(() => window.penmesh.selectionBounds().min[0]);
+  assert.ok(Math.abs(lowX / 10 - Math.round(lowX / 10)) < 1e-3, `snapped, the selection's low edge is at x = ${lowX}, not on the 10-unit grid`);
 
   // Turn (R) with Snap: a drag along the Z ring turns the copy about z by a multiple of 15°.
   await ada.keyboard.press("r");
