@@ -6,8 +6,8 @@ use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
     ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, OLDEST_PROTOCOL_VERSION,
-    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, check_text, decode_client_json_limited,
-    decode_client_limited, is_supported_version,
+    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, binary_frame_version, check_text,
+    decode_client_json_limited, decode_client_limited, is_supported_version,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -222,6 +222,16 @@ impl Connection {
     /// which is what keeps the connection from the idle timeout.
     async fn on_frame(&mut self, frame: Frame) -> bool {
         let limit = self.state.config.max_message_bytes;
+        let frame_version = match &frame {
+            Frame::Binary(bytes) => binary_frame_version(bytes),
+            _ => None,
+        };
+        if !self.hello
+            && let Some(version) = frame_version
+        {
+            // The connection's version is not known yet: answer in the client's.
+            self.outgoing.version = version;
+        }
         let decoded = match &frame {
             Frame::Binary(bytes) => {
                 self.outgoing.form = Form::Binary;
@@ -239,16 +249,71 @@ impl Connection {
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return false,
         };
         let done = match decoded {
-            Ok(msg) => {
-                let work = !matches!(msg, ClientMessage::Ping(_));
-                self.on_message(msg).await.map(|()| work)
-            }
+            Ok(msg) => match self.speaks(frame_version, &msg) {
+                Ok(()) => {
+                    let work = !matches!(msg, ClientMessage::Ping(_));
+                    self.on_message(msg).await.map(|()| work)
+                }
+                Err(err) => Err(err),
+            },
             Err(err) => Err(err),
         };
         done.unwrap_or_else(|err| {
             self.fail(err);
             false
         })
+    }
+
+    /// Whether `msg` is of this connection's version (the one its `hello` named), the one
+    /// place versions are checked: a binary frame carries that version in its first byte
+    /// (`frame_version`), and a message or field a later version brought
+    /// ([`ClientMessage::introduced_in`]) is `unknown_message`, as a variant index the version
+    /// lacks is. Before the hello, its own frame must carry the version it names.
+    fn speaks(&self, frame_version: Option<u16>, msg: &ClientMessage) -> Result<(), ConnError> {
+        let version = match msg {
+            ClientMessage::Hello(hello) if !self.hello => {
+                return match frame_version {
+                    Some(framed)
+                        if framed != hello.protocol && is_supported_version(hello.protocol) =>
+                    {
+                        Err(ConnError::refused(
+                            ErrorCode::Protocol,
+                            format!(
+                                "hello.protocol is {} but its frame is of version {framed}: \
+                                 every binary frame carries the connection's version",
+                                hello.protocol
+                            ),
+                            None,
+                        ))
+                    }
+                    _ => Ok(()),
+                };
+            }
+            _ if !self.hello => return Ok(()),
+            _ => self.outgoing.version,
+        };
+        if let Some(framed) = frame_version.filter(|&framed| framed != version) {
+            return Err(ConnError::refused(
+                ErrorCode::UnknownMessage,
+                format!(
+                    "a frame of version {framed} on a connection of version {version} (its \
+                     hello): every binary frame carries the connection's version"
+                ),
+                None,
+            ));
+        }
+        let (since, what) = msg.introduced_in();
+        if since > version {
+            return Err(ConnError::refused(
+                ErrorCode::UnknownMessage,
+                format!(
+                    "{what} is of protocol version {since}; this connection speaks version \
+                     {version} (its hello)"
+                ),
+                None,
+            ));
+        }
+        Ok(())
     }
 
     async fn on_message(&mut self, msg: ClientMessage) -> Result<(), ConnError> {

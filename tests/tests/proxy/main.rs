@@ -16,6 +16,7 @@ mod postgres;
 mod protocol_doc;
 mod resume;
 mod shutdown;
+mod versions;
 mod web;
 mod write_failures;
 mod ws_binary;
