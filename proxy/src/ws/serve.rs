@@ -399,31 +399,35 @@ impl Connection {
         for (stroke, kept) in resent {
             self.send_retained(stroke, 0, &kept);
         }
-        let name = hello
-            .name
-            .as_deref()
-            .and_then(clean_name)
+        let (participant, session, connection) = (self.participant, self.session, self.presence);
+        let asked = hello.name.as_deref().and_then(clean_name);
+        let known = self.known_name(hello.key.is_some()).await;
+        let name = (asked.clone().or_else(|| known.clone()))
             .or_else(|| clean_name(&hello.client))
             .unwrap_or_else(|| "guest".into());
-        let (participant, session, connection) = (self.participant, self.session, self.presence);
-        let joined = self
-            .state
-            .writer
-            .write_with(
-                vec![WriteOp::Join {
-                    connection,
-                    participant,
-                    session,
-                    name: name.clone(),
-                    replica: self.state.claims.replica_key(),
-                }],
-                vec![SessionEvent::from_connection(
-                    self.id,
-                    session,
-                    EventKind::Joined { participant, connection, name },
-                )],
-            )
-            .await;
+        let mut ops = vec![WriteOp::Join {
+            connection,
+            participant,
+            session,
+            name: name.clone(),
+            replica: self.state.claims.replica_key(),
+        }];
+        let mut events = vec![SessionEvent::from_connection(
+            self.id,
+            session,
+            EventKind::Joined { participant, connection, name: name.clone() },
+        )];
+        // Another name than the participant's connections had: a rename, which the session
+        // hears (a second connection's join is not news to it).
+        if known.is_some_and(|known| known != name) {
+            ops.push(WriteOp::Rename { participant, session, name: name.clone() });
+            events.push(SessionEvent::from_connection(
+                self.id,
+                session,
+                EventKind::Renamed { participant, name },
+            ));
+        }
+        let joined = self.state.writer.write_with(ops, events).await;
         match joined {
             Ok(()) => self.joined = true,
             // Drawing goes on; the others do not see this participant in the list.
@@ -433,6 +437,21 @@ impl Connection {
         }
         self.resync(None).await;
         Ok(())
+    }
+
+    /// The name the participant last went by in this session (an earlier connection's), which
+    /// a hello without a name keeps: none for a participant without a key (a fresh one).
+    async fn known_name(&self, has_key: bool) -> Option<String> {
+        if !has_key {
+            return None;
+        }
+        match self.state.store.participant_names(self.session).await {
+            Ok(mut names) => names.remove(&self.participant),
+            Err(err) => {
+                tracing::warn!(connection = self.id, error = %err, "reading the participant's name failed");
+                None
+            }
+        }
     }
 
     /// A new display name ([`clean_name`]): stored on the participant's presence rows and
