@@ -18,7 +18,7 @@
 use std::collections::HashMap;
 
 use axum::Json;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use penmesh::protocol::{Imported, ImportedStroke, quantize_sample};
 use penmesh::{
@@ -30,6 +30,7 @@ use uuid::Uuid;
 use crate::events::{EventKind, SessionEvent};
 use crate::http::{AppError, ErrorBody, authorize_session, store_mesh};
 use crate::mesh_build::PROXY_UPLOADER;
+use crate::query::Query;
 use crate::state::AppState;
 use crate::store::{WriteError, WriteOp, now_ms};
 
