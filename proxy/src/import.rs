@@ -155,8 +155,11 @@ pub async fn import_scene(
     for read in &strokes {
         placements.push(check(read, max_samples)?);
     }
-    // The new strokes' ids, chosen now so their meshes carry them.
-    let ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    // The new strokes' ids, chosen now so their meshes carry them, in increasing order: they
+    // are begun at the same moment, and a session lists its strokes by (begun, id), so the
+    // session (and its next export) keeps the file's order.
+    let mut ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    ids.sort_unstable();
     let max_decoded = limit;
     let checked = tokio::task::spawn_blocking(move || {
         strokes

@@ -15,6 +15,7 @@ mod old_database;
 mod postgres;
 mod protocol_doc;
 mod resume;
+mod roundtrip_bytes;
 mod shutdown;
 mod versions;
 mod web;
