@@ -46,6 +46,9 @@ impl Connection {
             EventKind::Placed { stroke, id, .. } if self.own.contains(stroke) => {
                 if self.view.tell_placement(*stroke, *id) { Admit::Whole } else { Admit::Skip }
             }
+            // And a mesh of its own stroke, which is stored over HTTP (an upload or a build),
+            // never on this connection: the mesh is announced to the whole session.
+            EventKind::Mesh { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
             _ if self.is_own(event) => return,
             _ => self.view.admit(event),
         };

@@ -43,7 +43,10 @@ pub use codec::{
     decode_server_json, encode_client, encode_client_json, encode_point_batch, encode_server,
     encode_server_json, quantize_sample,
 };
-pub use codec::{encode_client_as, encode_server_as, encode_server_json_as, is_supported_version};
+pub use codec::{
+    binary_frame_version, encode_client_as, encode_server_as, encode_server_json_as,
+    is_supported_version,
+};
 pub use http::{
     DuplicateRequest, Duplicated, ErrorBody, Imported, ImportedStroke, MeshInfo, NewSession,
     PlacementChange, PlacementHistory, Removal, StrokeInfo, StrokeList, StrokeSamples,
@@ -141,6 +144,24 @@ pub enum ClientMessage {
     /// drawn is `stroke_open`. A matrix that is not a placement does not decode (`malformed`
     /// or `bad_json`, naming what is wrong).
     SetPlacement(SetPlacement),
+}
+
+impl ClientMessage {
+    /// The protocol version that brought this message as it stands, and what to call it in a
+    /// refusal: a field of a later version counts (a `stroke_begin` with a `placement` is a
+    /// version-5 message). A connection of an older version is refused it with
+    /// `unknown_message`, in one place (the proxy's `ws/serve.rs`, `Connection::speaks`). A new
+    /// version adds its messages and fields here; everything else is of the oldest version
+    /// served.
+    pub fn introduced_in(&self) -> (u16, &'static str) {
+        match self {
+            ClientMessage::SetPlacement(_) => (5, "set_placement"),
+            ClientMessage::StrokeBegin(begin) if begin.placement.is_some() => {
+                (5, "stroke_begin.placement")
+            }
+            _ => (OLDEST_PROTOCOL_VERSION, "this message"),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
