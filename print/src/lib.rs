@@ -11,8 +11,8 @@ mod stl;
 mod threemf;
 
 pub use crate::solid::{
-    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, IDENTITY, MAX_SIZE_MM, PRINT_TOLERANCE_MM,
-    PrintError, PrintMesh, PrintOptions, PrintStroke, Progress, print_mesh,
+    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, HOLE_MARGIN_MM, IDENTITY, MAX_SIZE_MM,
+    PRINT_TOLERANCE_MM, PrintError, PrintMesh, PrintOptions, PrintStroke, Progress, print_mesh,
 };
 pub use crate::stl::write_stl;
 pub use crate::threemf::{MODEL_PATH, model_xml, write_3mf};

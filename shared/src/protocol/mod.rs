@@ -46,7 +46,7 @@ pub use codec::{
 pub use codec::{encode_client_as, encode_server_as, encode_server_json_as, is_supported_version};
 pub use http::{
     DuplicateRequest, Duplicated, ErrorBody, Imported, ImportedStroke, MeshInfo, NewSession,
-    PlacementChange, PlacementHistory, Removal, StrokeInfo, StrokeList, StrokeSamples,
+    PlacementChange, PlacementHistory, Removal, SolidChange, SolidHistory, StrokeInfo, StrokeList, StrokeSamples,
 };
 pub use mesh_bundle::{
     BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MESH_BUNDLE_PLACED_MAGIC,
