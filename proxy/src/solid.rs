@@ -1,5 +1,6 @@
-//! What a stroke becomes (issue 51, `spec/system.md` "Solids: what a stroke becomes"): its
-//! solid set by its drawer over HTTP (`PUT /v1/strokes/{id}/solid`) and its history
+//! What a stroke becomes (issue 51, `spec/system.md` "Solids: what a stroke becomes"; protocol
+//! 6): its solid set by its drawer over the WebSocket (`SetSolid`, `ws/solids.rs`; a stroke
+//! begun as one, `StrokeBegin.solid`) or HTTP (`PUT /v1/strokes/{id}/solid`), and its history
 //! (`GET /v1/strokes/{id}/solids`), under the rule placements follow:
 //!
 //! - **Who**: only the stroke's drawer (its `x-penmesh-key`), checked before the body is read.
@@ -8,7 +9,8 @@
 //! - **Nothing is overwritten**: each solid is a row of its own with who and when
 //!   ([`WriteOp::SetSolid`]); the current one is the latest, and undo sets the one before.
 //! - **Nothing half-made**: the new mesh is built first (refused there if the stroke cannot be
-//!   that solid), then the solid is committed, then the mesh stored and announced
+//!   that solid), then the solid is committed and told to the session (`PeerSolid`; a
+//!   connection of protocol 5 or 4 is not told), then the mesh stored and announced
 //!   (`peer_mesh`), as the proxy's mesh build stores one. The solid's kind and depth are what
 //!   is stored and told; the mesh is made from the stroke's samples where meshes are made.
 
@@ -17,14 +19,61 @@ use axum::body::Body;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
 use penmesh::Solid;
-use penmesh::protocol::{SolidChange, SolidHistory, StrokeStatus};
+use penmesh::protocol::{
+    ErrorCode, ParticipantId, SolidChange, SolidHistory, StrokeId, StrokeStatus,
+};
 use sqlx::Row;
 use uuid::Uuid;
 
+use crate::events::{EventKind, SessionEvent};
 use crate::http::{AppError, ErrorBody, MeshInfo, authorized_stroke, owned_stroke};
 use crate::mesh_build::{built_glb, store_built};
+use crate::removal::Refused;
 use crate::state::AppState;
-use crate::store::{WriteError, WriteOp, now_ms};
+use crate::store::{StrokeRow, WriteError, WriteOp, now_ms};
+
+/// Checks that `by` may set the solid of `row` (a stroke of its session).
+pub fn check(row: &StrokeRow, by: ParticipantId) -> Result<(), Refused> {
+    if row.participant != by {
+        return Err(Refused {
+            code: ErrorCode::NotOwner,
+            message: format!(
+                "stroke {} was drawn by another participant: only its drawer may set its solid",
+                row.id
+            ),
+        });
+    }
+    if row.status != StrokeStatus::Done {
+        return Err(Refused {
+            code: ErrorCode::StrokeOpen,
+            message: format!(
+                "stroke {} is {}: only a finished stroke's solid can be set (a stroke being \
+                 drawn has the solid of its stroke_begin)",
+                row.id,
+                row.status.as_str()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The write and the event of setting the solid of the stroke `(session, drawer, stroke)`
+/// (`cause`: `begin`, `set`, `duplicate` or `import`), on connection `origin` of this replica,
+/// if any.
+pub fn request(
+    (session, participant, stroke): (uuid::Uuid, ParticipantId, StrokeId),
+    solid: Solid,
+    cause: &'static str,
+    origin: Option<u64>,
+) -> (WriteOp, SessionEvent) {
+    let kind = EventKind::Solid { participant, stroke, solid };
+    let event = match origin {
+        Some(connection) => SessionEvent::from_connection(connection, session, kind),
+        None => SessionEvent::new(session, kind),
+    };
+    let op = WriteOp::SetSolid { stroke, solid, by: participant, at: now_ms(), cause };
+    (op, event)
+}
 
 /// The largest body a solid is sent in: `{"kind": "filled", "depth": 48.0}` is 33 bytes.
 const MAX_SOLID_BODY: usize = 1024;
@@ -64,25 +113,15 @@ pub async fn put_solid(
 ) -> Result<Json<MeshInfo>, AppError> {
     let (row, _) = owned_stroke(&state, &headers, &id, "set its solid").await?;
     let body = axum::body::to_bytes(body, MAX_SOLID_BODY).await.map_err(|e| {
-        AppError::BadRequest(format!("the body is not a solid of at most {MAX_SOLID_BODY} bytes: {e}"))
+        AppError::BadRequest(format!(
+            "the body is not a solid of at most {MAX_SOLID_BODY} bytes: {e}"
+        ))
     })?;
     let solid = solid_body(&body)?;
-    if row.status != StrokeStatus::Done {
-        return Err(AppError::Conflict(format!(
-            "stroke {} is {}: only a finished stroke's solid can be set",
-            row.id,
-            row.status.as_str()
-        )));
-    }
+    check(&row, row.participant).map_err(|refused| AppError::Conflict(refused.message))?;
     let glb = built_glb(&state, &row, solid).await?;
-    let op = WriteOp::SetSolid {
-        stroke: row.id,
-        solid,
-        by: row.participant,
-        at: now_ms(),
-        cause: "set",
-    };
-    state.writer.write_with(vec![op], vec![]).await.map_err(|err| match err {
+    let (op, event) = request((row.session_id, row.participant, row.id), solid, "set", None);
+    state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
         WriteError::Closed => AppError::ShuttingDown,
         WriteError::Refused(why) | WriteError::Quota(why) => AppError::Conflict(why),
         err => AppError::Internal(err.into()),
@@ -125,8 +164,12 @@ pub async fn solids(
         });
     }
     if solids.first().is_none_or(|s| s.cause == "set") {
-        let begin =
-            SolidChange { solid: Solid::ROD, by: row.participant, at: row.created_at, cause: "begin".into() };
+        let begin = SolidChange {
+            solid: Solid::ROD,
+            by: row.participant,
+            at: row.created_at,
+            cause: "begin".into(),
+        };
         solids.insert(0, begin);
     }
     Ok(Json(SolidHistory { stroke: row.id, solids }))

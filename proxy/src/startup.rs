@@ -32,8 +32,8 @@ use crate::send_deadline::{DeadlineIo, SendDeadline};
 use crate::state::AppState;
 use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
 use crate::{
-    export, http, import, mesh_build, metrics, placement, removal, send_deadline, session_meshes, solid,
-    web, ws,
+    export, http, import, mesh_build, metrics, placement, removal, send_deadline, session_meshes,
+    solid, web, ws,
 };
 
 /// A bound, ready-to-run proxy.

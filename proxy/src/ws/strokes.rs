@@ -142,6 +142,9 @@ impl Connection {
 
     pub(super) async fn on_stroke_begin(&mut self, begin: StrokeBegin) -> Result<(), ConnError> {
         let stroke = begin.stroke;
+        if begin.solid.is_some() {
+            self.solids_spoken("stroke_begin.solid", stroke)?;
+        }
         if let Err(err) = begin.brush.validate() {
             return Err(ConnError::refused(ErrorCode::BadBrush, err.to_string(), Some(stroke)));
         }
@@ -249,6 +252,18 @@ impl Connection {
                     let (op, event) = crate::placement::request(
                         (session, participant, stroke),
                         placement,
+                        "begin",
+                        Some(self.id),
+                    );
+                    ops.push(op);
+                    events.push(event);
+                }
+                // What it becomes (version 6): stored with its begin, told right after it. A
+                // filled stroke's closure is checked when its mesh is built.
+                if let Some(solid) = begin.solid.filter(|s| !s.is_rod()) {
+                    let (op, event) = crate::solid::request(
+                        (session, participant, stroke),
+                        solid,
                         "begin",
                         Some(self.id),
                     );
@@ -404,6 +419,17 @@ impl Connection {
                 let id = placed.first().copied().unwrap_or_default();
                 self.answer_placement(id, answer).await;
             }
+            (Ok(_), AfterCommit::Solid { answer, row, glb }) => {
+                self.answer_solid(answer, *row, glb)
+            }
+            (Err(err), AfterCommit::Solid { answer, .. }) => {
+                self.fail(ConnError::internal(
+                    "storing a stroke's solid",
+                    err,
+                    "storing that failed, so nothing changed; try again",
+                    Some(answer.stroke),
+                ));
+            }
             (Err(err), AfterCommit::Placed { answer }) => {
                 self.fail(ConnError::internal(
                     "storing a stroke's placement",
@@ -426,6 +452,7 @@ impl Connection {
                     | AfterCommit::Done { stroke, .. }
                     | AfterCommit::Answer { stroke, .. } => stroke,
                     AfterCommit::Placed { answer } => answer.stroke,
+                    AfterCommit::Solid { answer, .. } => answer.stroke,
                 };
                 // The in-memory state is ahead of the database: drop it, so the client
                 // resumes from what is committed.

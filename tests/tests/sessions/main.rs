@@ -21,3 +21,4 @@ mod removal;
 mod replicas;
 mod sessions;
 mod slow_reader;
+mod solids;

@@ -296,10 +296,12 @@ pub(super) async fn apply(
             .execute(&mut *conn)
             .await?;
             if *cause == "set" {
-                sqlx::query("UPDATE strokes SET mesh_of = NULL WHERE id = $1 AND mesh_of IS NOT NULL")
-                    .bind(stroke.to_string())
-                    .execute(&mut *conn)
-                    .await?;
+                sqlx::query(
+                    "UPDATE strokes SET mesh_of = NULL WHERE id = $1 AND mesh_of IS NOT NULL",
+                )
+                .bind(stroke.to_string())
+                .execute(&mut *conn)
+                .await?;
             }
         }
         WriteOp::MarkDuplicate { stroke, source, mesh_of } => {
