@@ -166,6 +166,11 @@ fn a_keychain_is_one_manifold_part_with_a_through_hole_of_the_volume_its_areas_s
     assert!((height - 5.0).abs() < 0.1, "plate and letters {height} mm high");
     assert_eq!(euler_characteristic(&mesh), 0, "one body with one hole through it");
     let info = slices_as_one_part(&mesh, "keychain");
+    // The picture in docs/print.md: `PENMESH_KEYCHAIN_STL=/tmp/keychain.stl cargo test -p
+    // penmesh-print --test solids keychain`, then `node bench/render-print.mjs`.
+    if let Some(path) = std::env::var_os("PENMESH_KEYCHAIN_STL") {
+        std::fs::write(path, write_stl(&mesh)).unwrap();
+    }
     let slicer_volume: f64 = info_value(&info, "volume").parse().unwrap();
     assert!((slicer_volume - volume).abs() < 1e-3 * volume, "{slicer_volume} vs {volume}");
 

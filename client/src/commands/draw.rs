@@ -384,6 +384,7 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                     Some(m.participant)
                 }
                 ServerMessage::PeerPlacement(m) => Some(m.participant),
+                ServerMessage::PeerSolid(m) => Some(m.participant),
                 _ => None,
             };
             if participant.is_some_and(|p| mine.contains(&p)) {
@@ -455,6 +456,12 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                         if p.placement.is_mirror() { " (mirrored)" } else { "" }
                     ))
                 }
+                ServerMessage::PeerSolid(s) => Some(format!(
+                    "{} made stroke {} {}",
+                    who(&names, s.participant),
+                    short(s.stroke),
+                    s.solid
+                )),
                 ServerMessage::Synced(s) => Some(format!(
                     "-- up to date: {} strokes by the others; live from here --",
                     s.n_strokes

@@ -140,8 +140,8 @@ async fn a_keychain_drawn_with_penmesh_draw_prints_as_one_part_with_a_through_ho
         along(&[[270.0, 150.0], [305.0, 50.0], [340.0, 150.0]]),
     ];
     let files = ["plate", "hole", "letters"].map(|name| dir.path().join(format!("{name}.csv")));
-    write_csv(&files[0], &[plate.clone()]);
-    write_csv(&files[1], &[hole.clone()]);
+    write_csv(&files[0], std::slice::from_ref(&plate));
+    write_csv(&files[1], std::slice::from_ref(&hole));
     write_csv(&files[2], &letters);
     let draw = |file: &Path, extra: &[String]| {
         let out = run(proxy.draw().args(BRUSH).arg("--input").arg(file).args(extra));

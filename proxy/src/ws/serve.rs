@@ -595,6 +595,7 @@ mod tests {
             device: None,
             params: None,
             placement: None,
+            solid: None,
         })))
     }
 

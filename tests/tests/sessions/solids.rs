@@ -99,6 +99,25 @@ async fn a_drawers_solid_is_stored_as_history_listed_and_meshed_and_bad_ones_sto
         .clone();
     assert_eq!(listed["solid"]["kind"], "filled");
 
+    // A duplicate is what its source is (it shows its source's mesh).
+    let identity = serde_json::json!({"placement": {"matrix": Placement::IDENTITY.matrix()}});
+    let response = proxy
+        .http
+        .post(proxy.url(&format!("/v1/strokes/{closed}/duplicate")))
+        .bearer_auth(&session.token)
+        .header(KEY_HEADER, &drawer.key)
+        .json(&identity)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 201);
+    let copy: serde_json::Value = response.json().await.unwrap();
+    let copy: Uuid = copy["stroke"].as_str().unwrap().parse().unwrap();
+    assert_eq!(
+        proxy.stroke_info(&session, copy).await["solid"],
+        json!({"kind": "filled", "depth": 24.0})
+    );
+
     // Refused, naming why, and nothing stored: each check before any write.
     let rows = || count_rows(&proxy.db, "SELECT COUNT(*) FROM stroke_solids");
     let before = rows().await;
@@ -323,4 +342,60 @@ async fn a_stroke_brought_back_reaches_a_late_watcher_with_its_placement_and_sol
     );
     let ServerMessage::PeerPlacement(told) = seen.last().unwrap() else { unreachable!() };
     assert_eq!(told.placement, moved);
+}
+
+async fn export_glb(proxy: &TestProxy, session: &TestSession) -> Vec<u8> {
+    let path = format!("/v1/sessions/{}/export?format=glb&size_mm=120", session.session);
+    let response = proxy.get(&path, session).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    response.bytes().await.unwrap().to_vec()
+}
+
+// The scene carries each stroke's solid in its extras (none for the rod); an import stores it
+// exactly (its history's cause `import`), meshed as that solid, and exports again the same.
+#[tokio::test]
+async fn a_solid_leaves_in_the_scene_and_comes_back_exactly_with_an_import() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let mut ann = Participant::join(&proxy, &session, "Ann").await;
+    let drawer = TestSession { key: ann.key.clone(), ..session.clone() };
+    let (plate, rod) = (Uuid::new_v4(), Uuid::new_v4());
+    ann.draw(plate, &circle(1.0), 16).await;
+    ann.draw(rod, &circle(0.75), 16).await;
+    assert_eq!(proxy.build_mesh(&drawer, rod).send().await.unwrap().status(), 200);
+    let (status, text) =
+        put_solid(&proxy, &drawer, plate, r#"{"kind":"filled","depth":12.25}"#).await;
+    assert_eq!(status, 200, "{text}");
+    let filled = Solid::new(SolidKind::Filled, Some(12.25)).unwrap();
+
+    let first = penmesh::read_scene(&export_glb(&proxy, &session).await).unwrap();
+    let solids: Vec<(Uuid, Solid)> =
+        first.iter().map(|s| (s.extras.stroke, s.extras.solid)).collect();
+    assert_eq!(solids, vec![(plate, filled), (rod, Solid::ROD)]);
+
+    let second = proxy.create_session().await;
+    let response = proxy
+        .http
+        .post(proxy.url(&format!("/v1/sessions/{}/import", second.session)))
+        .bearer_auth(&second.token)
+        .header(KEY_HEADER, &second.key)
+        .header("content-type", "model/gltf-binary")
+        .body(export_glb(&proxy, &session).await)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 201, "{}", response.text().await.unwrap());
+    let again = penmesh::read_scene(&export_glb(&proxy, &second).await).unwrap();
+    // By where each came from (an import's order among strokes of one instant is by id).
+    let mut solids: Vec<(Uuid, Solid)> = again
+        .iter()
+        .map(|s| (s.extras.imported_from.as_ref().unwrap().stroke, s.extras.solid))
+        .collect();
+    solids.sort_by_key(|(from, _)| if *from == plate { 0 } else { 1 });
+    assert_eq!(solids, vec![(plate, filled), (rod, Solid::ROD)]);
+    let imported = again.iter().find(|s| s.extras.solid == filled).unwrap().extras.stroke;
+    let body = proxy.get_json(&format!("/v1/strokes/{imported}/solids"), &second).await;
+    let history: SolidHistory = serde_json::from_value(body).unwrap();
+    let causes: Vec<&str> = history.solids.iter().map(|s| s.cause.as_str()).collect();
+    assert_eq!(causes, vec!["import"], "imported as a plate: never a rod");
 }
