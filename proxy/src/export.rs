@@ -9,7 +9,7 @@
 use std::collections::{HashMap, HashSet};
 
 use axum::body::Bytes;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use base64::Engine as _;
@@ -19,6 +19,7 @@ use serde_json::json;
 use uuid::Uuid;
 
 use crate::http::{AppError, authorize_session};
+use crate::query::Query;
 use crate::state::AppState;
 use crate::store::StrokeRow;
 

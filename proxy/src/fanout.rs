@@ -403,9 +403,16 @@ impl PeerView {
             },
             // Of a stroke the client has, when newer than what it holds (a history and the live
             // events overlap; another replica's notification can arrive after a newer
-            // placement). Of one it lacks: its history (or its begin, to come) carries it.
-            EventKind::Placed { stroke, id, .. } => {
-                if self.strokes.contains_key(stroke) && self.tell_placement(*stroke, *id) {
+            // placement). Of one it lacks: its history (or its begin, to come) carries it. The
+            // identity is what a client assumes of a stroke it was told no placement of, so it
+            // is told only to a client that holds another (as a history does): a stroke begun,
+            // duplicated or imported at the identity gets no `PeerPlacement`, live or not.
+            EventKind::Placed { stroke, id, placement, .. } => {
+                let assumed = placement.is_identity() && self.placement_held(stroke) == 0;
+                if self.strokes.contains_key(stroke)
+                    && self.tell_placement(*stroke, *id)
+                    && !assumed
+                {
                     Admit::Whole
                 } else {
                     Admit::Skip
@@ -529,7 +536,17 @@ mod tests {
     }
 
     fn placed(stroke: Uuid, id: i64) -> SessionEvent {
-        let placement = penmesh::Placement::IDENTITY;
+        placed_at(stroke, id, penmesh::Placement::new(moved()).unwrap())
+    }
+
+    /// The identity moved 250 along x.
+    fn moved() -> [f64; 16] {
+        let mut m = *penmesh::Placement::IDENTITY.matrix();
+        m[12] = 250.0;
+        m
+    }
+
+    fn placed_at(stroke: Uuid, id: i64, placement: penmesh::Placement) -> SessionEvent {
         let kind = EventKind::Placed { participant: Uuid::nil(), stroke, placement, id };
         SessionEvent::new(Uuid::nil(), kind)
     }
@@ -550,6 +567,21 @@ mod tests {
         assert_eq!(view.admit(&placed(stroke, 8)), Admit::Whole);
         assert_eq!(view.placement_held(&stroke), 8);
         assert_eq!(view.placement_held(&unknown), 0);
+    }
+
+    // The identity is told only to a client that holds another placement of the stroke: a
+    // stroke begun (or duplicated, imported) at the identity is not followed by one, live as
+    // in a history; a stroke moved back to the identity is.
+    #[test]
+    fn the_identity_is_told_only_after_another_placement() {
+        let stroke = Uuid::new_v4();
+        let identity = penmesh::Placement::IDENTITY;
+        let mut view = PeerView::default();
+        assert_eq!(view.admit(&begin(stroke)), Admit::Whole);
+        assert_eq!(view.admit(&placed_at(stroke, 1, identity)), Admit::Skip, "assumed");
+        assert_eq!(view.admit(&placed(stroke, 2)), Admit::Whole);
+        assert_eq!(view.admit(&placed_at(stroke, 3, identity)), Admit::Whole, "moved back");
+        assert_eq!(view.admit(&placed_at(stroke, 1, identity)), Admit::Skip, "an older one");
     }
 
     fn joined(participant: Uuid, connection: Uuid) -> SessionEvent {

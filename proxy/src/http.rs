@@ -13,7 +13,7 @@ use axum::body::{Body, Bytes};
 use futures_util::StreamExt;
 use tokio::sync::OwnedSemaphorePermit;
 
-use axum::extract::{ConnectInfo, Path, Query, State};
+use axum::extract::{ConnectInfo, Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use penmesh::protocol::{
@@ -28,6 +28,7 @@ pub(crate) use penmesh::protocol::{
 
 use crate::events::{EventKind, SessionEvent};
 use crate::identity::{KeyError, request_participant};
+use crate::query::Query;
 use crate::state::{AppState, LARGE_BODY_BYTES};
 use crate::store::{
     MeshRow, RawPiece, RawSamples, StrokeRow, WriteError, WriteOp, hash_token, now_ms,

@@ -18,7 +18,7 @@
 use std::collections::HashMap;
 
 use axum::Json;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use penmesh::protocol::{Imported, ImportedStroke, quantize_sample};
 use penmesh::{
@@ -30,6 +30,7 @@ use uuid::Uuid;
 use crate::events::{EventKind, SessionEvent};
 use crate::http::{AppError, ErrorBody, authorize_session, store_mesh};
 use crate::mesh_build::PROXY_UPLOADER;
+use crate::query::Query;
 use crate::state::AppState;
 use crate::store::{WriteError, WriteOp, now_ms};
 
@@ -154,8 +155,11 @@ pub async fn import_scene(
     for read in &strokes {
         placements.push(check(read, max_samples)?);
     }
-    // The new strokes' ids, chosen now so their meshes carry them.
-    let ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    // The new strokes' ids, chosen now so their meshes carry them, in increasing order: they
+    // are begun at the same moment, and a session lists its strokes by (begun, id), so the
+    // session (and its next export) keeps the file's order.
+    let mut ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    ids.sort_unstable();
     let max_decoded = limit;
     let checked = tokio::task::spawn_blocking(move || {
         strokes

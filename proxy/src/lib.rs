@@ -18,6 +18,7 @@ mod mesh_build;
 mod metrics;
 mod openapi;
 mod placement;
+mod query;
 mod rate;
 mod removal;
 mod scene;

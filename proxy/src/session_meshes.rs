@@ -13,7 +13,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use axum::body::{Body, Bytes};
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use flate2::write::GzEncoder;
@@ -22,6 +22,7 @@ use sha2::Digest;
 use tokio::sync::OwnedSemaphorePermit;
 
 use crate::http::{AppError, ErrorBody, authorize_session};
+use crate::query::Query;
 use crate::state::{AppState, LARGE_BODY_BYTES};
 use crate::store::BundleEntry;
 use crate::web::accepts_gzip;

@@ -48,6 +48,9 @@ impl Connection {
             }
             // And its solid set elsewhere (over HTTP).
             EventKind::Solid { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
+            // And a mesh of its own stroke, which is stored over HTTP (an upload or a build),
+            // never on this connection: the mesh is announced to the whole session.
+            EventKind::Mesh { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
             _ if self.is_own(event) => return,
             _ => self.view.admit(event),
         };

@@ -6,8 +6,8 @@ use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
     ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, OLDEST_PROTOCOL_VERSION,
-    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, check_text, decode_client_json_limited,
-    decode_client_limited, is_supported_version,
+    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, binary_frame_version, check_text,
+    decode_client_json_limited, decode_client_limited, is_supported_version,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -222,6 +222,16 @@ impl Connection {
     /// which is what keeps the connection from the idle timeout.
     async fn on_frame(&mut self, frame: Frame) -> bool {
         let limit = self.state.config.max_message_bytes;
+        let frame_version = match &frame {
+            Frame::Binary(bytes) => binary_frame_version(bytes),
+            _ => None,
+        };
+        if !self.hello
+            && let Some(version) = frame_version
+        {
+            // The connection's version is not known yet: answer in the client's.
+            self.outgoing.version = version;
+        }
         let decoded = match &frame {
             Frame::Binary(bytes) => {
                 self.outgoing.form = Form::Binary;
@@ -239,16 +249,71 @@ impl Connection {
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return false,
         };
         let done = match decoded {
-            Ok(msg) => {
-                let work = !matches!(msg, ClientMessage::Ping(_));
-                self.on_message(msg).await.map(|()| work)
-            }
+            Ok(msg) => match self.speaks(frame_version, &msg) {
+                Ok(()) => {
+                    let work = !matches!(msg, ClientMessage::Ping(_));
+                    self.on_message(msg).await.map(|()| work)
+                }
+                Err(err) => Err(err),
+            },
             Err(err) => Err(err),
         };
         done.unwrap_or_else(|err| {
             self.fail(err);
             false
         })
+    }
+
+    /// Whether `msg` is of this connection's version (the one its `hello` named), the one
+    /// place versions are checked: a binary frame carries that version in its first byte
+    /// (`frame_version`), and a message or field a later version brought
+    /// ([`ClientMessage::introduced_in`]) is `unknown_message`, as a variant index the version
+    /// lacks is. Before the hello, its own frame must carry the version it names.
+    fn speaks(&self, frame_version: Option<u16>, msg: &ClientMessage) -> Result<(), ConnError> {
+        let version = match msg {
+            ClientMessage::Hello(hello) if !self.hello => {
+                return match frame_version {
+                    Some(framed)
+                        if framed != hello.protocol && is_supported_version(hello.protocol) =>
+                    {
+                        Err(ConnError::refused(
+                            ErrorCode::Protocol,
+                            format!(
+                                "hello.protocol is {} but its frame is of version {framed}: \
+                                 every binary frame carries the connection's version",
+                                hello.protocol
+                            ),
+                            None,
+                        ))
+                    }
+                    _ => Ok(()),
+                };
+            }
+            _ if !self.hello => return Ok(()),
+            _ => self.outgoing.version,
+        };
+        if let Some(framed) = frame_version.filter(|&framed| framed != version) {
+            return Err(ConnError::refused(
+                ErrorCode::UnknownMessage,
+                format!(
+                    "a frame of version {framed} on a connection of version {version} (its \
+                     hello): every binary frame carries the connection's version"
+                ),
+                None,
+            ));
+        }
+        let (since, what) = msg.introduced_in();
+        if since > version {
+            return Err(ConnError::refused(
+                ErrorCode::UnknownMessage,
+                format!(
+                    "{what} is of protocol version {since}; this connection speaks version \
+                     {version} (its hello)"
+                ),
+                None,
+            ));
+        }
+        Ok(())
     }
 
     async fn on_message(&mut self, msg: ClientMessage) -> Result<(), ConnError> {
@@ -335,31 +400,35 @@ impl Connection {
         for (stroke, kept) in resent {
             self.send_retained(stroke, 0, &kept);
         }
-        let name = hello
-            .name
-            .as_deref()
-            .and_then(clean_name)
+        let (participant, session, connection) = (self.participant, self.session, self.presence);
+        let asked = hello.name.as_deref().and_then(clean_name);
+        let known = self.known_name(hello.key.is_some()).await;
+        let name = (asked.clone().or_else(|| known.clone()))
             .or_else(|| clean_name(&hello.client))
             .unwrap_or_else(|| "guest".into());
-        let (participant, session, connection) = (self.participant, self.session, self.presence);
-        let joined = self
-            .state
-            .writer
-            .write_with(
-                vec![WriteOp::Join {
-                    connection,
-                    participant,
-                    session,
-                    name: name.clone(),
-                    replica: self.state.claims.replica_key(),
-                }],
-                vec![SessionEvent::from_connection(
-                    self.id,
-                    session,
-                    EventKind::Joined { participant, connection, name },
-                )],
-            )
-            .await;
+        let mut ops = vec![WriteOp::Join {
+            connection,
+            participant,
+            session,
+            name: name.clone(),
+            replica: self.state.claims.replica_key(),
+        }];
+        let mut events = vec![SessionEvent::from_connection(
+            self.id,
+            session,
+            EventKind::Joined { participant, connection, name: name.clone() },
+        )];
+        // Another name than the participant's connections had: a rename, which the session
+        // hears (a second connection's join is not news to it).
+        if known.is_some_and(|known| known != name) {
+            ops.push(WriteOp::Rename { participant, session, name: name.clone() });
+            events.push(SessionEvent::from_connection(
+                self.id,
+                session,
+                EventKind::Renamed { participant, name },
+            ));
+        }
+        let joined = self.state.writer.write_with(ops, events).await;
         match joined {
             Ok(()) => self.joined = true,
             // Drawing goes on; the others do not see this participant in the list.
@@ -369,6 +438,21 @@ impl Connection {
         }
         self.resync(None).await;
         Ok(())
+    }
+
+    /// The name the participant last went by in this session (an earlier connection's), which
+    /// a hello without a name keeps: none for a participant without a key (a fresh one).
+    async fn known_name(&self, has_key: bool) -> Option<String> {
+        if !has_key {
+            return None;
+        }
+        match self.state.store.participant_names(self.session).await {
+            Ok(mut names) => names.remove(&self.participant),
+            Err(err) => {
+                tracing::warn!(connection = self.id, error = %err, "reading the participant's name failed");
+                None
+            }
+        }
     }
 
     /// A new display name ([`clean_name`]): stored on the participant's presence rows and

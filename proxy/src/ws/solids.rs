@@ -1,9 +1,10 @@
 //! `SetSolid` (protocol version 6): what a done stroke becomes, set by its drawer under the
 //! rule of [`crate::solid`]; answered with `PeerSolid` once the change is committed, in order
 //! with the connection's other answers, then the stroke's mesh stored anew (`peer_mesh`). A
-//! connection of an older version has no such message (`unknown_message`).
+//! connection of an older version has no such message (`unknown_message`, refused where every
+//! message's version is checked: `ClientMessage::introduced_in`, `Connection::speaks`).
 
-use penmesh::protocol::{ErrorCode, PROTOCOL_VERSION, PeerSolid, SetSolid, StrokeId};
+use penmesh::protocol::{ErrorCode, PROTOCOL_VERSION, PeerSolid, SetSolid};
 
 use super::connection::{AfterCommit, Connection};
 use super::error::ConnError;
@@ -11,32 +12,16 @@ use crate::http::AppError;
 use crate::mesh_build::{built_glb, store_built};
 use crate::store::StrokeRow;
 
-/// The first protocol version with solids.
+/// The first protocol version with solids (and a `HistoryStroke` that carries its placement
+/// and solid).
 pub(super) const SOLIDS_VERSION: u16 = 6;
 const _: () = assert!(SOLIDS_VERSION == PROTOCOL_VERSION);
 
 impl Connection {
-    /// Refuses what a connection of an older version does not have: `what` names it.
-    pub(super) fn solids_spoken(&self, what: &str, stroke: StrokeId) -> Result<(), ConnError> {
-        if self.outgoing.version >= SOLIDS_VERSION {
-            return Ok(());
-        }
-        Err(ConnError::refused(
-            ErrorCode::UnknownMessage,
-            format!(
-                "{what} is protocol version {SOLIDS_VERSION}'s; this connection said hello with \
-                 version {}",
-                self.outgoing.version
-            ),
-            Some(stroke),
-        ))
-    }
-
     /// Sets the solid of the stroke of `set`: checked, its mesh built (refused with
     /// `bad_solid` when the stroke cannot be that solid), then committed.
     pub(super) async fn on_set_solid(&mut self, set: SetSolid) -> Result<(), ConnError> {
         let stroke = set.stroke;
-        self.solids_spoken("set_solid", stroke)?;
         let row = self.stroke_of_session(stroke, "reading a stroke to set its solid").await?;
         crate::solid::check(&row, self.participant)
             .map_err(|refused| ConnError::refused(refused.code, refused.message, Some(stroke)))?;

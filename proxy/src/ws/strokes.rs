@@ -142,9 +142,6 @@ impl Connection {
 
     pub(super) async fn on_stroke_begin(&mut self, begin: StrokeBegin) -> Result<(), ConnError> {
         let stroke = begin.stroke;
-        if begin.solid.is_some() {
-            self.solids_spoken("stroke_begin.solid", stroke)?;
-        }
         if let Err(err) = begin.brush.validate() {
             return Err(ConnError::refused(ErrorCode::BadBrush, err.to_string(), Some(stroke)));
         }
@@ -184,8 +181,18 @@ impl Connection {
                 Some(stroke),
             ));
         }
-        if !self.claims.claim(stroke, self.claim_wait()).await {
-            return Err(Self::conflict(stroke));
+        if !self.claims.claim(stroke, Duration::ZERO).await {
+            // Held by another connection: refused as `not_owner` when another participant drew
+            // it (waiting would not change that), else waited for as a resume is.
+            if let Ok(Some(row)) = self.state.store.stroke(stroke).await
+                && row.session_id == self.session
+                && row.participant != self.participant
+            {
+                return Err(self.not_owner(stroke));
+            }
+            if !self.claims.claim(stroke, self.claim_wait()).await {
+                return Err(Self::conflict(stroke));
+            }
         }
         let existing = match self.state.store.stroke(stroke).await {
             Ok(existing) => existing,

@@ -46,8 +46,8 @@ pub use codec::{
     encode_server_json, quantize_sample,
 };
 pub use codec::{
-    encode_client_as, encode_server_as, encode_server_json_as, is_supported_version,
-    server_message_exists_in,
+    binary_frame_version, encode_client_as, encode_server_as, encode_server_json_as,
+    is_supported_version, server_message_exists_in,
 };
 pub use http::{
     DuplicateRequest, Duplicated, ErrorBody, Imported, ImportedStroke, MeshInfo, NewSession,
@@ -163,6 +163,26 @@ pub enum ClientMessage {
 pub struct SetSolid {
     pub stroke: StrokeId,
     pub solid: Solid,
+}
+
+impl ClientMessage {
+    /// The protocol version that brought this message as it stands, and what to call it in a
+    /// refusal: a field of a later version counts (a `stroke_begin` with a `placement` is a
+    /// version-5 message). A connection of an older version is refused it with
+    /// `unknown_message`, in one place (the proxy's `ws/serve.rs`, `Connection::speaks`). A new
+    /// version adds its messages and fields here; everything else is of the oldest version
+    /// served.
+    pub fn introduced_in(&self) -> (u16, &'static str) {
+        match self {
+            ClientMessage::SetSolid(_) => (6, "set_solid"),
+            ClientMessage::StrokeBegin(begin) if begin.solid.is_some() => (6, "stroke_begin.solid"),
+            ClientMessage::SetPlacement(_) => (5, "set_placement"),
+            ClientMessage::StrokeBegin(begin) if begin.placement.is_some() => {
+                (5, "stroke_begin.placement")
+            }
+            _ => (OLDEST_PROTOCOL_VERSION, "this message"),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -10,8 +10,12 @@
 //! - a trailing word `live` marks a conversation a client can send as it stands: it is sent
 //!   line by line to a running proxy, on a fresh session, and must draw without an error.
 //! - ` ```http`: a request line (`METHOD PATH STATUS`, the path may hold `{session}`,
-//!   `{stroke}` and `{unknown}`), then the answer's JSON; the live answer must have the same
-//!   shape (the same keys at every level, values of the same JSON types).
+//!   `{stroke}` and `{unknown}`), then lines `> name: value` of headers the request sends (a
+//!   GET sends the session's token besides; `{token}` and `{key}` are the session's token and
+//!   the conversation's key) and `< name: value` of headers the answer must have, exactly,
+//!   then the answer: JSON, which the live answer must match in shape (the same keys at every
+//!   level, values of the same JSON types), or hex, which must be the live answer's bytes, or
+//!   nothing (the body is not looked at).
 
 use std::collections::BTreeSet;
 use std::time::Duration;
@@ -46,6 +50,8 @@ fn blocks(doc: &str) -> Vec<Block> {
     let mut out = Vec::new();
     let mut open: Option<Block> = None;
     for (n, line) in doc.lines().enumerate() {
+        // A block may be indented (inside a list item): its lines are read without it.
+        let line = line.trim_start();
         let Some(info) = line.strip_prefix("```") else {
             if let Some(block) = open.as_mut() {
                 block.lines.push(line.to_string());
@@ -412,7 +418,7 @@ async fn the_http_answers_have_the_documented_shapes() {
         .http
         .post(proxy.url(&format!("/v1/strokes/{stroke}/mesh/build")))
         .bearer_auth(&session.token)
-        .header("x-penmesh-key", key)
+        .header("x-penmesh-key", &key)
         .send()
         .await
         .unwrap();
@@ -420,26 +426,61 @@ async fn the_http_answers_have_the_documented_shapes() {
 
     let mut n_checked = 0;
     for block in blocks.iter().filter(|b| b.kind == "http") {
+        let at = block.at + 1;
         let request = block.lines.first().expect("a request line");
         let words: Vec<&str> = request.split_whitespace().collect();
         let [method, path, status] = words[..] else {
-            panic!("protocol.md:{}: request line {request:?}", block.at + 1)
+            panic!("protocol.md:{at}: request line {request:?}")
         };
-        let path = path
-            .replace("{session}", &session.session.to_string())
-            .replace("{stroke}", &stroke.to_string())
-            .replace("{unknown}", &uuid::Uuid::new_v4().to_string());
-        let answer = match method {
-            "GET" => proxy.get(&path, &session).send().await.unwrap(),
-            "POST" => proxy.http.post(proxy.url(&path)).send().await.unwrap(),
-            other => panic!("protocol.md:{}: method {other}", block.at + 1),
+        let fill = |text: &str| {
+            text.replace("{session}", &session.session.to_string())
+                .replace("{stroke}", &stroke.to_string())
+                .replace("{unknown}", &uuid::Uuid::new_v4().to_string())
+                .replace("{token}", &session.token)
+                .replace("{key}", &key)
         };
-        assert_eq!(answer.status().as_u16().to_string(), status, "protocol.md:{}", block.at + 1);
-        let body: Value = answer.json().await.unwrap();
-        let shown: Value = serde_json::from_str(&block.lines[1..].join("\n"))
-            .unwrap_or_else(|e| panic!("protocol.md:{}: the answer is not JSON: {e}", block.at));
-        if let Err(e) = same_shape(&shown, &body, "") {
-            panic!("protocol.md:{}: {method} {path}: {e}\nanswered: {body}", block.at + 1);
+        let path = fill(path);
+        let header = |line: &str| {
+            let (name, value) = line.split_once(": ").unwrap_or_else(|| {
+                panic!("protocol.md:{at}: {line:?} is not a header line `name: value`")
+            });
+            (name.to_ascii_lowercase(), fill(value))
+        };
+        let rest = &block.lines[1..];
+        let sent: Vec<_> = rest.iter().filter_map(|l| l.strip_prefix("> ")).map(header).collect();
+        let wanted: Vec<_> = rest.iter().filter_map(|l| l.strip_prefix("< ")).map(header).collect();
+        let shown = rest.iter().filter(|l| !l.starts_with("> ") && !l.starts_with("< "));
+        let shown = shown.map(|l| l.trim()).collect::<Vec<_>>().join("\n");
+        let mut asked = match method {
+            "GET" => proxy.get(&path, &session),
+            "POST" => proxy.http.post(proxy.url(&path)),
+            other => panic!("protocol.md:{at}: method {other}"),
+        };
+        for (name, value) in &sent {
+            asked = asked.header(name.as_str(), value.as_str());
+        }
+        let answer = asked.send().await.unwrap();
+        assert_eq!(answer.status().as_u16().to_string(), status, "protocol.md:{at}");
+        for (name, value) in &wanted {
+            let got = answer.headers().get(name.as_str()).map(|v| v.to_str().unwrap());
+            assert_eq!(got, Some(value.as_str()), "protocol.md:{at}: the answer's {name}");
+        }
+        let bytes = answer.bytes().await.unwrap();
+        if shown.starts_with('{') {
+            let body: Value = serde_json::from_slice(&bytes).unwrap_or_else(|e| {
+                panic!("protocol.md:{at}: the answer is not JSON ({e}): {bytes:?}")
+            });
+            let shown: Value = serde_json::from_str(&shown)
+                .unwrap_or_else(|e| panic!("protocol.md:{at}: the answer shown is not JSON: {e}"));
+            if let Err(e) = same_shape(&shown, &body, "") {
+                panic!("protocol.md:{at}: {method} {path}: {e}\nanswered: {body}");
+            }
+        } else if !shown.is_empty() {
+            let shown: Vec<u8> = shown
+                .split_whitespace()
+                .map(|b| u8::from_str_radix(b, 16).expect("a hex byte"))
+                .collect();
+            assert_eq!(hex(&bytes), hex(&shown), "protocol.md:{at}: {method} {path}: the bytes");
         }
         n_checked += 1;
     }

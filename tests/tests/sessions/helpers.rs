@@ -198,7 +198,13 @@ impl Participant {
     /// The next message; session events are recorded in the view.
     pub async fn recv(&mut self) -> ServerMessage {
         let msg = self.ws.recv_any().await;
-        self.view.apply(&msg);
+        // A mesh of its own stroke (stored over HTTP) is announced to it too; the view holds
+        // only the others' strokes.
+        let own_mesh =
+            matches!(&msg, ServerMessage::PeerMesh(m) if self.own.contains_key(&m.stroke));
+        if !own_mesh {
+            self.view.apply(&msg);
+        }
         if let ServerMessage::Retained(r) = &msg {
             let own = self.own.entry(r.stroke).or_default();
             let mut pieces = vec![(0, std::mem::take(own))];

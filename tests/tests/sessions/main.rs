@@ -22,3 +22,4 @@ mod replicas;
 mod sessions;
 mod slow_reader;
 mod solids;
+mod told;

@@ -47,6 +47,14 @@ pub fn is_supported_version(version: u16) -> bool {
     (OLDEST_PROTOCOL_VERSION..=PROTOCOL_VERSION).contains(&version)
 }
 
+/// The version a binary frame says it is of (its first byte), when it is one this codec
+/// speaks: what the proxy answers a client in before its `hello` names the connection's
+/// version, and what it checks every later frame against.
+pub fn binary_frame_version(bytes: &[u8]) -> Option<u16> {
+    let version = u16::from(*bytes.first()?);
+    is_supported_version(version).then_some(version)
+}
+
 /// The version byte and body of a binary frame, checked against the limit and the versions
 /// this codec reads.
 fn split_frame(bytes: &[u8], limit: usize) -> Result<(u16, &[u8]), CodecError> {

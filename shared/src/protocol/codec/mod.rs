@@ -226,11 +226,11 @@ mod frames;
 
 pub use batch::{decode_point_batch, encode_point_batch};
 pub use frames::{
+    binary_frame_version, encode_client_as, encode_server_as, encode_server_json_as,
+    is_supported_version, server_message_exists_in,
+};
+pub use frames::{
     decode_client, decode_client_json, decode_client_json_limited, decode_client_limited,
     decode_server, decode_server_json, encode_client, encode_client_json, encode_server,
     encode_server_json,
-};
-pub use frames::{
-    encode_client_as, encode_server_as, encode_server_json_as, is_supported_version,
-    server_message_exists_in,
 };
