@@ -34,6 +34,11 @@ pub fn stroke_simplified(stroke: Uuid) -> String {
     format!("/v1/strokes/{stroke}/simplified")
 }
 
+/// `PUT` (with the participant key): what a stroke becomes, `penmesh::Solid`.
+pub fn stroke_solid(stroke: Uuid) -> String {
+    format!("/v1/strokes/{stroke}/solid")
+}
+
 /// `PUT` (with the participant key) and `GET`: a stroke's mesh, a GLB.
 pub fn stroke_mesh(stroke: Uuid) -> String {
     format!("/v1/strokes/{stroke}/mesh")

@@ -24,6 +24,9 @@ pub struct DrawOptions {
     pub brush: Brush,
     /// The work plane each stroke is drawn on (`StrokeBegin.placement`); `None`: the board.
     pub placement: Option<Placement>,
+    /// What each stroke becomes once done (`PUT /v1/strokes/{id}/solid` when not the rod), and
+    /// the solid its mesh is built as.
+    pub solid: penmesh::Solid,
     /// Stage-1 resampling distance `l_eps`.
     pub resample: f64,
     /// Stage 1's repeat rule (`penmesh::Resampler::drop_repeats`): exact repeats of the last
@@ -58,6 +61,7 @@ impl DrawOptions {
             key: crate::wire::new_participant_key(),
             brush: Brush::default(),
             placement: None,
+            solid: penmesh::Solid::ROD,
             resample: penmesh::DEFAULT_RESAMPLE_DISTANCE,
             drop_repeats: true,
             batch_interval: Duration::from_millis(DEFAULT_BATCH_MS),

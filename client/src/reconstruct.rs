@@ -112,14 +112,44 @@ pub async fn reconstruct(
     let outline_options = OutlineOptions::default();
     let meta = GlbMeta { stroke: id, author: options.name.clone(), brush: options.brush };
     let glb_options = GlbOptions::default().encoding(options.glb);
+    let solid = options.solid;
     let glb = if exact {
-        penmesh::mesh_drawn_stroke(&stroke.drawn, &kept, &meta, &outline_options, &glb_options)
-            .with_context(|| format!("stroke {id}: outlining"))?
-            .glb
+        penmesh::mesh_drawn_solid(
+            &stroke.drawn,
+            &kept,
+            &meta,
+            &solid,
+            &outline_options,
+            &glb_options,
+        )
+        .with_context(|| format!("stroke {id}: meshing it as {solid}"))?
+        .glb
     } else {
-        penmesh::mesh_retained_stroke(&simplified.samples, &meta, &outline_options, &glb_options)
-            .glb
+        penmesh::mesh_retained_solid(
+            &simplified.samples,
+            &meta,
+            &solid,
+            &outline_options,
+            &glb_options,
+        )
+        .with_context(|| format!("stroke {id}: meshing it as {solid}"))?
+        .glb
     };
+    if !solid.is_rod() {
+        // The proxy checks it too, and builds its own mesh of it; the upload below replaces
+        // that with this one, built from what was drawn.
+        let url = endpoint.url(&crate::api::stroke_solid(id));
+        with_retries(options.retry_for, || async {
+            http.put(&url)
+                .bearer_auth(&endpoint.token)
+                .header(penmesh::protocol::KEY_HEADER, options.key.as_str())
+                .json(&solid)
+                .send()
+                .await
+        })
+        .await
+        .with_context(|| format!("setting stroke {id}'s solid ({solid})"))?;
+    }
 
     since_pen_up("mesh built");
     let glb_path = match &options.out_dir {

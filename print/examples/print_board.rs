@@ -30,7 +30,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .collect();
             let kept =
                 penmesh::acuts(&raw, DEFAULT_RESAMPLE_DISTANCE, &AcutsParams::default()).kept;
-            Ok(PrintStroke { raw, kept, brush: Brush::default(), placement: IDENTITY })
+            Ok(PrintStroke {
+                raw,
+                kept,
+                brush: Brush::default(),
+                placement: IDENTITY,
+                solid: penmesh::Solid::ROD,
+            })
         })
         .collect::<Result<_, penmesh::ParamError>>()?;
     let start = Instant::now();

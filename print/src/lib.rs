@@ -11,7 +11,7 @@ mod stl;
 mod threemf;
 
 pub use crate::solid::{
-    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, IDENTITY, MAX_SIZE_MM, PRINT_AXES,
+    DEFAULT_MIN_THICKNESS_MM, DEFAULT_SIZE_MM, HOLE_MARGIN_MM, IDENTITY, MAX_SIZE_MM, PRINT_AXES,
     PRINT_TOLERANCE_MM, PrintError, PrintMesh, PrintOptions, PrintStroke, Progress, print_mesh,
 };
 pub use crate::stl::write_stl;

@@ -18,12 +18,20 @@
 //! [`PRINT_TOLERANCE_MM`]. Manifold's output is a closed manifold on its indices; an STL has
 //! none, so every vertex is given its own `f32` position (`crate::apart`) and a reader that
 //! joins corners by position gets the same mesh back.
+//!
+//! **Solids** (issue 51): a stroke with a depth is the prism of its region
+//! (`penmesh::solid_region`, `penmesh::prism_mesh`: a wall of its ink, or a plate), embedded by
+//! construction, so it is not cut into pieces. The print is the union of every `line` and
+//! `filled` solid minus the union of every `hole` ([`unite`], [`subtract`]: the two booleans
+//! the backend does). A hole reaches [`HOLE_MARGIN_MM`] beyond its faces, so that a hole as deep
+//! as the plate it is drawn on goes through it rather than leaving a skin of zero thickness.
 
 use glam::{DMat4, DVec3};
 use manifold_rs::{Manifold, Mesh};
 use penmesh::{
-    Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, PIXEL_TOLERANCE, Sample,
-    SolidOptions, StrokeMesh, fitted_outline, solid_mesh, visible_centres,
+    Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, PIXEL_TOLERANCE, PrismVertices,
+    Sample, SolidError, SolidKind, SolidOptions, StrokeMesh, fitted_outline, prism_mesh,
+    solid_mesh, solid_region, visible_centres,
 };
 
 use crate::apart::apart;
@@ -37,6 +45,9 @@ pub const DEFAULT_MIN_THICKNESS_MM: f64 = 0.8;
 /// The print's detail (mm): the solid leaves out what lies closer than this to its outline
 /// (an eighth of a usual 0.4 mm nozzle's line; never finer than the screen's 0.25 px).
 pub const PRINT_TOLERANCE_MM: f64 = 0.05;
+/// How far (mm) a hole reaches beyond its top and bottom faces: a hole as deep as its plate
+/// goes through it.
+pub const HOLE_MARGIN_MM: f64 = 0.05;
 /// Largest accepted `size_mm`: beyond any printer's bed.
 pub const MAX_SIZE_MM: f64 = 10_000.0;
 
@@ -62,6 +73,8 @@ pub struct PrintStroke {
     pub kept: Vec<usize>,
     pub brush: Brush,
     pub placement: [f64; 16],
+    /// What the stroke becomes: the rod by default, a wall, a plate, or a hole.
+    pub solid: penmesh::Solid,
 }
 
 /// How big the print is.
@@ -123,6 +136,10 @@ pub enum PrintError {
     BadPlacement { index: usize, reason: &'static str },
     #[error("stroke {index}: {error}")]
     Stroke { index: usize, error: KeptError },
+    #[error("stroke {index}: {error}")]
+    Solid { index: usize, error: SolidError },
+    #[error("nothing to print: every stroke is a hole, and a hole cuts only what lies under it")]
+    OnlyHoles,
     #[error("stroke {index}: its solid is not a closed manifold ({triangles} triangles)")]
     NotManifold { index: usize, triangles: usize },
     #[error("the strokes make no volume to print")]
@@ -159,9 +176,12 @@ pub fn print_mesh(
         let outline = fitted_outline(&stroke.raw, &stroke.kept, &stroke.brush, &outline_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
         let mut bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        let depth = stroke.solid.depth().unwrap_or(0.0);
         for (c, r) in outline.centres.iter().zip(&outline.radii) {
-            let p = place.matrix.transform_point3(DVec3::new(c.x, c.y, 0.0));
-            bounds = (bounds.0.min(p - r * place.scale), bounds.1.max(p + r * place.scale));
+            for z in [0.0, depth] {
+                let p = place.matrix.transform_point3(DVec3::new(c.x, c.y, z));
+                bounds = (bounds.0.min(p - r * place.scale), bounds.1.max(p + r * place.scale));
+            }
         }
         Ok(bounds)
     };
@@ -193,32 +213,61 @@ pub fn print_mesh(
         let stroke_options = outline_options.cap_tolerance(tolerance);
         let outline = fitted_outline(&stroke.raw, &stroke.kept, &brush, &stroke_options)
             .map_err(|error| PrintError::Stroke { index, error })?;
-        Ok(piece_meshes(&outline, tolerance))
+        let Some(depth) = stroke.solid.depth() else {
+            return Ok(piece_meshes(&outline, tolerance));
+        };
+        let region = solid_region(&outline, stroke.solid.kind())
+            .map_err(|error| PrintError::Solid { index, error })?;
+        if stroke.solid.kind() != SolidKind::Hole {
+            let mesh = prism_mesh(&region, depth, PrismVertices::Shared);
+            return Ok(vec![PieceMesh { mesh, hull: false }]);
+        }
+        let margin = HOLE_MARGIN_MM * longest / options.size_mm / place.scale;
+        let mut mesh = prism_mesh(&region, depth + 2.0 * margin, PrismVertices::Shared);
+        for p in &mut mesh.positions {
+            p[2] -= margin as f32;
+        }
+        Ok(vec![PieceMesh { mesh, hull: false }])
     };
+    let mut holes = Vec::new();
     in_order(n, stroke_pieces, |index, meshes: Result<Vec<PieceMesh>, PrintError>| {
         for piece in meshes? {
             let solid = to_manifold(index, &piece.mesh, &placements[index])?;
-            solids.push(if piece.hull {
-                Solid { manifold: solid.manifold.hull(), ..solid }
+            let solid =
+                if piece.hull { Solid { manifold: solid.manifold.hull(), ..solid } } else { solid };
+            if strokes[index].solid.kind() == SolidKind::Hole {
+                holes.push(solid);
             } else {
-                solid
-            });
+                solids.push(solid);
+            }
         }
         progress(index + 1, total);
         Ok(())
     })?;
-    // The unions' share of the steps: `n - 1` whatever the number of pieces.
-    let unions = solids.len() - 1;
-    let mut united_count = 0;
+    if solids.is_empty() {
+        return Err(PrintError::OnlyHoles);
+    }
+    // The booleans' share of the steps: `n - 1` whatever the number of pieces and holes.
+    let booleans = solids.len() - 1 + holes.len();
+    let mut done_count = 0;
     let mut reported = n;
-    let united = unite(solids, &mut || {
-        united_count += 1;
-        let done = n + united_count * (n - 1) / unions;
+    let mut step = || {
+        done_count += 1;
+        let done = n + done_count * (n - 1) / booleans.max(1);
         if done > reported {
             reported = done;
             progress(done, total);
         }
-    });
+    };
+    let united = unite(solids, &mut step);
+    let united = if holes.is_empty() {
+        united
+    } else {
+        let cut = unite(holes, &mut step);
+        let result = subtract(&united, &cut);
+        step();
+        result
+    };
     let mesh = united.to_mesh();
     to_millimetres(&mesh, options.size_mm)
 }
@@ -364,6 +413,14 @@ fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
     let _ = united.is_empty();
     step();
     united
+}
+
+/// `solid` minus `cut`, evaluated at once: with [`unite`], the one other boolean the print
+/// asks of its backend.
+fn subtract(solid: &Manifold, cut: &Manifold) -> Manifold {
+    let result = solid.difference(cut);
+    let _ = result.is_empty();
+    result
 }
 
 /// Manifold's output mesh scaled so its longest side is `size_mm`, its lowest corner moved to

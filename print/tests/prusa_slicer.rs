@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use penmesh::{Brush, Sample};
+use penmesh::{Brush, Sample, Solid};
 use penmesh_print::{
     IDENTITY, PrintError, PrintMesh, PrintOptions, PrintStroke, print_mesh, write_3mf, write_stl,
 };
@@ -20,7 +20,7 @@ fn line(a: [f64; 2], b: [f64; 2], p: f64, brush: Brush) -> PrintStroke {
             Sample::new(a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), i as f64 * 7.0, p)
         })
         .collect();
-    PrintStroke { kept: (0..n).collect(), raw, brush, placement: IDENTITY }
+    PrintStroke { kept: (0..n).collect(), raw, brush, placement: IDENTITY, solid: Solid::ROD }
 }
 
 fn brush() -> Brush {
@@ -347,7 +347,13 @@ fn signatures_board(files: usize) -> Vec<PrintStroke> {
                 &penmesh::AcutsParams::default(),
             )
             .kept;
-            strokes.push(PrintStroke { raw, kept, brush: Brush::default(), placement: IDENTITY });
+            strokes.push(PrintStroke {
+                raw,
+                kept,
+                brush: Brush::default(),
+                placement: IDENTITY,
+                solid: Solid::ROD,
+            });
         }
     }
     strokes

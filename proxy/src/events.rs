@@ -3,12 +3,12 @@
 //! history of a late joiner is made of. The data model only: delivering them is
 //! [`crate::fanout`]'s job.
 
-use penmesh::Placement;
 use penmesh::protocol::{
-    ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerPlacement, PeerRetained, PeerStrokeBegin,
-    PeerStrokeDone, PointBatch, ServerMessage, StrokeId, StrokeRemoval, mesh_url, simplified_url,
+    ParticipantId, PeerJoined, PeerLeft, PeerMesh, PeerPlacement, PeerRetained, PeerSolid,
+    PeerStrokeBegin, PeerStrokeDone, PointBatch, ServerMessage, StrokeId, StrokeRemoval, mesh_url,
+    simplified_url,
 };
-use penmesh::{Brush, Sample};
+use penmesh::{Brush, Placement, Sample, Solid};
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
 
@@ -16,8 +16,9 @@ use uuid::Uuid;
 /// bump it when [`SessionEvent`]'s JSON changes. 2: presence events name the connection.
 /// 4: strokes taken back and brought back (`removed`, `restored`), names changed (`renamed`),
 /// brushes with a colour, and the replica and connection that caused an event (`from`).
-/// 5: placements (`placed`). 6: a placement carries its row's id (`placed.id`).
-pub const NOTIFY_VERSION: u16 = 6;
+/// 5: placements (`placed`). 6: a placement carries its row's id (`placed.id`). 7: solids
+/// (`solid`).
+pub const NOTIFY_VERSION: u16 = 7;
 
 /// Largest `NOTIFY` payload this proxy sends; PostgreSQL's limit is 8000 bytes.
 pub const MAX_NOTIFY_BYTES: usize = 7800;
@@ -104,6 +105,13 @@ pub enum EventKind {
         stroke: StrokeId,
         placement: Placement,
         id: i64,
+    },
+    /// The stroke's solid is now `solid` (set by its drawer `participant`, or the solid it
+    /// was begun as).
+    Solid {
+        participant: ParticipantId,
+        stroke: StrokeId,
+        solid: Solid,
     },
 }
 
@@ -268,6 +276,13 @@ impl SessionEvent {
                     placement: *placement,
                 })
             }
+            EventKind::Solid { participant, stroke, solid } => {
+                ServerMessage::PeerSolid(PeerSolid {
+                    participant: *participant,
+                    stroke: *stroke,
+                    solid: *solid,
+                })
+            }
         }
     }
 
@@ -290,7 +305,8 @@ impl SessionEvent {
             | EventKind::Mesh { stroke, .. }
             | EventKind::Removed { stroke, .. }
             | EventKind::Restored { stroke, .. }
-            | EventKind::Placed { stroke, .. } => Some(*stroke),
+            | EventKind::Placed { stroke, .. }
+            | EventKind::Solid { stroke, .. } => Some(*stroke),
         }
     }
 }

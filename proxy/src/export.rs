@@ -288,6 +288,7 @@ async fn print_file(
             brush: row.brush,
             // Its node's matrix: the print places each solid where the scene shows it.
             placement: *row.placement.matrix(),
+            solid: row.solid,
         });
     }
     let file = tokio::task::spawn_blocking(move || {

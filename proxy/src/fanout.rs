@@ -418,6 +418,14 @@ impl PeerView {
                     Admit::Skip
                 }
             }
+            // Of a stroke the client has; of one it lacks, its history carries it.
+            EventKind::Solid { stroke, .. } => {
+                if self.strokes.contains_key(stroke) {
+                    Admit::Whole
+                } else {
+                    Admit::Skip
+                }
+            }
         }
     }
 

@@ -223,6 +223,7 @@ impl From<StrokeRow> for StrokeInfo {
             removed: row.removed,
             placement: row.placement,
             duplicate_of: row.duplicate_of,
+            solid: row.solid,
         }
     }
 }
@@ -619,6 +620,7 @@ mod tests {
             removed: None,
             placement: penmesh::Placement::IDENTITY,
             duplicate_of: None,
+            solid: penmesh::Solid::ROD,
         };
         for indices in [None, Some(vec![0, 5, 9])] {
             let whole = StrokeSamples {

@@ -171,10 +171,11 @@ pub async fn import_scene(
                 let kept: Vec<usize> = (0..samples.len()).collect();
                 let meta =
                     GlbMeta { stroke: id, author: PROXY_UPLOADER.into(), brush: read.extras.brush };
-                let meshed = penmesh::mesh_drawn_stroke(
+                let meshed = penmesh::mesh_drawn_solid(
                     samples,
                     &kept,
                     &meta,
+                    &read.extras.solid,
                     &OutlineOptions::default(),
                     &GlbOptions::default(),
                 )
@@ -255,6 +256,13 @@ pub async fn import_scene(
                 crate::placement::request((session, by, stroke), c.placement, "begin", None);
             ops.push(place);
             events.push(placed);
+        }
+        // Its solid, as the file has it (checked above: its mesh was made of it).
+        if !extras.solid.is_rod() {
+            let (set, told) =
+                crate::solid::request((session, by, stroke), extras.solid, "import", None);
+            ops.push(set);
+            events.push(told);
         }
     }
     // A duplicate whose source is in the file too stays its duplicate: the file's ids mapped to

@@ -24,6 +24,7 @@ mod removal;
 mod scene;
 mod send_deadline;
 mod session_meshes;
+mod solid;
 mod startup;
 mod state;
 mod store;

@@ -1,15 +1,18 @@
 //! The mesh of a thin client's stroke, built by the proxy: a browser cannot run LRPDP (no
 //! WebAssembly build here, and no second LRPDP in JavaScript), so it asks the proxy, which runs
 //! the same `penmesh` calls as the native client (`client/src/reconstruct.rs`) and stores and
-//! announces the result exactly like an uploaded mesh (`http::store_mesh`).
+//! announces the result exactly like an uploaded mesh (`http::store_mesh`). The mesh is the
+//! stroke's solid (`penmesh::Solid`: the rod by default, a wall, a plate or a hole), made from
+//! the same samples.
 
 use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
-use penmesh::{GlbMeta, GlbOptions, OutlineOptions};
+use penmesh::{GlbMeta, GlbOptions, OutlineOptions, Solid};
 
 use crate::http::{AppError, MeshInfo, STORE_MESH, owned_stroke, store_mesh};
 use crate::state::AppState;
+use crate::store::StrokeRow;
 
 /// What the proxy names as the uploader of the meshes it builds.
 pub const PROXY_UPLOADER: &str = "penmesh-proxy";
@@ -44,6 +47,17 @@ pub async fn build_mesh(
             }));
         }
     }
+    let glb = built_glb(&state, &row, row.solid).await?;
+    store_built(&state, &row, glb).await.map(Json)
+}
+
+/// The GLB of `row`'s stroke as `solid`, from its stored samples: 409 when the stroke is not
+/// done, its samples make no mesh, or it cannot be that solid (an open stroke filled).
+pub(crate) async fn built_glb(
+    state: &AppState,
+    row: &StrokeRow,
+    solid: Solid,
+) -> Result<Vec<u8>, AppError> {
     let Some(simplified) = state.store.simplified(row.id).await? else {
         return Err(AppError::Conflict(format!(
             "stroke {} is {}: its mesh can be built once it is done",
@@ -62,21 +76,34 @@ pub async fn build_mesh(
     let kept: Vec<usize> = simplified.indices.iter().map(|&i| i as usize).collect();
     let meta = GlbMeta { stroke: row.id, author: PROXY_UPLOADER.into(), brush: row.brush };
     // LRPDP is CPU work of a few milliseconds: keep it off the connection threads.
-    let glb = tokio::task::spawn_blocking(move || {
-        let meshed = penmesh::mesh_drawn_stroke(
+    tokio::task::spawn_blocking(move || {
+        penmesh::mesh_drawn_solid(
             &raw,
             &kept,
             &meta,
+            &solid,
             &OutlineOptions::default(),
             &GlbOptions::default(),
         )
-        .map_err(|e| anyhow::anyhow!("stored stroke {}: {e}", meta.stroke))?;
-        anyhow::Ok(meshed.glb)
+        .map(|meshed| meshed.glb)
+        .map_err(|e| match e {
+            penmesh::MeshError::Solid(why) => {
+                AppError::Conflict(format!("stroke {} cannot be {solid}: {why}", meta.stroke))
+            }
+            e => AppError::Internal(anyhow::anyhow!("stored stroke {}: {e}", meta.stroke)),
+        })
     })
     .await
-    .map_err(anyhow::Error::from)??;
+    .map_err(anyhow::Error::from)?
+}
+
+/// Stores and announces a GLB the proxy built for `row`'s stroke.
+pub(crate) async fn store_built(
+    state: &AppState,
+    row: &StrokeRow,
+    glb: Vec<u8>,
+) -> Result<MeshInfo, AppError> {
     let counts = crate::glb::inspect(&glb, state.config.max_body_bytes)
         .map_err(|e| anyhow::anyhow!("the proxy built an invalid GLB for {}: {e}", row.id))?;
-    let info = store_mesh(&state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await?;
-    Ok(Json(info))
+    store_mesh(state, row, glb, counts, Some(PROXY_UPLOADER.into())).await
 }

@@ -3,7 +3,7 @@
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
-use crate::{export, http, import, mesh_build, placement, removal, session_meshes};
+use crate::{export, http, import, mesh_build, placement, removal, session_meshes, solid};
 
 /// The proxy's HTTP API.
 #[derive(Debug, OpenApi)]
@@ -29,6 +29,8 @@ use crate::{export, http, import, mesh_build, placement, removal, session_meshes
         placement::put_placement,
         placement::placements,
         placement::duplicate,
+        solid::put_solid,
+        solid::solids,
         http::healthz,
         http::readyz,
         http::metrics,
@@ -44,6 +46,10 @@ use crate::{export, http, import, mesh_build, placement, removal, session_meshes
         penmesh::Placement,
         penmesh::protocol::PlacementChange,
         penmesh::protocol::PlacementHistory,
+        penmesh::Solid,
+        penmesh::SolidKind,
+        penmesh::protocol::SolidChange,
+        penmesh::protocol::SolidHistory,
         penmesh::protocol::DuplicateRequest,
         penmesh::protocol::Duplicated,
         penmesh::protocol::Imported,

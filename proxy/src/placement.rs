@@ -268,6 +268,13 @@ pub async fn duplicate(
     events.push(placed);
     let mut ops = ops;
     ops.push(place);
+    // It is what its source is (the mesh it shares is that solid's).
+    if !source.solid.is_rod() {
+        let (set, told) =
+            crate::solid::request((session, by, stroke), source.solid, "duplicate", None);
+        ops.push(set);
+        events.push(told);
+    }
     state.writer.write_with(ops, events).await.map_err(write_error)?;
     metrics::counter!("penmesh_strokes_total", "event" => "duplicated").increment(1);
     Ok((StatusCode::CREATED, Json(Duplicated { stroke, source: source.id })))

@@ -92,6 +92,7 @@ pub async fn scene_file(
             samples: simplified.samples,
             duplicate_of: row.duplicate_of,
             imported_from: imports.get(&row.id).map(|i| i.from.clone()),
+            solid: row.solid,
         });
     }
     let meshes: Vec<Vec<u8>> = mesh_order

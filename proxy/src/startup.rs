@@ -33,7 +33,7 @@ use crate::state::AppState;
 use crate::store::{Backend, InjectedFaults, Store, WriterTask, start_checkpointer};
 use crate::{
     export, http, import, mesh_build, metrics, placement, removal, send_deadline, session_meshes,
-    web, ws,
+    solid, web, ws,
 };
 
 /// A bound, ready-to-run proxy.
@@ -326,6 +326,8 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/strokes/{id}/restore", post(removal::restore_stroke))
         .route("/v1/strokes/{id}/placement", put(placement::put_placement))
         .route("/v1/strokes/{id}/placements", get(placement::placements))
+        .route("/v1/strokes/{id}/solid", put(solid::put_solid))
+        .route("/v1/strokes/{id}/solids", get(solid::solids))
         .route("/v1/strokes/{id}/duplicate", post(placement::duplicate))
         .route("/v1/openapi.json", get(openapi_json))
         .merge(web::routes())

@@ -20,8 +20,11 @@ mod mesh_path;
 mod metrics;
 mod model;
 mod placement;
+mod prism;
 pub mod protocol;
+mod region;
 mod scene;
+mod solid;
 mod svg;
 
 pub use crate::acuts::{
@@ -60,7 +63,10 @@ pub use crate::mesh::{
     MeshStats, SolidOptions, StrokeMesh, is_closed, mesh_defect, signed_volume, solid_mesh,
     stroke_mesh, visible_centres,
 };
-pub use crate::mesh_path::{MeshedStroke, mesh_drawn_stroke, mesh_retained_stroke};
+pub use crate::mesh_path::{
+    MeshError, MeshedStroke, mesh_drawn_solid, mesh_drawn_stroke, mesh_retained_solid,
+    mesh_retained_stroke, solid_of_outline,
+};
 pub use crate::metrics::{
     MetricsError, SimplificationMetrics, cdf_error_area, e_max, p_max, pressure_error,
     simplification_metrics,
@@ -68,9 +74,16 @@ pub use crate::metrics::{
 pub use crate::placement::{
     IDENTITY_MATRIX, MAX_SCALE, MIN_SCALE, Placement, PlacementError, SIMILARITY_TOLERANCE,
 };
+pub use crate::prism::{PrismVertices, prism_mesh};
+pub use crate::region::{
+    Contour, Polygon, filled_region, ink_region, region_area, signed_area, solid_region,
+};
 pub use crate::scene::{
     Author, EXTRAS_KEY, ImportedFrom, ReadStroke, SCENE_EXTRAS_KEY, SCENE_FORMAT_VERSION,
     SceneError, SceneExtras, SceneInput, SceneStroke, StrokeExtras, read_scene, scene_glb,
     stroke_label,
+};
+pub use crate::solid::{
+    CLOSURE_WIDTHS, MAX_DEPTH, MIN_DEPTH, Solid, SolidError, SolidKind, closure_gap,
 };
 pub use crate::svg::{SvgStroke, simplification_svg, strokes_svg};

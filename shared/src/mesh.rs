@@ -195,7 +195,7 @@ fn segment_distance(q: DVec3, a: DVec3, b: DVec3) -> f64 {
 }
 
 /// The outline with only the centreline points `keep` (increasing indices), caps unchanged.
-fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
+pub(crate) fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
     let pick = |values: &[DVec2]| keep.iter().map(|&k| values[k]).collect();
     Outline {
         centres: pick(&outline.centres),

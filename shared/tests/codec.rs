@@ -51,6 +51,7 @@ fn client_messages() -> Vec<ClientMessage> {
             device: Some("wacom ctl-671".into()),
             params: Some(AcutsParams::default()),
             placement: None,
+            solid: None,
         }),
         ClientMessage::StrokeBegin(StrokeBegin {
             stroke: id(3),
@@ -63,6 +64,7 @@ fn client_messages() -> Vec<ClientMessage> {
             device: None,
             params: None,
             placement: Some(standing()),
+            solid: None,
         }),
         ClientMessage::Points(Points { stroke: id(3), seq: 0, points: PointBatch(samples(1)) }),
         ClientMessage::Points(Points { stroke: id(3), seq: 77, points: PointBatch(samples(32)) }),
@@ -73,6 +75,10 @@ fn client_messages() -> Vec<ClientMessage> {
         ClientMessage::RestoreStroke(StrokeRef { stroke: id(3) }),
         ClientMessage::Rename(Rename { name: "Ada Lovelace".into() }),
         ClientMessage::SetPlacement(SetPlacement { stroke: id(3), placement: standing() }),
+        ClientMessage::SetSolid(SetSolid {
+            stroke: id(3),
+            solid: penmesh::Solid::new(penmesh::SolidKind::Hole, Some(12.5)).unwrap(),
+        }),
     ]
 }
 
@@ -162,6 +168,11 @@ fn server_messages() -> Vec<ServerMessage> {
             by: id(12),
         }),
         ServerMessage::PeerRenamed(PeerJoined { participant: id(12), name: "Grace".into() }),
+        ServerMessage::PeerSolid(PeerSolid {
+            participant: id(12),
+            stroke: id(4),
+            solid: penmesh::Solid::new(penmesh::SolidKind::Filled, Some(0.1 + 0.2)).unwrap(),
+        }),
     ]
 }
 
@@ -217,7 +228,7 @@ fn hello_carries_the_participant_key_in_both_encodings() {
     let with = encode_client(&ClientMessage::Hello(hello.clone()));
     let without = encode_client(&ClientMessage::Hello(Hello { key: None, ..hello }));
     assert_eq!(with.len(), without.len() + 1 + key.len());
-    assert_eq!(PROTOCOL_VERSION, 5);
+    assert_eq!(PROTOCOL_VERSION, 6);
 
     assert_eq!(check_participant_key(key), Ok(()));
     assert_eq!(check_participant_key(&"a".repeat(KEY_MIN_CHARS)), Ok(()));
@@ -289,8 +300,8 @@ fn binary_refuses_empty_oversized_bad_version_trailing_and_unknown_frames() {
     assert!(
         matches!(decode_client(&trailing, LIMIT), Err(CodecError::Malformed(m)) if m.contains("trailing"))
     );
-    // Variant indices 9 and 200 are no client message.
-    for index in [9, 200] {
+    // Variant indices 10 and 200 are no client message.
+    for index in [10, 200] {
         assert!(matches!(
             decode_client(&[PROTOCOL_VERSION as u8, index], LIMIT),
             Err(CodecError::UnknownMessage(_))

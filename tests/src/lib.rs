@@ -555,6 +555,7 @@ impl WsClient {
             device: Some("synth:e2e".into()),
             params: None,
             placement: None,
+            solid: None,
         }))
         .await;
     }

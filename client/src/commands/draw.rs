@@ -111,8 +111,27 @@ pub struct DrawArgs {
     /// 1,0,0,0,0,0,1,0,0,-1,0,0,0,0,0,1.
     #[arg(long, value_name = "M0,…,M15", value_parser = parse_placement, allow_hyphen_values = true)]
     pub placement: Option<Box<penmesh::Placement>>,
+    /// What each stroke becomes: `line` (its ink: the pressure-width rod, or with --depth a
+    /// wall that tall), `filled` (the region a closed stroke encloses, one plate --depth deep)
+    /// or `hole` (cut out of what it overlaps in the print). Set after each stroke is done
+    /// (`PUT /v1/strokes/{id}/solid`); an open stroke filled is refused, naming its gap.
+    #[arg(long, value_name = "KIND", value_parser = ["line", "filled", "hole"])]
+    pub solid: Option<String>,
+    /// The solid's depth, px of the stroke's plane ([0.125, 10000]); needed by filled and hole.
+    #[arg(long, value_name = "PX", allow_hyphen_values = true)]
+    pub depth: Option<f64>,
     #[command(flatten)]
     pub live: LiveArgs,
+}
+
+/// The solid `--solid` and `--depth` ask for (the rod when neither is given): refused, naming
+/// what is wrong, before anything is drawn.
+fn solid(args: &DrawArgs) -> anyhow::Result<penmesh::Solid> {
+    let kind = match &args.solid {
+        Some(name) => penmesh::SolidKind::parse(name)?,
+        None => penmesh::SolidKind::Line,
+    };
+    penmesh::Solid::new(kind, args.depth).map_err(|e| anyhow::anyhow!("--solid/--depth: {e}"))
 }
 
 fn parse_placement(text: &str) -> Result<Box<penmesh::Placement>, String> {
@@ -127,6 +146,7 @@ pub fn run(args: &DrawArgs) -> anyhow::Result<()> {
     }
     let mut options = draw_options(&args.live, &args.name)?;
     options.placement = args.placement.as_deref().copied();
+    options.solid = solid(args)?;
     // Bad input fails here, before anything touches the network.
     let source = source(args)?;
     if let Some(dir) = &args.out {
@@ -364,6 +384,7 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                     Some(m.participant)
                 }
                 ServerMessage::PeerPlacement(m) => Some(m.participant),
+                ServerMessage::PeerSolid(m) => Some(m.participant),
                 _ => None,
             };
             if participant.is_some_and(|p| mine.contains(&p)) {
@@ -435,6 +456,12 @@ async fn watch(args: DrawArgs, endpoint: Endpoint, drawing: bool) -> anyhow::Res
                         if p.placement.is_mirror() { " (mirrored)" } else { "" }
                     ))
                 }
+                ServerMessage::PeerSolid(s) => Some(format!(
+                    "{} made stroke {} {}",
+                    who(&names, s.participant),
+                    short(s.stroke),
+                    s.solid
+                )),
                 ServerMessage::Synced(s) => Some(format!(
                     "-- up to date: {} strokes by the others; live from here --",
                     s.n_strokes

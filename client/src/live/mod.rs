@@ -346,6 +346,7 @@ impl Live {
                     device: Some(s.device.clone()),
                     params: None,
                     placement: self.options.placement,
+                    solid: None,
                 };
                 send(link, &ClientMessage::StrokeBegin(begin)).await?;
                 s.on_link = true;

@@ -12,4 +12,5 @@ mod export;
 mod helpers;
 mod mesh;
 mod resume;
+mod solids;
 mod watch;

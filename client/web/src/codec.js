@@ -1,6 +1,6 @@
 // The protocol's binary encoding (docs/protocol.md, "Binary"), written from that page alone: one
 // version byte, then the message in bincode 2 (standard configuration: little endian, varint
-// integers), the samples in the compact point batch. Every message of versions 4 and 5, both
+// integers), the samples in the compact point batch. Every message of versions 4, 5 and 6, both
 // directions, is described once, as data (`messages` below: a schema per message); one reader
 // and one writer walk it. A message decodes to exactly the object `JSON.parse` gives for the
 // same message in JSON (an `Option` that is none is `null`; ids are lowercase UUID strings;
@@ -21,8 +21,8 @@ export { FrameError };
 export { MAX_BATCH_SAMPLES, STEPS, encodeBatch, readBatch } from "./pointbatch.js";
 
 /// The version this page speaks, and the versions this codec can read and write.
-export const PROTOCOL_VERSION = 5;
-export const VERSIONS = [4, 5];
+export const PROTOCOL_VERSION = 6;
+export const VERSIONS = [4, 5, 6];
 
 // ---------------------------------------------------------------------------------------------
 // The types on the wire ("Every message, field by field").
@@ -75,15 +75,25 @@ export const ERROR_CODES = [
   "unknown_stroke", "not_owner", "stroke_finished", "stroke_conflict", "seq_gap", "count_mismatch",
   "frame_too_large", "batch_too_large", "stroke_too_long", "too_many_open_strokes",
   "too_many_connections", "idle_timeout", "lagged", "shutting_down", "internal", "stroke_open",
+  "bad_solid",
 ];
 const ERROR_CODE = names(ERROR_CODES);
-const HISTORY_STROKE = struct([
+/// What a stroke becomes (version 6): its kind and its depth in px (none only for a line).
+const SOLID = struct([
+  ["kind", names(["line", "filled", "hole"])],
+  ["depth", opt(F64)],
+]);
+export const ROD = Object.freeze({ kind: "line", depth: null });
+const IDENTITY = () => ({ matrix: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1] });
+/// A history's stroke; version 6 adds its placement and its solid.
+const historyStroke = (v6) => struct([
   ["participant", UUID],
   ["stroke", UUID],
   ["brush", BRUSH],
   ["points", BATCH],
   ["done", BOOL],
   ["mesh", BOOL],
+  ...(v6 ? [["placement", PLACEMENT, IDENTITY], ["solid", SOLID, () => ({ ...ROD })]] : []),
 ]);
 
 const stroke = ["stroke", UUID];
@@ -92,9 +102,10 @@ const participant = ["participant", UUID];
 /// The messages of `version`, by direction, in variant index order.
 function messagesOf(version) {
   const v5 = version >= 5;
+  const v6 = version >= 6;
   const client = [
     ["hello", [["protocol", U16], ["client", STRING], ["name", opt(STRING)], ["resume", list(UUID), () => []], ["key", opt(STRING)]]],
-    ["stroke_begin", [stroke, ["brush", BRUSH, defaultBrush], ["device", opt(STRING)], ["params", opt(ACUTS_PARAMS)], ...(v5 ? [["placement", opt(PLACEMENT)]] : [])]],
+    ["stroke_begin", [stroke, ["brush", BRUSH, defaultBrush], ["device", opt(STRING)], ["params", opt(ACUTS_PARAMS)], ...(v5 ? [["placement", opt(PLACEMENT)]] : []), ...(v6 ? [["solid", opt(SOLID)]] : [])]],
     ["points", [stroke, ["seq", U64], ["points", BATCH]]],
     ["stroke_end", [stroke, ["n_points", U64]]],
     ["ping", [["nonce", U64]]],
@@ -102,6 +113,7 @@ function messagesOf(version) {
     ["restore_stroke", [stroke]],
     ["rename", [["name", STRING]]],
     ...(v5 ? [["set_placement", [stroke, ["placement", PLACEMENT]]]] : []),
+    ...(v6 ? [["set_solid", [stroke, ["solid", SOLID]]]] : []),
   ];
   const server = [
     ["welcome", [["protocol", U16], ["session", UUID], participant, ["resume", list(RESUME_STATE)]]],
@@ -120,8 +132,9 @@ function messagesOf(version) {
     ["stroke_removed", [participant, stroke, ["by", UUID]]],
     ["stroke_restored", [participant, stroke, ["by", UUID]]],
     ["peer_renamed", [participant, ["name", STRING]]],
-    ["peer_strokes", [["strokes", list(HISTORY_STROKE)]]],
+    ["peer_strokes", [["strokes", list(historyStroke(v6))]]],
     ...(v5 ? [["peer_placement", [participant, stroke, ["placement", PLACEMENT]]]] : []),
+    ...(v6 ? [["peer_solid", [participant, stroke, ["solid", SOLID]]]] : []),
   ];
   const table = (list) => {
     const byIndex = list.map(([name, fields]) => ({ name, type: struct(fields) }));

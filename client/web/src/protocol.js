@@ -261,8 +261,11 @@ export class Connection {
     this.on(kind, m);
   }
 
-  historyStroke({ participant, stroke, brush, points, done, mesh }) {
+  historyStroke({ participant, stroke, brush, points, done, mesh, placement, solid }) {
     this.on("peer_stroke_begin", { participant, stroke, brush });
+    // Version 6: its placement and solid ride along (absent in versions 5 and 4).
+    if (placement && !isIdentity(placement.matrix)) this.on("peer_placement", { participant, stroke, placement });
+    if (solid && (solid.kind !== "line" || solid.depth !== null)) this.on("peer_solid", { participant, stroke, solid });
     if (points.length) this.on("peer_retained", { participant, stroke, first: 0, points });
     if (!done) return;
     this.on("peer_stroke_done", { participant, stroke, n_retained: points.length, url: `/v1/strokes/${stroke}/simplified` });
@@ -422,4 +425,9 @@ export class Connection {
 /// has one (a stroke kept by an older page has none: the board).
 function strokeBegin({ stroke, brush, device, params, placement }) {
   return { stroke, brush, device, params, ...(placement ? { placement: { matrix: placement } } : {}) };
+}
+
+/// Whether a placement's 16 numbers are the identity (the board).
+function isIdentity(matrix) {
+  return matrix.every((v, i) => v === (i % 5 === 0 ? 1 : 0));
 }

@@ -98,7 +98,7 @@ function withDefaults(message) {
   if (name === "hello") Object.assign(full, { name: m.name ?? null, resume: m.resume ?? [], key: m.key ?? null });
   if (name === "stroke_begin") {
     full.brush = { size: 8.0, pressure_response: 0.5, min_radius: 0.25, ...m.brush, color: m.brush?.color ?? null };
-    for (const k of ["device", "params", "placement"]) full[k] = m[k] ?? null;
+    for (const k of ["device", "params", "placement", "solid"]) full[k] = m[k] ?? null;
   }
   return { [name]: full };
 }
@@ -131,8 +131,11 @@ function withDefaults(message) {
   for (const { message, hex: text } of recorded) {
     const bytes = fromHex(text);
     const n = message.retained.points.length;
-    check(`the proxy's frame of ${n} samples: decoded`, () => assert.deepStrictEqual(decodeServer(bytes), message));
-    check(`the proxy's frame of ${n} samples: encoded`, () => assert.ok(Buffer.from(encodeServer(message)).equals(Buffer.from(bytes)), "not the proxy's bytes"));
+    // Recorded in version 5, whose `retained` version 6 lays out the same: read and written as
+    // the version its byte names.
+    const version = bytes[0];
+    check(`the proxy's frame of ${n} samples: decoded`, () => assert.deepStrictEqual(decodeServer(bytes, version), message));
+    check(`the proxy's frame of ${n} samples: encoded`, () => assert.ok(Buffer.from(encodeServer(message, version)).equals(Buffer.from(bytes)), "not the proxy's bytes"));
   }
 }
 
@@ -169,6 +172,8 @@ const placement = () => {
   const k = pick([1, 0.5, 3]) * pick([1, -1]);
   return { matrix: [k * c, k * s, 0, 0, -k * s, k * c, 0, 0, 0, 0, k, 0, random() * 1e4 - 5e3, random() * 100, 40, 1] };
 };
+/// A solid: the rod, or a kind with a depth.
+const solid = () => (random() < 0.25 ? { kind: "line", depth: null } : { kind: pick(["line", "filled", "hole"]), depth: random() * 100 + 0.125 });
 /// Samples as the proxy sends them (on the grid): a walk, with now and then a jump, a negative
 /// coordinate or a long pause; sometimes a value beyond the grid's range (the raw group).
 function points() {
@@ -188,7 +193,7 @@ function points() {
 }
 const GENERATED = {
   hello: () => ({ protocol: u16(), client: text(), name: pick([null, text()]), resume: Array.from({ length: int(3) }, uuid), key: pick([null, "3f2a9c0d5e7b41a68c1f0e9d2b7a4c55"]) }),
-  stroke_begin: () => ({ stroke: uuid(), brush: brush(), device: pick([null, "web:pen"]), params: pick([null, params()]), placement: pick([null, placement()]) }),
+  stroke_begin: () => ({ stroke: uuid(), brush: brush(), device: pick([null, "web:pen"]), params: pick([null, params()]), placement: pick([null, placement()]), solid: pick([null, solid()]) }),
   points: () => ({ stroke: uuid(), seq: u64(), points: points() }),
   stroke_end: () => ({ stroke: uuid(), n_points: u64() }),
   ping: () => ({ nonce: u64() }),
@@ -196,6 +201,7 @@ const GENERATED = {
   restore_stroke: () => ({ stroke: uuid() }),
   rename: () => ({ name: text() }),
   set_placement: () => ({ stroke: uuid(), placement: placement() }),
+  set_solid: () => ({ stroke: uuid(), solid: solid() }),
   welcome: () => ({ protocol: u16(), session: uuid(), participant: uuid(), resume: Array.from({ length: int(4) }, () => ({ stroke: uuid(), next_seq: u64(), status: pick(["open", "done", "interrupted", "unknown"]) })) }),
   ack: () => ({ stroke: uuid(), upto_seq: u64() }),
   retained: () => ({ stroke: uuid(), first: u64(), points: points() }),
@@ -212,8 +218,9 @@ const GENERATED = {
   stroke_removed: () => ({ participant: uuid(), stroke: uuid(), by: uuid() }),
   stroke_restored: () => ({ participant: uuid(), stroke: uuid(), by: uuid() }),
   peer_renamed: () => ({ participant: uuid(), name: text() }),
-  peer_strokes: () => ({ strokes: Array.from({ length: int(4) }, () => ({ participant: uuid(), stroke: uuid(), brush: brush(), points: points(), done: random() < 0.5, mesh: random() < 0.5 })) }),
+  peer_strokes: () => ({ strokes: Array.from({ length: int(4) }, () => ({ participant: uuid(), stroke: uuid(), brush: brush(), points: points(), done: random() < 0.5, mesh: random() < 0.5, placement: placement(), solid: solid() })) }),
   peer_placement: () => ({ participant: uuid(), stroke: uuid(), placement: placement() }),
+  peer_solid: () => ({ participant: uuid(), stroke: uuid(), solid: solid() }),
 };
 /// What the binary form keeps of generated samples: each on the grid (rounded half away from
 /// zero), except a group with a value past 2^48 steps, which travels raw (as it is).
@@ -270,6 +277,7 @@ const peerPlacement = encodeServer({ peer_placement: { participant: uuid(), stro
 const retained = encodeServer({ retained: { stroke: uuid(), first: 0, points: [[1, 2, 0, 0.5], [2, 3, 8, 0.5]] } });
 const emptyRetained = encodeServer({ retained: { stroke: uuid(), first: 0, points: [] } });
 const errorFrame = encodeServer({ error: { code: "seq_gap", message: "é", stroke: null } });
+const peerSolid = encodeServer({ peer_solid: { participant: uuid(), stroke: uuid(), solid: { kind: "hole", depth: 3 } } });
 const at = (bytes, i, b) => {
   const copy = Uint8Array.from(bytes);
   copy[i] = b;
@@ -277,23 +285,26 @@ const at = (bytes, i, b) => {
 };
 const BAD = [
   ["an empty frame", new Uint8Array(0), /empty frame/],
-  ["a version byte 4 on a version-5 connection", at(peerPlacement, 0, 4), /version byte 4: this connection speaks protocol 5/],
-  ["a version byte 6", at(peerPlacement, 0, 6), /version byte 6/],
-  ["an unknown server variant", at(peerPlacement, 1, 18), /unknown server message variant 18 \(protocol 5 has 0 to 17\)/],
-  ["an unknown variant past 250", Uint8Array.from([5, 251, 0x10, 0x01]), /unknown server message variant 272/],
-  ["a varint tag that is none", Uint8Array.from([5, 12, 254]), /synced.n_strokes: byte 254, not a varint/],
-  ["a u32 varint where a u16 goes", Uint8Array.from([5, 0, 252, 5, 0, 0, 0]), /welcome.protocol: a u32 varint \(byte 252\) where a u16 goes/],
+  ["a version byte 4 on a version-6 connection", at(peerPlacement, 0, 4), /version byte 4: this connection speaks protocol 6/],
+  ["a version byte 7", at(peerPlacement, 0, 7), /version byte 7/],
+  ["an unknown server variant", at(peerPlacement, 1, 19), /unknown server message variant 19 \(protocol 6 has 0 to 18\)/],
+  ["an unknown variant past 250", Uint8Array.from([6, 251, 0x10, 0x01]), /unknown server message variant 272/],
+  ["a varint tag that is none", Uint8Array.from([6, 12, 254]), /synced.n_strokes: byte 254, not a varint/],
+  ["a u32 varint where a u16 goes", Uint8Array.from([6, 0, 252, 5, 0, 0, 0]), /welcome.protocol: a u32 varint \(byte 252\) where a u16 goes/],
   ["a truncated peer_placement", peerPlacement.subarray(0, 100), /peer_placement.placement.matrix\[8\]: truncated frame/],
   ["a byte left over", Uint8Array.from([...peerPlacement, 7]), /1 byte\(s\) left over after peer_placement/],
   ["a UUID of 15 bytes", at(peerPlacement, 2, 15), /peer_placement.participant: a UUID of length 15/],
   ["an option tag 2", at(errorFrame, errorFrame.length - 1, 2), /error.stroke: option tag 2/],
-  ["an unknown error code", at(errorFrame, 2, 23), /error.code: unknown variant 23 \(0 to 22\)/],
+  ["an unknown error code", at(errorFrame, 2, 24), /error.code: unknown variant 24 \(0 to 23\)/],
+  ["an unknown solid kind", at(peerSolid, peerSolid.length - 10, 3), /peer_solid.solid.kind: unknown variant 3 \(0 to 2\)/],
   ["invalid UTF-8", at(errorFrame, 4, 0xff), /error.message: invalid UTF-8/],
   ["a bool byte 2", (() => {
-    const f = encodeServer({ peer_strokes: { strokes: [{ participant: uuid(), stroke: uuid(), brush: brush(), points: [], done: true, mesh: false }] } });
-    return at(f, f.length - 1, 2);
+    // Version 6: the placement's 128 bytes and the rod's 2 follow `mesh`.
+    const rod = { kind: "line", depth: null };
+    const f = encodeServer({ peer_strokes: { strokes: [{ participant: uuid(), stroke: uuid(), brush: brush(), points: [], done: true, mesh: false, placement: placement(), solid: rod }] } });
+    return at(f, f.length - 1 - 130, 2);
   })(), /peer_strokes.strokes\[0\].mesh: bool byte 2/],
-  ["a list count past the frame", Uint8Array.from([5, 16, 252, 0, 0, 0, 1]), /peer_strokes.strokes \(16777216 elements\): truncated frame/],
+  ["a list count past the frame", Uint8Array.from([6, 16, 252, 0, 0, 0, 1]), /peer_strokes.strokes \(16777216 elements\): truncated frame/],
   ["a batch cut short", retained.subarray(0, retained.length - 1), /retained.points: sample 1.s first difference of t: truncated frame/],
   // An empty batch is '00' and six bits of padding: byte 00; 01 has a padding bit set.
   ["a batch whose padding is not zero", at(emptyRetained, emptyRetained.length - 1, 1), /retained.points: the point batch's padding bits are not zero/],
@@ -313,7 +324,15 @@ for (const [what, bytes, words] of BAD) {
   check(`a frame that must not decode: ${what}`, () => assert.throws(() => decodeServer(bytes), (e) => e instanceof FrameError && words.test(e.message), `${what} (${hex(bytes).slice(0, 60)}…)`));
 }
 check("a version-4 connection: a set_placement does not exist", () => assert.throws(() => decodeClient(at(placementFrame, 0, 4), 4), /unknown client message variant 8 \(protocol 4 has 0 to 7\)/));
-check("the version byte is the connection's", () => assert.throws(() => decodeClient(placementFrame, 4), /version byte 5: this connection speaks protocol 4/));
+check("the version byte is the connection's", () => assert.throws(() => decodeClient(placementFrame, 4), /version byte 6: this connection speaks protocol 4/));
+check("a version-5 connection: a set_solid does not exist", () => assert.throws(() => decodeClient(at(encodeClient({ set_solid: { stroke: uuid(), solid: { kind: "filled", depth: 2 } } }), 0, 5), 5), /unknown client message variant 9 \(protocol 5 has 0 to 8\)/));
+check("a version-5 peer_strokes has no placement nor solid", () => {
+  const s = { participant: uuid(), stroke: uuid(), brush: brush(), points: [], done: true, mesh: false };
+  const v5 = encodeServer({ peer_strokes: { strokes: [s] } }, 5);
+  assert.deepStrictEqual(decodeServer(v5, 5), { peer_strokes: { strokes: [s] } });
+  const v6 = encodeServer({ peer_strokes: { strokes: [{ ...s, placement: placement(), solid: { kind: "filled", depth: 3 } }] } });
+  assert.equal(v6.length, v5.length + 128 + 1 + 1 + 8, "a placement and a solid more");
+});
 // Messages that must not encode.
 for (const [what, message, words] of [
   ["two keys", { ping: { nonce: 1 }, pong: { nonce: 1 } }, /exactly one key/],
@@ -334,6 +353,6 @@ const sent = encodeClient({ set_placement: move }).length;
 const received = encodeServer({ peer_placement: { participant: "8a1b2c3d-4e5f-4a6b-8c7d-9e0f1a2b3c4d", ...move } }).length;
 assert.equal(sent, 147, "set_placement: 147 bytes");
 assert.equal(received, 164, "peer_placement: 164 bytes");
-assert.equal(PROTOCOL_VERSION, 5);
+assert.equal(PROTOCOL_VERSION, 6);
 
 console.log(`PASS codec: ${checks} checks (${frames.length} frames of docs/protocol.md, both ways; every JSON example; 3 long frames the proxy wrote, both ways; generated messages of all ${messageNames("client").length} client and ${messageNames("server").length} server variants; ${BAD.length} malformed frames); a move: ${sent} B sent, ${received} B received`);

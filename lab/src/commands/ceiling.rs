@@ -143,6 +143,7 @@ fn answer(bytes: &[u8], session: Uuid) -> Option<Vec<u8>> {
         ClientMessage::Ping(ping) => ServerMessage::Pong(ping),
         // The load tool never takes a stroke back nor renames; a no-op answer all the same.
         ClientMessage::SetPlacement(SetPlacement { stroke, .. })
+        | ClientMessage::SetSolid(penmesh::protocol::SetSolid { stroke, .. })
         | ClientMessage::RemoveStroke(StrokeRef { stroke })
         | ClientMessage::RestoreStroke(StrokeRef { stroke }) => {
             ServerMessage::Error(ErrorMessage {

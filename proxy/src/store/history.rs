@@ -142,7 +142,11 @@ impl Store {
         // the client as one `PeerPlacement`, after the stroke it places (`PeerStrokes` is the
         // same in both protocol versions; a version-4 client is not sent them).
         let mut placed = Vec::new();
+        let mut solids = Vec::new();
         for (row, points) in parts {
+            if !row.solid.is_rod() {
+                solids.push(solid_event(session, &row));
+            }
             if let Some(id) = row.placement_id {
                 let placed_event = SessionEvent::new(
                     session,
@@ -179,12 +183,16 @@ impl Store {
             history.events.extend(stroke_events(session, &row, points, &mesh_at));
         }
         history.events.extend(placed);
+        // Their solids after them (a version-6 client's `HistoryStroke` carries them where the
+        // stroke is sent whole; otherwise a `PeerSolid` each, which older clients are not sent).
+        history.events.extend(solids);
         Ok(history)
     }
 
     /// The events of one finished stroke as a history has them (begin, retained samples, done,
-    /// mesh): what a client that lacks a stroke brought back is sent. `None` when the stroke is
-    /// not there to send: unknown, taken back (again), or not finished.
+    /// mesh, then its placement and its solid when not the identity and the rod): what a client
+    /// that lacks a stroke brought back is sent. `None` when the stroke is not there to send:
+    /// unknown, taken back (again), or not finished.
     pub async fn stroke_history(&self, stroke: Uuid) -> anyhow::Result<Option<Vec<SessionEvent>>> {
         let Some(row) = self.stroke(stroke).await? else { return Ok(None) };
         if row.removed.is_some() || row.status != StrokeStatus::Done {
@@ -200,7 +208,16 @@ impl Store {
                 .fetch_optional(&self.pool)
                 .await?;
         let mesh_at = mesh_at.map(|at| HashMap::from([(stroke, at)])).unwrap_or_default();
-        Ok(Some(stroke_events(row.session_id, &row, points, &mesh_at)))
+        let mut events = stroke_events(row.session_id, &row, points, &mesh_at);
+        if let Some(id) = row.placement_id.filter(|_| !row.placement.is_identity()) {
+            let (participant, placement) = (row.participant, row.placement);
+            let kind = EventKind::Placed { participant, stroke, placement, id };
+            events.push(SessionEvent::new(row.session_id, kind));
+        }
+        if !row.solid.is_rod() {
+            events.push(solid_event(row.session_id, &row));
+        }
+        Ok(Some(events))
     }
 
     /// What one stroke of [`Store::session_history`] retains: its simplified samples when it is
@@ -335,4 +352,10 @@ async fn simplified_rows(
         );
     }
     Ok(found)
+}
+
+/// The event of a stroke's current solid.
+fn solid_event(session: Uuid, row: &StrokeRow) -> SessionEvent {
+    let kind = EventKind::Solid { participant: row.participant, stroke: row.id, solid: row.solid };
+    SessionEvent::new(session, kind)
 }

@@ -31,6 +31,8 @@ pub struct StrokeRow {
     pub placement_id: Option<i64>,
     /// The stroke it is a duplicate of, if any.
     pub duplicate_of: Option<Uuid>,
+    /// What it becomes (the latest of `stroke_solids`; the rod when none).
+    pub solid: penmesh::Solid,
 }
 
 /// The simplified stroke: indices into the raw samples and the samples themselves.
@@ -70,6 +72,8 @@ pub(super) const STROKE_SELECT: &str = "SELECT s.id, s.session_id, s.participant
      s.duplicate_of, (SELECT p.matrix FROM stroke_placements p WHERE p.stroke_id = s.id \
      ORDER BY p.id DESC LIMIT 1) AS placement, \
      (SELECT MAX(p.id) FROM stroke_placements p WHERE p.stroke_id = s.id) AS placement_id, \
+     (SELECT q.solid FROM stroke_solids q WHERE q.stroke_id = s.id ORDER BY q.id DESC LIMIT 1) \
+     AS solid, \
      COALESCE((SELECT c.seq + c.n FROM stroke_chunks c WHERE c.stroke_id = s.id \
      ORDER BY c.seq DESC LIMIT 1), 0) AS n_points, \
      (SELECT COUNT(*) FROM meshes m WHERE m.stroke_id = COALESCE(s.mesh_of, s.id)) AS n_meshes FROM strokes s";
@@ -131,6 +135,10 @@ pub(super) fn stroke_from_row(row: &sqlx::any::AnyRow) -> anyhow::Result<StrokeR
             .try_get::<Option<String>, _>("duplicate_of")?
             .map(|id| parse_uuid(&id))
             .transpose()?,
+        solid: match row.try_get::<Option<Vec<u8>>, _>("solid")? {
+            Some(bytes) => penmesh::Solid::from_bytes(&bytes).context("stored solid")?,
+            None => penmesh::Solid::ROD,
+        },
     })
 }
 

@@ -45,6 +45,13 @@ pub(super) enum AfterCommit {
     Placed {
         answer: PeerPlacement,
     },
+    /// A stroke's new solid (`SetSolid`): this answer, then its mesh (built before the
+    /// commit) stored.
+    Solid {
+        answer: penmesh::protocol::PeerSolid,
+        row: Box<crate::store::StrokeRow>,
+        glb: Vec<u8>,
+    },
 }
 
 /// Retained samples `first..first + kept.len()` of a stroke, decided by one request.

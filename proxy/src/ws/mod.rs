@@ -14,6 +14,7 @@
 //! - `strokes.rs`: the stroke lifecycle: begin, points, end, resume, acks after commit.
 //! - `peers.rs`: the session's events to this client, and the resync after a gap.
 //! - `removals.rs`: a stroke taken back or brought back by its drawer (`crate::removal`).
+//! - `solids.rs`: a stroke's solid set by its drawer (`crate::solid`, protocol 6).
 //! - `error.rs`: [`ConnError`](error::ConnError), why a message was not carried out; every one
 //!   is answered and logged in one place (`Connection::fail`).
 //!
@@ -54,6 +55,7 @@ mod peers;
 mod placements;
 mod removals;
 mod serve;
+mod solids;
 mod strokes;
 
 pub use adapter::{split, ws_handler};

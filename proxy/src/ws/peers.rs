@@ -46,6 +46,8 @@ impl Connection {
             EventKind::Placed { stroke, id, .. } if self.own.contains(stroke) => {
                 if self.view.tell_placement(*stroke, *id) { Admit::Whole } else { Admit::Skip }
             }
+            // And its solid set elsewhere (over HTTP).
+            EventKind::Solid { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
             // And a mesh of its own stroke, which is stored over HTTP (an upload or a build),
             // never on this connection: the mesh is announced to the whole session.
             EventKind::Mesh { stroke, .. } if self.own.contains(stroke) => Admit::Whole,
@@ -77,9 +79,10 @@ impl Connection {
     }
 
     /// A stroke the client never had (brought back, or placed by the client before its events
-    /// reached it): read from storage and sent whole, as a history sends it (`PeerStrokes`,
-    /// then its placement). Taken back meanwhile, nothing is sent (its events that follow are
-    /// skipped). A read that fails falls back to a resync.
+    /// reached it): read from storage and sent whole, as a history sends it (`PeerStrokes`
+    /// carrying its placement and solid; for a client of version 5 or 4, `PeerStrokes` then its
+    /// placement). Taken back meanwhile, nothing is sent (its events that follow are skipped).
+    /// A read that fails falls back to a resync.
     pub(super) async fn send_whole_stroke(&mut self, stroke: StrokeId) {
         metrics::counter!("penmesh_fanout_fetches_total").increment(1);
         let events = match self.state.store.stroke_history(stroke).await {
@@ -91,7 +94,7 @@ impl Connection {
             }
         };
         let batch = self.state.config.max_batch_samples.max(1);
-        let mut whole = WholeStrokes::default();
+        let mut whole = WholeStrokes::carrying(self.outgoing.version);
         if let Some(rest) = whole.take(&mut self.view, events, batch) {
             for event in rest {
                 self.send_history_event(event, batch).await;
@@ -99,6 +102,9 @@ impl Connection {
         }
         if let Some(msg) = whole.flush() {
             self.send_wait(msg).await;
+        }
+        for event in std::mem::take(&mut whole.later) {
+            self.send_history_event(event, batch).await;
         }
     }
 
@@ -183,7 +189,7 @@ impl Connection {
             .await;
         }
         let batch = self.state.config.max_batch_samples.max(1);
-        let mut whole = WholeStrokes::default();
+        let mut whole = WholeStrokes::carrying(self.outgoing.version);
         let mut events = history.events.into_iter().peekable();
         while let Some(event) = events.next() {
             // A stroke the client has shown taken back and the history holds again: brought
@@ -221,16 +227,25 @@ impl Connection {
                 }
                 if let Some(msg) = whole.flush_if_full(batch) {
                     self.send_wait(msg).await;
+                    for event in std::mem::take(&mut whole.later) {
+                        self.send_history_event(event, batch).await;
+                    }
                 }
                 continue;
             }
             if let Some(msg) = whole.flush() {
                 self.send_wait(msg).await;
             }
+            for event in std::mem::take(&mut whole.later) {
+                self.send_history_event(event, batch).await;
+            }
             self.send_history_event(event, batch).await;
         }
         if let Some(msg) = whole.flush() {
             self.send_wait(msg).await;
+        }
+        for event in std::mem::take(&mut whole.later) {
+            self.send_history_event(event, batch).await;
         }
         // The strokes back on the board: told only to a client that was told an older
         // placement (it shows that one); for the others only the id is kept, so that an older
@@ -301,9 +316,19 @@ const MAX_WHOLE_STROKES: usize = 256;
 struct WholeStrokes {
     strokes: Vec<HistoryStroke>,
     samples: usize,
+    /// Whether a `HistoryStroke` carries its placement and solid (protocol 6).
+    carries: bool,
+    /// A taken stroke's placement and solid for a client whose `HistoryStroke` cannot carry
+    /// them: sent as their own messages after the `PeerStrokes` that holds the stroke.
+    later: Vec<SessionEvent>,
 }
 
 impl WholeStrokes {
+    /// For a client of protocol `version`.
+    fn carrying(version: u16) -> WholeStrokes {
+        WholeStrokes { carries: version >= super::solids::SOLIDS_VERSION, ..Default::default() }
+    }
+
     /// Takes one stroke's history events (its begin first), recording them in `view` as if
     /// each had been sent. A stroke of more than `batch` samples is not taken: its events are
     /// given back, to be sent one at a time.
@@ -325,6 +350,12 @@ impl WholeStrokes {
         }
         let mut whole: Option<HistoryStroke> = None;
         for part in parts {
+            let placed_or_solid =
+                matches!(part.kind, EventKind::Placed { .. } | EventKind::Solid { .. });
+            if placed_or_solid && !self.carries {
+                self.later.push(part);
+                continue;
+            }
             // A stroke the view does not know: each of its events is admitted whole.
             let admitted = view.admit(&part) == Admit::Whole;
             match (part.kind, whole.as_mut()) {
@@ -336,8 +367,14 @@ impl WholeStrokes {
                         points: PointBatch::default(),
                         done: false,
                         mesh: false,
+                        placement: penmesh::Placement::IDENTITY,
+                        solid: penmesh::Solid::ROD,
                     });
                 }
+                (EventKind::Placed { placement, .. }, Some(w)) if admitted => {
+                    w.placement = placement
+                }
+                (EventKind::Solid { solid, .. }, Some(w)) if admitted => w.solid = solid,
                 (EventKind::Retained { points, .. }, Some(w)) if admitted => w.points.0 = points,
                 (EventKind::StrokeDone { .. }, Some(w)) if admitted => w.done = true,
                 (EventKind::Mesh { .. }, Some(w)) if admitted => w.mesh = true,

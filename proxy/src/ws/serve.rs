@@ -340,6 +340,7 @@ impl Connection {
             ClientMessage::RestoreStroke(stroke) => self.on_set_removed(stroke, false).await,
             ClientMessage::Rename(rename) => self.on_rename(rename.name).await,
             ClientMessage::SetPlacement(set) => self.on_set_placement(set).await,
+            ClientMessage::SetSolid(set) => self.on_set_solid(set).await,
             ClientMessage::Ping(ping) => {
                 self.send(ServerMessage::Pong(ping));
                 Ok(())
@@ -678,6 +679,7 @@ mod tests {
             device: None,
             params: None,
             placement: None,
+            solid: None,
         })))
     }
 

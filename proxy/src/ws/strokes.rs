@@ -265,6 +265,18 @@ impl Connection {
                     ops.push(op);
                     events.push(event);
                 }
+                // What it becomes (version 6): stored with its begin, told right after it. A
+                // filled stroke's closure is checked when its mesh is built.
+                if let Some(solid) = begin.solid.filter(|s| !s.is_rod()) {
+                    let (op, event) = crate::solid::request(
+                        (session, participant, stroke),
+                        solid,
+                        "begin",
+                        Some(self.id),
+                    );
+                    ops.push(op);
+                    events.push(event);
+                }
                 let pending = self.state.writer.submit_with(ops, events).await;
                 self.own.insert(stroke);
                 metrics::counter!("penmesh_strokes_total", "event" => "begun").increment(1);
@@ -414,6 +426,17 @@ impl Connection {
                 let id = placed.first().copied().unwrap_or_default();
                 self.answer_placement(id, answer).await;
             }
+            (Ok(_), AfterCommit::Solid { answer, row, glb }) => {
+                self.answer_solid(answer, *row, glb)
+            }
+            (Err(err), AfterCommit::Solid { answer, .. }) => {
+                self.fail(ConnError::internal(
+                    "storing a stroke's solid",
+                    err,
+                    "storing that failed, so nothing changed; try again",
+                    Some(answer.stroke),
+                ));
+            }
             (Err(err), AfterCommit::Placed { answer }) => {
                 self.fail(ConnError::internal(
                     "storing a stroke's placement",
@@ -436,6 +459,7 @@ impl Connection {
                     | AfterCommit::Done { stroke, .. }
                     | AfterCommit::Answer { stroke, .. } => stroke,
                     AfterCommit::Placed { answer } => answer.stroke,
+                    AfterCommit::Solid { answer, .. } => answer.stroke,
                 };
                 // The in-memory state is ahead of the database: drop it, so the client
                 // resumes from what is committed.

@@ -9,6 +9,7 @@ use super::StrokeStatus;
 use crate::acuts::AcutsParams;
 use crate::model::{Brush, Sample};
 use crate::placement::Placement;
+use crate::solid::Solid;
 
 /// The JSON body of every error.
 #[derive(Debug, Serialize, Deserialize, ToSchema)]
@@ -56,6 +57,10 @@ pub struct StrokeInfo {
     /// The stroke this one is a duplicate of (`POST /v1/strokes/{id}/duplicate`), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub duplicate_of: Option<Uuid>,
+    /// What the stroke becomes (`PUT /v1/strokes/{id}/solid`): its kind and depth; a line
+    /// with no depth (the pressure-width rod) by default.
+    #[serde(default)]
+    pub solid: Solid,
 }
 
 /// One placement a stroke had: which, who set it and when.
@@ -78,6 +83,27 @@ pub struct PlacementChange {
 pub struct PlacementHistory {
     pub stroke: Uuid,
     pub placements: Vec<PlacementChange>,
+}
+
+/// One solid a stroke had: which, who set it and when.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SolidChange {
+    pub solid: Solid,
+    /// The participant who set it: the stroke's drawer.
+    pub by: Uuid,
+    /// Milliseconds since the Unix epoch.
+    pub at: i64,
+    /// `begin` (the default rod, or the solid its stroke_begin carried), `set` (changed, or an
+    /// undo), `duplicate` or `import`.
+    pub cause: String,
+}
+
+/// Every solid a stroke had, oldest first: the last is its current one. Nothing is
+/// overwritten.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SolidHistory {
+    pub stroke: Uuid,
+    pub solids: Vec<SolidChange>,
 }
 
 /// The body of `POST /v1/strokes/{id}/duplicate`.

@@ -28,6 +28,7 @@ mod codec;
 mod http;
 mod mesh_bundle;
 mod v4;
+mod v5;
 
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
@@ -35,6 +36,7 @@ use uuid::Uuid;
 use crate::acuts::AcutsParams;
 use crate::model::{Brush, Sample};
 use crate::placement::Placement;
+use crate::solid::Solid;
 
 pub use codec::{
     CodecError, MAX_BATCH_SAMPLES, MAX_FRAME_BYTES_DEFAULT, MAX_STEPS, OLDEST_PROTOCOL_VERSION,
@@ -45,11 +47,12 @@ pub use codec::{
 };
 pub use codec::{
     binary_frame_version, encode_client_as, encode_server_as, encode_server_json_as,
-    is_supported_version,
+    is_supported_version, server_message_exists_in,
 };
 pub use http::{
     DuplicateRequest, Duplicated, ErrorBody, Imported, ImportedStroke, MeshInfo, NewSession,
-    PlacementChange, PlacementHistory, Removal, StrokeInfo, StrokeList, StrokeSamples,
+    PlacementChange, PlacementHistory, Removal, SolidChange, SolidHistory, StrokeInfo, StrokeList,
+    StrokeSamples,
 };
 pub use mesh_bundle::{
     BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MESH_BUNDLE_PLACED_MAGIC,
@@ -144,6 +147,22 @@ pub enum ClientMessage {
     /// drawn is `stroke_open`. A matrix that is not a placement does not decode (`malformed`
     /// or `bad_json`, naming what is wrong).
     SetPlacement(SetPlacement),
+    /// Version 6. Sets what a done stroke of this participant's becomes (its kind and depth;
+    /// undo sends the previous solid back): answered with `PeerSolid` once the change is
+    /// stored, and told to every other connection of the session; the stroke's mesh is then
+    /// built anew where meshes are built (`POST /v1/strokes/{id}/mesh/build` for a client
+    /// that cannot run LRPDP, an upload otherwise). Only the stroke's drawer may
+    /// (`not_owner`); a stroke not of this session is `unknown_stroke`; one still being drawn
+    /// is `stroke_open`; a `filled` solid of an open stroke is `bad_solid`. A solid that is not
+    /// valid (a negative or huge depth, a `filled` with none) does not decode.
+    SetSolid(SetSolid),
+}
+
+/// A stroke's new solid ([`ClientMessage::SetSolid`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SetSolid {
+    pub stroke: StrokeId,
+    pub solid: Solid,
 }
 
 impl ClientMessage {
@@ -155,6 +174,8 @@ impl ClientMessage {
     /// served.
     pub fn introduced_in(&self) -> (u16, &'static str) {
         match self {
+            ClientMessage::SetSolid(_) => (6, "set_solid"),
+            ClientMessage::StrokeBegin(begin) if begin.solid.is_some() => (6, "stroke_begin.solid"),
             ClientMessage::SetPlacement(_) => (5, "set_placement"),
             ClientMessage::StrokeBegin(begin) if begin.placement.is_some() => {
                 (5, "stroke_begin.placement")
@@ -206,6 +227,10 @@ pub struct StrokeBegin {
     /// identity (the board). Not in a version-4 frame ([`OLDEST_PROTOCOL_VERSION`]).
     #[serde(default)]
     pub placement: Option<Placement>,
+    /// Version 6: what the stroke becomes (e.g. drawn as a filled plate or a hole); absent:
+    /// the rod. Not in a version-5 or version-4 frame.
+    #[serde(default)]
+    pub solid: Option<Solid>,
 }
 
 /// A stroke's new placement ([`ClientMessage::SetPlacement`]).
@@ -281,6 +306,20 @@ pub enum ServerMessage {
     /// that is not at the identity or whose placement changed; a client applies it as the
     /// stroke's node transform. Never sent to a version-4 connection.
     PeerPlacement(PeerPlacement),
+    /// Version 6. A stroke's solid: set by its drawer (`SetSolid`, `PUT
+    /// /v1/strokes/{id}/solid`), or, after a `PeerStrokeBegin` of a stroke begun as one, its
+    /// current one. Only for a stroke that is not the rod or whose solid changed. Never sent
+    /// to a version-5 or version-4 connection.
+    PeerSolid(PeerSolid),
+}
+
+/// A stroke's solid ([`ServerMessage::PeerSolid`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PeerSolid {
+    /// The stroke's drawer (who set it).
+    pub participant: ParticipantId,
+    pub stroke: StrokeId,
+    pub solid: Solid,
 }
 
 /// A stroke's placement ([`ServerMessage::PeerPlacement`]).
@@ -309,11 +348,18 @@ pub struct HistoryStroke {
     pub done: bool,
     /// It has a mesh, at [`mesh_url`].
     pub mesh: bool,
+    /// Version 6: its current placement (the identity when it was never placed).
+    #[serde(default)]
+    pub placement: Placement,
+    /// Version 6: its current solid (the rod when it never had another).
+    #[serde(default)]
+    pub solid: Solid,
 }
 
 impl PeerStrokes {
-    /// The messages this one stands for, in order: per stroke its begin, its retained samples
-    /// (if any), and when done its end and (if any) its mesh.
+    /// The messages this one stands for, in order: per stroke its begin, its placement and its
+    /// solid (unless the identity and the rod), its retained samples (if any), and when done
+    /// its end and (if any) its mesh.
     pub fn messages(&self) -> Vec<ServerMessage> {
         let mut out = Vec::with_capacity(4 * self.strokes.len());
         for s in &self.strokes {
@@ -323,6 +369,18 @@ impl PeerStrokes {
                 stroke,
                 brush: s.brush,
             }));
+            if !s.placement.is_identity() {
+                let placement = s.placement;
+                out.push(ServerMessage::PeerPlacement(PeerPlacement {
+                    participant,
+                    stroke,
+                    placement,
+                }));
+            }
+            if !s.solid.is_rod() {
+                let solid = s.solid;
+                out.push(ServerMessage::PeerSolid(PeerSolid { participant, stroke, solid }));
+            }
             if !s.points.0.is_empty() {
                 out.push(ServerMessage::PeerRetained(PeerRetained {
                     participant,
@@ -492,6 +550,9 @@ pub enum ErrorCode {
     /// A `RemoveStroke` or `RestoreStroke` of a stroke still being drawn (open or interrupted):
     /// only a finished stroke can be taken back.
     StrokeOpen,
+    /// Version 6: a `SetSolid` the stroke cannot take (a `filled` solid of an open stroke); the
+    /// message says why (how far apart its ends are).
+    BadSolid,
 }
 
 impl ErrorCode {

@@ -4,8 +4,9 @@
 //!
 //! - client to proxy: `StrokeBegin` had no `placement` (a version-4 stroke lies at the
 //!   identity, the board); `SetPlacement` did not exist.
-//! - proxy to client: every message of version 4 is laid out as in version 5; version 5 only
-//!   appended `PeerPlacement`, which a version-4 connection is never sent.
+//! - proxy to client: every message of version 4 is laid out as in version 5 (`v5.rs`, which
+//!   keeps `PeerStrokes` as both had it); version 5 only appended `PeerPlacement`, which a
+//!   version-4 connection is never sent.
 
 use serde::{Deserialize, Serialize};
 
@@ -45,7 +46,8 @@ pub(super) struct StrokeBeginV4 {
     pub params: Option<AcutsParams>,
 }
 
-/// Variants of [`ServerMessage`] a version-4 client knows: all but `PeerPlacement`.
+/// Variants of [`ServerMessage`] a version-4 client knows: all but `PeerPlacement` and
+/// `PeerSolid`.
 pub(super) const N_SERVER_MESSAGES: usize = 17;
 
 impl From<ClientMessageV4> for ClientMessage {
@@ -59,6 +61,7 @@ impl From<ClientMessageV4> for ClientMessage {
                     device,
                     params,
                     placement: None,
+                    solid: None,
                 })
             }
             ClientMessageV4::Points(m) => ClientMessage::Points(m),
@@ -83,8 +86,10 @@ impl ClientMessageV4 {
                 device,
                 params,
                 placement,
+                solid,
             }) => {
-                if placement.is_some_and(|p| !p.is_identity()) {
+                if placement.is_some_and(|p| !p.is_identity()) || solid.is_some_and(|s| !s.is_rod())
+                {
                     return None;
                 }
                 ClientMessageV4::StrokeBegin(StrokeBeginV4 { stroke, brush, device, params })
@@ -95,12 +100,12 @@ impl ClientMessageV4 {
             ClientMessage::RemoveStroke(m) => ClientMessageV4::RemoveStroke(m),
             ClientMessage::RestoreStroke(m) => ClientMessageV4::RestoreStroke(m),
             ClientMessage::Rename(m) => ClientMessageV4::Rename(m),
-            ClientMessage::SetPlacement(_) => return None,
+            ClientMessage::SetPlacement(_) | ClientMessage::SetSolid(_) => return None,
         })
     }
 }
 
 /// Whether a version-4 client can be sent `msg` (as it is: its layout did not change).
 pub(super) fn server_message_exists(msg: &ServerMessage) -> bool {
-    !matches!(msg, ServerMessage::PeerPlacement(_))
+    !matches!(msg, ServerMessage::PeerPlacement(_) | ServerMessage::PeerSolid(_))
 }

@@ -55,6 +55,10 @@ pub struct StrokeExtras {
     /// For a stroke that was imported: where it came from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imported_from: Option<ImportedFrom>,
+    /// What the stroke becomes (issue 51): its kind and depth; left out for the rod (the
+    /// default), so a scene of rods is written as before.
+    #[serde(default, skip_serializing_if = "crate::solid::Solid::is_rod")]
+    pub solid: crate::solid::Solid,
 }
 
 /// Who drew a stroke.

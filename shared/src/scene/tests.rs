@@ -13,6 +13,7 @@ fn extras(samples: Vec<Sample>) -> StrokeExtras {
         samples,
         duplicate_of: None,
         imported_from: None,
+        solid: crate::solid::Solid::ROD,
     }
 }
 
@@ -34,7 +35,9 @@ fn a_scene_reads_back_its_strokes_and_placements_exactly() {
         Sample::new(0.0625, 1.0 / 3.0, 0.0, 0.1),
         Sample::new(40.5, 10.0, 12.125, 0.7),
     ]);
-    let b = extras(vec![Sample::new(5.0, 5.0, 0.0, 0.5), Sample::new(5.0, 60.0, 8.0, 0.5)]);
+    let mut b = extras(vec![Sample::new(5.0, 5.0, 0.0, 0.5), Sample::new(5.0, 60.0, 8.0, 0.5)]);
+    // A solid (issue 51) comes back exactly too.
+    b.solid = crate::solid::Solid::new(crate::solid::SolidKind::Hole, Some(0.1 + 0.2)).unwrap();
     let mirror = [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.5, -0.0, 7.0, 1.0];
     let meshes = [glb_of(&a), glb_of(&b)];
     let input = SceneInput {

@@ -179,6 +179,7 @@ impl Stroke {
                 device: Some("synth:faults".into()),
                 params: None,
                 placement: None,
+                solid: None,
             });
             send(ws, &begin, plan.stall).await?;
         }

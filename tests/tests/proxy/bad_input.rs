@@ -177,6 +177,7 @@ async fn a_stroke_id_of_another_session_is_a_conflict_and_a_bad_brush_is_refused
                 device: None,
                 params: None,
                 placement: None,
+                solid: None,
             }))
             .await;
         let err = other.expect_error(ErrorCode::BadBrush).await;
@@ -289,6 +290,7 @@ async fn a_nul_byte_in_a_begin_is_refused_and_the_batch_sent_after_it_is_not_ack
         device: Some("wacom\0ctl".into()),
         params: None,
         placement: None,
+        solid: None,
     };
 
     // Act

@@ -323,6 +323,7 @@ async fn fields_over_their_limits_are_refused_naming_them() {
             device: Some(device.into()),
             params: None,
             placement: None,
+            solid: None,
         })
     };
     let points = |stroke, seq: usize, samples: &[Sample]| {

@@ -39,6 +39,7 @@ fn begin(stroke: StrokeId, placement: Option<Placement>) -> ClientMessage {
         device: None,
         params: None,
         placement,
+        solid: None,
     })
 }
 
@@ -157,7 +158,7 @@ async fn a_version_4_connection_is_refused_version_5_messages_and_frames() {
         }
         // Version-5 frames: the message itself, and one version 4 has too.
         for msg in [set.clone(), ClientMessage::Ping(Ping { nonce: 5 })] {
-            ws.send_binary(encode_client(&msg)).await;
+            ws.send_binary(encode_client_as(&msg, 5).unwrap()).await;
             let err = expect_error(&mut ws, ErrorCode::UnknownMessage).await;
             assert!(err.message.contains("version 5"), "{err:?}");
         }

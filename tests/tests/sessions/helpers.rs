@@ -24,6 +24,8 @@ pub struct PeerStroke {
     pub removed: bool,
     /// Its latest `PeerPlacement` (protocol version 5); `None`: never told (the identity).
     pub placement: Option<penmesh::Placement>,
+    /// Its latest `PeerSolid` (protocol version 6); `None`: never told (the rod).
+    pub solid: Option<penmesh::Solid>,
 }
 
 /// Everything a participant received of the others, checked as it arrives.
@@ -69,6 +71,7 @@ impl View {
                     meshes: 0,
                     removed: false,
                     placement: None,
+                    solid: None,
                 };
                 assert!(self.strokes.insert(b.stroke, fresh).is_none(), "stroke begun twice");
             }
@@ -119,6 +122,13 @@ impl View {
                 if let Some(s) = self.strokes.get_mut(&p.stroke) {
                     assert_eq!(p.participant, s.participant);
                     s.placement = Some(p.placement);
+                }
+            }
+            // Of a peer stroke this view holds (version 6).
+            ServerMessage::PeerSolid(p) => {
+                if let Some(s) = self.strokes.get_mut(&p.stroke) {
+                    assert_eq!(p.participant, s.participant);
+                    s.solid = Some(p.solid);
                 }
             }
             ServerMessage::Synced(synced) => {

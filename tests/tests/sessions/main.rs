@@ -21,4 +21,5 @@ mod removal;
 mod replicas;
 mod sessions;
 mod slow_reader;
+mod solids;
 mod told;

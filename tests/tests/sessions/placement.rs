@@ -78,6 +78,7 @@ pub(crate) async fn draw_on(p: &mut Participant, stroke: StrokeId, k: usize, pla
         device: Some("synth:e2e".into()),
         params: None,
         placement: Some(placement),
+        solid: None,
     }))
     .await;
     p.wait_ack(stroke, 0).await;
@@ -410,6 +411,7 @@ async fn a_version_4_client_draws_and_watches_and_is_never_sent_a_placement() {
         device: None,
         params: None,
         placement: None,
+        solid: None,
     }))
     .await;
     old.send(&ClientMessage::Points(Points {

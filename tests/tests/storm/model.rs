@@ -394,6 +394,7 @@ async fn draw_on_socket(
         device: Some("synth:e2e".into()),
         params: None,
         placement: Some(on),
+        solid: None,
     }))
     .await;
     for (k, chunk) in samples.chunks(32).enumerate() {

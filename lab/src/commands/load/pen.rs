@@ -290,6 +290,7 @@ async fn draw(
                         device: Some("penmesh-load".into()),
                         params: None,
                         placement: None,
+                        solid: None,
                     }))
                     .await?;
                     unacked.insert(id, Unacked::default());

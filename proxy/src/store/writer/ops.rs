@@ -2,7 +2,7 @@
 //! ([`WriteError`]).
 
 use penmesh::protocol::{Removal, StrokeStatus};
-use penmesh::{AcutsParams, Brush, Kept, Placement, Sample};
+use penmesh::{AcutsParams, Brush, Kept, Placement, Sample, Solid};
 use uuid::Uuid;
 
 use crate::store::MeshRow;
@@ -46,6 +46,10 @@ pub enum WriteOp {
     /// A stroke's new placement, set by `by` at `at` (`cause`: `begin`, `set` or `duplicate`):
     /// a row of its own, never an overwrite (`stroke_placements`).
     Place { stroke: Uuid, placement: Placement, by: Uuid, at: i64, cause: &'static str },
+    /// A stroke's new solid, set by `by` at `at` (`cause`: `begin`, `set`, `duplicate` or
+    /// `import`): a row of its own, never an overwrite (`stroke_solids`). A duplicate given a
+    /// solid of its own stops sharing its source's mesh (`mesh_of`): its own is built.
+    SetSolid { stroke: Uuid, solid: Solid, by: Uuid, at: i64, cause: &'static str },
     /// Records that `stroke` is a duplicate of `source`, showing the mesh of `mesh_of`.
     MarkDuplicate { stroke: Uuid, source: Uuid, mesh_of: Uuid },
     /// Records where an imported stroke came from (`stroke_imports`), and the name its

@@ -283,6 +283,27 @@ pub(super) async fn apply(
             .await?;
         }
         WriteOp::Place { .. } => anyhow::bail!("a placement goes through `place`"),
+        WriteOp::SetSolid { stroke, solid, by, at, cause } => {
+            sqlx::query(
+                "INSERT INTO stroke_solids (stroke_id, solid, set_by, set_at, cause) \
+                 VALUES ($1, $2, $3, $4, $5)",
+            )
+            .bind(stroke.to_string())
+            .bind(solid.to_bytes().to_vec())
+            .bind(by.to_string())
+            .bind(*at)
+            .bind(*cause)
+            .execute(&mut *conn)
+            .await?;
+            if *cause == "set" {
+                sqlx::query(
+                    "UPDATE strokes SET mesh_of = NULL WHERE id = $1 AND mesh_of IS NOT NULL",
+                )
+                .bind(stroke.to_string())
+                .execute(&mut *conn)
+                .await?;
+            }
+        }
         WriteOp::MarkDuplicate { stroke, source, mesh_of } => {
             sqlx::query("UPDATE strokes SET duplicate_of = $1, mesh_of = $2 WHERE id = $3")
                 .bind(source.to_string())

@@ -1,7 +1,7 @@
 //! Frames: the version byte and bincode of a message, or its JSON text.
 
 use super::*;
-use crate::protocol::v4;
+use crate::protocol::{v4, v5};
 
 fn config() -> impl bincode::config::Config {
     bincode::config::standard().with_limit::<BINCODE_LIMIT>()
@@ -38,7 +38,11 @@ impl MessageKind for v4::ClientMessageV4 {
     const NAMES: &'static [&'static str] = <v4::ClientMessageV4 as strum::VariantNames>::VARIANTS;
 }
 
-/// Whether the proxy and this codec speak `version`: the current one and the one before.
+impl MessageKind for v5::ClientMessageV5 {
+    const NAMES: &'static [&'static str] = <v5::ClientMessageV5 as strum::VariantNames>::VARIANTS;
+}
+
+/// Whether the proxy and this codec speak `version`: the current one and the two before.
 pub fn is_supported_version(version: u16) -> bool {
     (OLDEST_PROTOCOL_VERSION..=PROTOCOL_VERSION).contains(&version)
 }
@@ -65,26 +69,64 @@ fn split_frame(bytes: &[u8], limit: usize) -> Result<(u16, &[u8]), CodecError> {
     Ok((u16::from(version), body))
 }
 
-/// A client frame of either version, as the current message.
+/// A client frame of any version served, as the current message.
 fn decode_client_frame(
     bytes: &[u8],
     limit: usize,
     max_batch: usize,
 ) -> Result<ClientMessage, CodecError> {
     let (version, body) = split_frame(bytes, limit)?;
-    if version == v4::VERSION {
-        let names = <v4::ClientMessageV4 as MessageKind>::NAMES.len();
-        return decode_body::<v4::ClientMessageV4>(body, names, max_batch).map(Into::into);
+    match version {
+        v4::VERSION => {
+            let names = <v4::ClientMessageV4 as MessageKind>::NAMES.len();
+            decode_body::<v4::ClientMessageV4>(body, names, max_batch).map(Into::into)
+        }
+        v5::VERSION => {
+            let names = <v5::ClientMessageV5 as MessageKind>::NAMES.len();
+            decode_body::<v5::ClientMessageV5>(body, names, max_batch).map(Into::into)
+        }
+        _ => decode_body(body, ClientMessage::NAMES.len(), max_batch),
     }
-    decode_body(body, ClientMessage::NAMES.len(), max_batch)
 }
 
-/// A server frame of either version (a version-4 frame has no `PeerPlacement`).
+/// A server frame of any version served (a version-5 frame has no `PeerSolid` and its own
+/// `PeerStrokes`; a version-4 frame has no `PeerPlacement` either).
 fn decode_server_frame(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
     let (version, body) = split_frame(bytes, limit)?;
-    let names =
-        if version == v4::VERSION { v4::N_SERVER_MESSAGES } else { ServerMessage::NAMES.len() };
+    let names = match version {
+        v4::VERSION => v4::N_SERVER_MESSAGES,
+        v5::VERSION => v5::N_SERVER_MESSAGES,
+        _ => ServerMessage::NAMES.len(),
+    };
+    if version < PROTOCOL_VERSION && body.first() == Some(&(v5::PEER_STROKES_INDEX as u8)) {
+        let (_, old): (u32, v5::PeerStrokesV5) = decode_body(body, names, MAX_BATCH_SAMPLES)?;
+        return Ok(ServerMessage::PeerStrokes(old.into()));
+    }
     decode_body(body, names, MAX_BATCH_SAMPLES)
+}
+
+/// `msg` as a frame of the older `version`, which has it (checked by the caller): the same
+/// layout but for `PeerStrokes`, written as the variant's index and the old shape (bincode
+/// writes an enum so).
+fn encode_old_server(msg: &ServerMessage, version: u16) -> Vec<u8> {
+    match msg {
+        ServerMessage::PeerStrokes(strokes) => {
+            encode_version(&(v5::PEER_STROKES_INDEX, v5::PeerStrokesV5::from(strokes)), version)
+        }
+        msg => encode_version(msg, version),
+    }
+}
+
+/// `msg` as JSON for a client of the older `version`, which has it: `PeerStrokes` without
+/// what version 6 added.
+fn encode_old_server_json(msg: &ServerMessage) -> String {
+    match msg {
+        ServerMessage::PeerStrokes(strokes) => {
+            let old = v5::OldServerJson::PeerStrokes(strokes.into());
+            serde_json::to_string(&old).expect("messages always serialise to JSON")
+        }
+        msg => encode_server_json(msg),
+    }
 }
 
 fn decode_body<T: DeserializeOwned>(
@@ -169,16 +211,28 @@ pub fn encode_server(msg: &ServerMessage) -> Vec<u8> {
 pub fn encode_client_as(msg: &ClientMessage, version: u16) -> Option<Vec<u8>> {
     match version {
         PROTOCOL_VERSION => Some(encode(msg)),
+        v5::VERSION => v5::ClientMessageV5::from_current(msg).map(|m| encode_version(&m, version)),
         v4::VERSION => v4::ClientMessageV4::from_current(msg).map(|m| encode_version(&m, version)),
         _ => None,
     }
 }
+/// Whether a client of protocol `version` has `msg` (`PeerSolid` is version 6's,
+/// `PeerPlacement` version 5's).
+pub fn server_message_exists_in(msg: &ServerMessage, version: u16) -> bool {
+    match version {
+        PROTOCOL_VERSION => true,
+        v5::VERSION => v5::server_message_exists(msg),
+        v4::VERSION => v4::server_message_exists(msg),
+        _ => false,
+    }
+}
 /// A binary frame of `msg` for a client of protocol `version`; `None` when that version has
-/// no such message (`PeerPlacement` for version 4: the connection is not sent it).
+/// no such message (`PeerSolid` for versions 5 and 4, `PeerPlacement` for version 4: the
+/// connection is not sent it).
 pub fn encode_server_as(msg: &ServerMessage, version: u16) -> Option<Vec<u8>> {
     match version {
         PROTOCOL_VERSION => Some(encode(msg)),
-        v4::VERSION if v4::server_message_exists(msg) => Some(encode_version(msg, version)),
+        _ if server_message_exists_in(msg, version) => Some(encode_old_server(msg, version)),
         _ => None,
     }
 }
@@ -187,12 +241,13 @@ pub fn encode_server_as(msg: &ServerMessage, version: u16) -> Option<Vec<u8>> {
 pub fn encode_server_json_as(msg: &ServerMessage, version: u16) -> Option<String> {
     match version {
         PROTOCOL_VERSION => Some(encode_server_json(msg)),
-        v4::VERSION if v4::server_message_exists(msg) => Some(encode_server_json(msg)),
+        _ if server_message_exists_in(msg, version) => Some(encode_old_server_json(msg)),
         _ => None,
     }
 }
-/// Decodes a binary frame of at most `limit` bytes, of the current version or the one before
-/// (read as the current message: a version-4 `StrokeBegin` has no placement).
+/// Decodes a binary frame of at most `limit` bytes, of the current version or one of the two
+/// before (read as the current message: a version-5 `StrokeBegin` has no solid, a version-4
+/// one no placement either).
 pub fn decode_client(bytes: &[u8], limit: usize) -> Result<ClientMessage, CodecError> {
     decode_client_frame(bytes, limit, MAX_BATCH_SAMPLES)
 }
@@ -206,7 +261,8 @@ pub fn decode_client_limited(
 ) -> Result<ClientMessage, CodecError> {
     decode_client_frame(bytes, limit, max_batch)
 }
-/// Decodes a binary frame of at most `limit` bytes, of the current version or the one before.
+/// Decodes a binary frame of at most `limit` bytes, of the current version or one of the two
+/// before.
 pub fn decode_server(bytes: &[u8], limit: usize) -> Result<ServerMessage, CodecError> {
     decode_server_frame(bytes, limit)
 }

@@ -83,10 +83,14 @@ use crate::model::Sample;
 /// can change its name (`Rename`, `PeerRenamed`); a history's strokes come several to a
 /// message (`PeerStrokes`).
 /// 5: strokes have a placement in 3D (`StrokeBegin.placement`, `SetPlacement`,
-/// `PeerPlacement`). The proxy serves version 4 beside it ([`OLDEST_PROTOCOL_VERSION`]).
-pub const PROTOCOL_VERSION: u16 = 5;
+/// `PeerPlacement`).
+/// 6: strokes have a solid (`StrokeBegin.solid`, `SetSolid`, `PeerSolid`,
+/// `ErrorCode::BadSolid`), and a history's stroke carries its placement and solid
+/// (`HistoryStroke.placement`, `.solid`). The proxy serves versions 5 and 4 beside it
+/// ([`OLDEST_PROTOCOL_VERSION`]), each sent only what its version has.
+pub const PROTOCOL_VERSION: u16 = 6;
 /// The oldest version the proxy still serves: its clients draw and watch, and are never told
-/// of placements (every stroke reaches them in its own plane's coordinates).
+/// of placements nor solids (every stroke reaches them in its own plane's coordinates).
 pub const OLDEST_PROTOCOL_VERSION: u16 = 4;
 // Binary frames carry the version in one byte.
 const _: () = assert!(PROTOCOL_VERSION <= u8::MAX as u16);
@@ -223,7 +227,7 @@ mod frames;
 pub use batch::{decode_point_batch, encode_point_batch};
 pub use frames::{
     binary_frame_version, encode_client_as, encode_server_as, encode_server_json_as,
-    is_supported_version,
+    is_supported_version, server_message_exists_in,
 };
 pub use frames::{
     decode_client, decode_client_json, decode_client_json_limited, decode_client_limited,

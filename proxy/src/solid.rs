@@ -1,0 +1,176 @@
+//! What a stroke becomes (issue 51, `spec/system.md` "Solids: what a stroke becomes"; protocol
+//! 6): its solid set by its drawer over the WebSocket (`SetSolid`, `ws/solids.rs`; a stroke
+//! begun as one, `StrokeBegin.solid`) or HTTP (`PUT /v1/strokes/{id}/solid`), and its history
+//! (`GET /v1/strokes/{id}/solids`), under the rule placements follow:
+//!
+//! - **Who**: only the stroke's drawer (its `x-penmesh-key`), checked before the body is read.
+//! - **What**: a finished stroke; a `filled` solid only of a closed stroke (the refusal says
+//!   how far apart its ends are).
+//! - **Nothing is overwritten**: each solid is a row of its own with who and when
+//!   ([`WriteOp::SetSolid`]); the current one is the latest, and undo sets the one before.
+//! - **Nothing half-made**: the new mesh is built first (refused there if the stroke cannot be
+//!   that solid), then the solid is committed and told to the session (`PeerSolid`; a
+//!   connection of protocol 5 or 4 is not told), then the mesh stored and announced
+//!   (`peer_mesh`), as the proxy's mesh build stores one. The solid's kind and depth are what
+//!   is stored and told; the mesh is made from the stroke's samples where meshes are made.
+
+use axum::Json;
+use axum::body::Body;
+use axum::extract::{Path, State};
+use axum::http::HeaderMap;
+use penmesh::Solid;
+use penmesh::protocol::{
+    ErrorCode, ParticipantId, SolidChange, SolidHistory, StrokeId, StrokeStatus,
+};
+use sqlx::Row;
+use uuid::Uuid;
+
+use crate::events::{EventKind, SessionEvent};
+use crate::http::{AppError, ErrorBody, MeshInfo, authorized_stroke, owned_stroke};
+use crate::mesh_build::{built_glb, store_built};
+use crate::removal::Refused;
+use crate::state::AppState;
+use crate::store::{StrokeRow, WriteError, WriteOp, now_ms};
+
+/// Checks that `by` may set the solid of `row` (a stroke of its session).
+pub fn check(row: &StrokeRow, by: ParticipantId) -> Result<(), Refused> {
+    if row.participant != by {
+        return Err(Refused {
+            code: ErrorCode::NotOwner,
+            message: format!(
+                "stroke {} was drawn by another participant: only its drawer may set its solid",
+                row.id
+            ),
+        });
+    }
+    if row.status != StrokeStatus::Done {
+        return Err(Refused {
+            code: ErrorCode::StrokeOpen,
+            message: format!(
+                "stroke {} is {}: only a finished stroke's solid can be set (a stroke being \
+                 drawn has the solid of its stroke_begin)",
+                row.id,
+                row.status.as_str()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The write and the event of setting the solid of the stroke `(session, drawer, stroke)`
+/// (`cause`: `begin`, `set`, `duplicate` or `import`), on connection `origin` of this replica,
+/// if any.
+pub fn request(
+    (session, participant, stroke): (uuid::Uuid, ParticipantId, StrokeId),
+    solid: Solid,
+    cause: &'static str,
+    origin: Option<u64>,
+) -> (WriteOp, SessionEvent) {
+    let kind = EventKind::Solid { participant, stroke, solid };
+    let event = match origin {
+        Some(connection) => SessionEvent::from_connection(connection, session, kind),
+        None => SessionEvent::new(session, kind),
+    };
+    let op = WriteOp::SetSolid { stroke, solid, by: participant, at: now_ms(), cause };
+    (op, event)
+}
+
+/// The largest body a solid is sent in: `{"kind": "filled", "depth": 48.0}` is 33 bytes.
+const MAX_SOLID_BODY: usize = 1024;
+
+/// A solid body, `{"kind": "line"|"filled"|"hole", "depth": px|null}`: 400 naming what is
+/// wrong.
+fn solid_body(body: &[u8]) -> Result<Solid, AppError> {
+    serde_json::from_slice(body).map_err(|e| {
+        AppError::BadRequest(format!(
+            "the body is not a solid {{\"kind\": \"line\" | \"filled\" | \"hole\", \"depth\": px \
+             or null (only for a line)}}: {e}"
+        ))
+    })
+}
+
+/// Sets what a finished stroke becomes (undo sets the previous solid back): a new entry of its
+/// solid history, then its mesh built anew from its samples, stored and told to the session
+/// (`peer_mesh`). Only its drawer may (its participant key in `x-penmesh-key`).
+#[utoipa::path(put, path = "/v1/strokes/{id}/solid", tag = "strokes",
+    params(("id" = Uuid, Path),
+        ("x-penmesh-key" = String, Header, description = "the drawer's participant key (its hello.key)")),
+    request_body(content = Solid, description = "the kind (line, filled, hole) and the depth in px \
+        of the stroke's plane (null only for a line: the pressure-width rod); a depth within \
+        [0.125, 10000]"),
+    security(("bearer" = [])),
+    responses((status = 200, description = "set (committed), and the stroke's new mesh stored and told to the session", body = MeshInfo),
+        (status = 400, description = "not a solid (naming what is wrong), or a malformed key", body = ErrorBody),
+        (status = 401, body = ErrorBody),
+        (status = 403, description = "not the stroke's drawer", body = ErrorBody),
+        (status = 404, description = "no such stroke in this session", body = ErrorBody),
+        (status = 409, description = "the stroke is still being drawn, or cannot be that solid (an open stroke filled)", body = ErrorBody)))]
+pub async fn put_solid(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Json<MeshInfo>, AppError> {
+    let (row, _) = owned_stroke(&state, &headers, &id, "set its solid").await?;
+    let body = axum::body::to_bytes(body, MAX_SOLID_BODY).await.map_err(|e| {
+        AppError::BadRequest(format!(
+            "the body is not a solid of at most {MAX_SOLID_BODY} bytes: {e}"
+        ))
+    })?;
+    let solid = solid_body(&body)?;
+    check(&row, row.participant).map_err(|refused| AppError::Conflict(refused.message))?;
+    let glb = built_glb(&state, &row, solid).await?;
+    let (op, event) = request((row.session_id, row.participant, row.id), solid, "set", None);
+    state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
+        WriteError::Closed => AppError::ShuttingDown,
+        WriteError::Refused(why) | WriteError::Quota(why) => AppError::Conflict(why),
+        err => AppError::Internal(err.into()),
+    })?;
+    metrics::counter!("penmesh_strokes_total", "event" => "solid").increment(1);
+    store_built(&state, &row, glb).await.map(Json)
+}
+
+/// Every solid the stroke had, oldest first (the last is its current one): each with who set
+/// it, when, and why. A stroke begun without one starts as the rod, listed with its drawer and
+/// its begin time.
+#[utoipa::path(get, path = "/v1/strokes/{id}/solids", tag = "strokes",
+    params(("id" = Uuid, Path)),
+    security(("bearer" = [])),
+    responses((status = 200, body = SolidHistory),
+        (status = 401, body = ErrorBody),
+        (status = 404, description = "no such stroke in this session", body = ErrorBody)))]
+pub async fn solids(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Json<SolidHistory>, AppError> {
+    let row = authorized_stroke(&state, &headers, &id).await?;
+    let rows = sqlx::query(
+        "SELECT solid, set_by, set_at, cause FROM stroke_solids WHERE stroke_id = $1 ORDER BY id",
+    )
+    .bind(row.id.to_string())
+    .fetch_all(state.store.pool())
+    .await
+    .map_err(anyhow::Error::from)?;
+    let mut solids = Vec::with_capacity(rows.len() + 1);
+    for r in rows {
+        let solid: Vec<u8> = r.try_get("solid").map_err(anyhow::Error::from)?;
+        let by: String = r.try_get("set_by").map_err(anyhow::Error::from)?;
+        solids.push(SolidChange {
+            solid: Solid::from_bytes(&solid).map_err(anyhow::Error::from)?,
+            by: Uuid::parse_str(&by).map_err(anyhow::Error::from)?,
+            at: r.try_get("set_at").map_err(anyhow::Error::from)?,
+            cause: r.try_get("cause").map_err(anyhow::Error::from)?,
+        });
+    }
+    if solids.first().is_none_or(|s| s.cause == "set") {
+        let begin = SolidChange {
+            solid: Solid::ROD,
+            by: row.participant,
+            at: row.created_at,
+            cause: "begin".into(),
+        };
+        solids.insert(0, begin);
+    }
+    Ok(Json(SolidHistory { stroke: row.id, solids }))
+}
