@@ -5,7 +5,7 @@
 
 use std::process::Command;
 
-use penmesh::{Brush, Sample};
+use penmesh::{Brush, Sample, Solid};
 use penmesh_print::{IDENTITY, PrintMesh, PrintOptions, PrintStroke, print_mesh, write_stl};
 
 /// The page's "Front" plane (client/web/src/placement.js FRONT): standing on the board along x.
@@ -21,7 +21,7 @@ fn line(a: [f64; 2], b: [f64; 2], placement: [f64; 16]) -> PrintStroke {
         })
         .collect();
     let brush = Brush { size: 16.0, pressure_response: 1.0, min_radius: 0.25, color: None };
-    PrintStroke { kept: (0..n).collect(), raw, brush, placement }
+    PrintStroke { kept: (0..n).collect(), raw, brush, placement, solid: Solid::ROD }
 }
 
 /// An "F" in page pixels (y down): the stem at x = 0, the top arm at y = 0, the middle arm
