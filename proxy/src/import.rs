@@ -201,7 +201,11 @@ pub async fn import_scene(
         )));
     }
     let now = now_ms();
-    let mut ops = Vec::with_capacity(5 * checked.len());
+    let mut ops = Vec::with_capacity(5 * checked.len() + 1);
+    // The session's sample quota, for every stroke at once, checked by the writer.
+    let samples = checked.iter().map(|(_, c)| c.read.extras.samples.len() as u64).sum();
+    let quota = state.config.max_session_samples;
+    ops.push(WriteOp::CountSamples { session, samples, quota });
     let mut events = Vec::with_capacity(4 * checked.len());
     let event = |kind| SessionEvent::new(session, kind);
     for (stroke, c) in &checked {

@@ -307,7 +307,7 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
         assert!(message.contains(text), "{what}: {message}");
         assert_eq!(strokes_of(&proxy.db, &target).await, 0, "{what}: nothing stored");
     }
-    // No participant key: no drawer.
+    // No participant key: no drawer (403, as on every route that needs a key).
     let response = proxy
         .http
         .post(proxy.url(&format!("/v1/sessions/{}/import", target.session)))
@@ -316,7 +316,7 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
         .send()
         .await
         .unwrap();
-    assert_eq!(response.status(), 400);
+    assert_eq!(response.status(), 403);
     assert!(response.text().await.unwrap().contains(KEY_HEADER));
     // Another session's token: 401.
     let response = proxy
