@@ -344,7 +344,10 @@ fn made_before(
     by: ParticipantId,
 ) -> Result<(StatusCode, Json<Duplicated>), AppError> {
     if existing.duplicate_of == Some(source.id) && existing.participant == by {
-        return Ok((StatusCode::CREATED, Json(Duplicated { stroke: existing.id, source: source.id })));
+        return Ok((
+            StatusCode::CREATED,
+            Json(Duplicated { stroke: existing.id, source: source.id }),
+        ));
     }
     Err(AppError::Conflict(format!("stroke id {} is taken; choose a new random id", existing.id)))
 }

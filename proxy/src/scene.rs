@@ -16,7 +16,7 @@ use crate::store::StrokeRow;
 pub const MAX_SCENE_MESH_BYTES: u64 = 256 * 1024 * 1024;
 /// Most simplified samples one scene holds: they are all in memory while it is made, as the
 /// samples and as their JSON in the file (about 100 bytes a sample in all: `docs/reliability.md`).
-pub const MAX_SCENE_SAMPLES: u64 = 500_000;
+pub const MAX_SCENE_SAMPLES: u64 = 1_000_000;
 /// Meshes read from the store per query.
 const MESHES_PER_READ: usize = 64;
 /// Simplified strokes read per query (bound parameters: SQLite allows 32,766).

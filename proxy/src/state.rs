@@ -115,9 +115,7 @@ impl AppState {
                 prints: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_PRINTS)),
                 scenes: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_SCENES)),
                 exports_working: Arc::default(),
-                duplicates: Arc::new(tokio::sync::Semaphore::new(
-                    crate::placement::MAX_DUPLICATES,
-                )),
+                duplicates: Arc::new(tokio::sync::Semaphore::new(crate::placement::MAX_DUPLICATES)),
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),

@@ -182,7 +182,10 @@ pub(super) async fn put_mesh(
 
 /// The samples stored in `stroke_chunks` for the strokes of `session` (what its sample quota
 /// counts), read without reading the samples.
-pub(super) async fn session_samples(conn: &mut AnyConnection, session: Uuid) -> anyhow::Result<u64> {
+pub(super) async fn session_samples(
+    conn: &mut AnyConnection,
+    session: Uuid,
+) -> anyhow::Result<u64> {
     // PostgreSQL sums BIGINTs as NUMERIC, which the `Any` driver does not read.
     let n: i64 = sqlx::query_scalar(
         "SELECT CAST(COALESCE(SUM(c.n), 0) AS BIGINT) FROM stroke_chunks c \
@@ -361,7 +364,9 @@ pub(super) async fn apply(
         }
         // Checked when planned; nothing to write.
         WriteOp::Claim { .. } | WriteOp::CountSamples { .. } => {}
-        WriteOp::CopySamples { stroke, source } => copy_samples(conn, *stroke, *source, now).await?,
+        WriteOp::CopySamples { stroke, source } => {
+            copy_samples(conn, *stroke, *source, now).await?
+        }
         WriteOp::SetRemoved { stroke, removed: None } => {
             sqlx::query("UPDATE strokes SET removed_at = NULL, removed_by = NULL WHERE id = $1")
                 .bind(stroke.to_string())
