@@ -12,10 +12,18 @@
 //! transaction. The meshes (built as `crate::mesh_build` builds them for the page) are stored
 //! after that commit, each as an upload is (`http::store_mesh`); the session's mesh quota is
 //! checked for all of them before the strokes are written. Once the strokes are committed the
-//! import is answered 201 even if a mesh then fails to be stored (the stroke stays meshless). Others in the session see the
-//! strokes arrive live, as any new stroke.
+//! import is answered 201 even if a mesh then fails to be stored (the stroke stays meshless);
+//! meshes not stored by half the request timeout are stored after the answer, so that a
+//! committed import is answered as such, not 408. Others in the session see the strokes arrive
+//! live, as any new stroke.
+//!
+//! **A retry imports once**: with an `Idempotency-Key` header the new strokes' ids are derived
+//! from the session, the importer and the key, the first one claimed in the strokes'
+//! transaction; the same import sent again (after a lost answer or a 408) finds them stored
+//! and is answered as the first was, nothing stored twice.
 
 use std::collections::HashMap;
+use std::time::Duration;
 
 use axum::Json;
 use axum::extract::{Path, Query, State};
@@ -35,6 +43,41 @@ use crate::store::{WriteError, WriteOp, now_ms};
 
 /// Most strokes one import re-creates.
 pub const MAX_IMPORT_STROKES: usize = 5_000;
+/// The header that makes an import's retry find the first one (`docs/protocol.md`).
+pub const IDEMPOTENCY_HEADER: &str = "idempotency-key";
+/// Longest `Idempotency-Key` (characters).
+const MAX_IDEMPOTENCY_KEY_CHARS: usize = 200;
+
+/// The `Idempotency-Key` of a request, if any: 1 to 200 visible ASCII characters.
+fn idempotency_key(headers: &HeaderMap) -> Result<Option<&str>, AppError> {
+    let Some(value) = headers.get(IDEMPOTENCY_HEADER) else { return Ok(None) };
+    let key = value.to_str().ok().filter(|k| {
+        (1..=MAX_IDEMPOTENCY_KEY_CHARS).contains(&k.len())
+            && k.bytes().all(|b| b.is_ascii_graphic())
+    });
+    key.map(Some).ok_or_else(|| {
+        AppError::BadRequest(format!(
+            "{IDEMPOTENCY_HEADER} is 1 to {MAX_IDEMPOTENCY_KEY_CHARS} visible ASCII characters"
+        ))
+    })
+}
+
+/// The id of the `index`th stroke of an import by `importer` in `session` with the
+/// idempotency key `key`: a UUID of version 8 (custom), the first 16 bytes of SHA-256 over a
+/// label and all of them, so that the same import sent again has the same ids, and no other.
+fn derived_id(session: Uuid, importer: Uuid, key: &str, index: usize) -> Uuid {
+    use sha2::Digest;
+    let digest = sha2::Sha256::new_with_prefix(b"penmesh import\0")
+        .chain_update(session.as_bytes())
+        .chain_update(importer.as_bytes())
+        .chain_update((key.len() as u64).to_le_bytes())
+        .chain_update(key.as_bytes())
+        .chain_update((index as u64).to_le_bytes())
+        .finalize();
+    let mut bytes = [0u8; 16];
+    bytes.copy_from_slice(&digest[..16]);
+    uuid::Builder::from_custom_bytes(bytes).into_uuid()
+}
 /// The device an imported stroke is stored with.
 pub const IMPORT_DEVICE: &str = "import";
 
@@ -110,8 +153,10 @@ pub async fn import_scene(
     headers: HeaderMap,
     body: axum::body::Body,
 ) -> Result<(StatusCode, Json<Imported>), AppError> {
+    let started = tokio::time::Instant::now();
     let session = authorize_session(&state, &headers, None, &session).await?;
     let by = crate::placement::new_drawer(session, &headers, "an import")?;
+    let retry_key = idempotency_key(&headers)?;
     let importer_name = match query.name.as_deref() {
         None => String::new(),
         Some(name) => crate::identity::clean_name(name).ok_or_else(|| {
@@ -155,7 +200,17 @@ pub async fn import_scene(
         placements.push(check(read, max_samples)?);
     }
     // The new strokes' ids, chosen now so their meshes carry them.
-    let ids: Vec<Uuid> = strokes.iter().map(|_| Uuid::new_v4()).collect();
+    let ids: Vec<Uuid> = match retry_key {
+        Some(key) => (0..strokes.len()).map(|i| derived_id(session, by, key, i)).collect(),
+        None => strokes.iter().map(|_| Uuid::new_v4()).collect(),
+    };
+    // The same import, committed before: answered as it was.
+    let first = ids.first().copied();
+    if let (Some(_), Some(first)) = (retry_key, first)
+        && state.store.stroke(first).await?.is_some()
+    {
+        return Ok(already_imported(&ids, &strokes));
+    }
     let max_decoded = limit;
     let checked = tokio::task::spawn_blocking(move || {
         strokes
@@ -201,7 +256,11 @@ pub async fn import_scene(
         )));
     }
     let now = now_ms();
-    let mut ops = Vec::with_capacity(5 * checked.len() + 1);
+    let mut ops = Vec::with_capacity(5 * checked.len() + 2);
+    if let (Some(_), Some((first, _))) = (retry_key, checked.first()) {
+        // Of the same import sent twice at once, one is written.
+        ops.push(WriteOp::Claim { stroke: *first });
+    }
     // The session's sample quota, for every stroke at once, checked by the writer.
     let samples = checked.iter().map(|(_, c)| c.read.extras.samples.len() as u64).sum();
     let quota = state.config.max_session_samples;
@@ -267,32 +326,79 @@ pub async fn import_scene(
             ops.push(WriteOp::MarkDuplicate { stroke: *stroke, source, mesh_of: *stroke });
         }
     }
-    state.writer.write_with(ops, events).await.map_err(|err| match err {
-        WriteError::Closed => AppError::ShuttingDown,
-        WriteError::Refused(why) => AppError::Conflict(why),
-        WriteError::Quota(why) => AppError::QuotaExceeded(why),
-        err => AppError::Internal(err.into()),
-    })?;
+    match state.writer.write_with(ops, events).await {
+        Ok(()) => {}
+        // The same import, committed meanwhile by its twin.
+        Err(WriteError::Taken(_)) => {
+            let answer = checked.iter().map(|(stroke, c)| (*stroke, c.read.extras.stroke));
+            return Ok(imported(answer));
+        }
+        Err(err) => {
+            return Err(match err {
+                WriteError::Closed => AppError::ShuttingDown,
+                WriteError::Refused(why) => AppError::Conflict(why),
+                WriteError::Quota(why) => AppError::QuotaExceeded(why),
+                err => AppError::Internal(err.into()),
+            });
+        }
+    }
     metrics::counter!("penmesh_strokes_total", "event" => "imported")
         .increment(checked.len() as u64);
     // The strokes are committed: from here on the import has happened, and the answer says so
     // whatever becomes of the meshes (an error now would have the importer send the file again
     // and import it twice). A mesh that cannot be stored leaves its stroke meshless, which the
     // page builds when it next opens the session (`docs/model-format.md`).
-    let mut answer = Vec::with_capacity(checked.len());
-    for (stroke, c) in checked {
-        answer.push(ImportedStroke { stroke, source: c.read.extras.stroke });
-        let stored = async {
-            let row = state
-                .store
-                .stroke(stroke)
-                .await?
-                .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
-            store_mesh(&state, &row, c.glb, c.counts, Some(PROXY_UPLOADER.into())).await
-        };
-        if let Err(err) = stored.await {
-            tracing::warn!(%stroke, error = %err, "an imported stroke's mesh was not stored");
+    let answer = imported(checked.iter().map(|(stroke, c)| (*stroke, c.read.extras.stroke)));
+    // The meshes: here until half the request timeout, then after the answer, so that the
+    // answer comes before the timeout.
+    let answer_by = started + Duration::from_secs(state.config.request_timeout_secs) / 2;
+    let mut meshes = checked.into_iter().map(|(stroke, c)| (stroke, c.glb, c.counts));
+    for (stroke, glb, counts) in meshes.by_ref() {
+        store_import_mesh(&state, stroke, glb, counts).await;
+        if tokio::time::Instant::now() >= answer_by {
+            break;
         }
     }
-    Ok((StatusCode::CREATED, Json(Imported { strokes: answer })))
+    let rest: Vec<_> = meshes.collect();
+    if !rest.is_empty() {
+        tracing::info!(meshes = rest.len(), "an import's last meshes are stored after its answer");
+        tokio::spawn(async move {
+            for (stroke, glb, counts) in rest {
+                store_import_mesh(&state, stroke, glb, counts).await;
+            }
+        });
+    }
+    Ok(answer)
+}
+
+/// Stores an imported stroke's mesh built by the proxy; one that cannot be stored leaves its
+/// stroke meshless (logged), which the page builds when it next opens the session.
+async fn store_import_mesh(
+    state: &AppState,
+    stroke: Uuid,
+    glb: Vec<u8>,
+    counts: crate::glb::MeshCounts,
+) {
+    let stored = async {
+        let row = state
+            .store
+            .stroke(stroke)
+            .await?
+            .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
+        store_mesh(state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await
+    };
+    if let Err(err) = stored.await {
+        tracing::warn!(%stroke, error = %err, "an imported stroke's mesh was not stored");
+    }
+}
+
+/// The answer to an import: each new stroke and its id in the file, in the file's order.
+fn imported(strokes: impl Iterator<Item = (Uuid, Uuid)>) -> (StatusCode, Json<Imported>) {
+    let strokes = strokes.map(|(stroke, source)| ImportedStroke { stroke, source }).collect();
+    (StatusCode::CREATED, Json(Imported { strokes }))
+}
+
+/// The answer to an import committed before (its first id stored): the same as the first's.
+fn already_imported(ids: &[Uuid], strokes: &[ReadStroke]) -> (StatusCode, Json<Imported>) {
+    imported(ids.iter().copied().zip(strokes.iter().map(|read| read.extras.stroke)))
 }

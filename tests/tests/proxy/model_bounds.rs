@@ -442,3 +442,57 @@ async fn a_missing_key_is_403_on_every_route_that_needs_one() {
         }
     }
 }
+
+/// `POST /v1/sessions/{session}/import` of `glb` as `who`, with `key` as `Idempotency-Key`.
+async fn import(proxy: &TestProxy, who: &TestSession, glb: &[u8], key: Option<&str>) -> Value {
+    let mut request = proxy
+        .http
+        .post(proxy.url(&format!("/v1/sessions/{}/import", who.session)))
+        .bearer_auth(&who.token)
+        .header(KEY_HEADER, &who.key)
+        .header("content-type", "model/gltf-binary")
+        .body(glb.to_vec());
+    if let Some(key) = key {
+        request = request.header("idempotency-key", key);
+    }
+    let response = request.send().await.unwrap();
+    assert_eq!(response.status(), 201);
+    response.json().await.unwrap()
+}
+
+/// (8) An import sent again with its `Idempotency-Key` (its answer lost, or a 408) is answered
+/// as the first was and stores nothing twice, sent after it or at the same moment; another key,
+/// or none, is another import.
+#[tokio::test]
+async fn an_import_sent_again_with_its_idempotency_key_is_stored_once() {
+    let proxy = spawn_proxy().await;
+    let source = proxy.create_session().await;
+    let a = done_stroke(&proxy, &source, 300).await;
+    done_stroke(&proxy, &source, 200).await;
+    assert_eq!(proxy.build_mesh(&source, a).send().await.unwrap().status(), 200);
+    let path = format!("/v1/sessions/{}/export?format=glb", source.session);
+    let glb = proxy.get(&path, &source).send().await.unwrap().bytes().await.unwrap().to_vec();
+    let target = proxy.create_session().await;
+    let strokes = |target: &TestSession| {
+        let sql = format!("SELECT COUNT(*) FROM strokes WHERE session_id = '{}'", target.session);
+        let db = &proxy.db;
+        async move { count_rows(db, &sql).await }
+    };
+
+    let first = import(&proxy, &target, &glb, Some("import-1")).await;
+    assert_eq!(first["strokes"].as_array().unwrap().len(), 2);
+    assert_eq!(import(&proxy, &target, &glb, Some("import-1")).await, first);
+    assert_eq!(strokes(&target).await, 2, "the retry stored nothing");
+    // Two at once with a new key: one import.
+    let (x, y) = tokio::join!(
+        import(&proxy, &target, &glb, Some("import-2")),
+        import(&proxy, &target, &glb, Some("import-2")),
+    );
+    assert_eq!(x, y);
+    assert_ne!(x, first);
+    assert_eq!(strokes(&target).await, 4);
+    // Without a key, each request is an import; the same key from another participant too.
+    import(&proxy, &target, &glb, None).await;
+    import(&proxy, &target.stranger(), &glb, Some("import-1")).await;
+    assert_eq!(strokes(&target).await, 8);
+}
