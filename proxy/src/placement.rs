@@ -11,6 +11,8 @@
 //!   writer publishes the event with the commit: `NOTIFY` across replicas). A version-4
 //!   connection is not told: it sees every stroke in its own plane's coordinates.
 
+use std::time::Duration;
+
 use axum::Json;
 use axum::body::Body;
 use axum::extract::{Path, Query, State};
@@ -226,6 +228,9 @@ pub async fn placements(
 /// Duplicates made at once on one replica (the next is answered 503 `busy`): each copies up
 /// to a whole stroke's samples in the database through the writer.
 pub const MAX_DUPLICATES: usize = 2;
+/// How long a duplicate waits for its turn before 503 `busy`, at most (half the request timeout
+/// at most).
+const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
 
 /// Duplicates a finished stroke: a new stroke (its own id; the participant of the
 /// `x-penmesh-key` is its drawer; the source recorded as `duplicate_of`) with the same pen data
@@ -270,9 +275,12 @@ pub async fn duplicate(
             if source.removed.is_some() { "taken back" } else { source.status.as_str() }
         )));
     }
-    let _permit = state.duplicate_permit().ok_or_else(|| {
+    // Duplicates asked at once (a class copying one stroke) take turns, up to a while.
+    let wait = DUPLICATE_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let _permit = state.duplicate_permit(wait).await.ok_or_else(|| {
         AppError::Busy(format!(
-            "{MAX_DUPLICATES} duplicates are being made, the limit; try again shortly"
+            "{MAX_DUPLICATES} duplicates are being made, the limit, and more wait their turn; \
+             try again shortly"
         ))
     })?;
     let stroke = asked.stroke.unwrap_or_else(Uuid::new_v4);

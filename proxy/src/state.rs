@@ -151,10 +151,15 @@ impl AppState {
         slots.clone().try_acquire_owned().ok()
     }
 
-    /// The permit to make a duplicate, or `None` while [`crate::placement::MAX_DUPLICATES`]
-    /// are being made; it frees when dropped.
-    pub fn duplicate_permit(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
-        self.duplicates.clone().try_acquire_owned().ok()
+    /// The permit to make a duplicate, waiting up to `wait` while
+    /// [`crate::placement::MAX_DUPLICATES`] are being made (`None` then); it frees when
+    /// dropped.
+    pub async fn duplicate_permit(
+        &self,
+        wait: Duration,
+    ) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        let permit = self.duplicates.clone().acquire_owned();
+        tokio::time::timeout(wait, permit).await.ok()?.ok()
     }
 
     /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up

@@ -293,7 +293,12 @@ async fn a_placement_history_is_read_a_bounded_page_at_a_time() {
 /// `MAX_DUPLICATES` are made at once on a replica (503 `busy` past it).
 #[tokio::test]
 async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
-    let proxy = spawn_proxy_with(|c| c.max_session_samples = 2_500).await;
+    let proxy = spawn_proxy_with(|c| {
+        c.max_session_samples = 2_500;
+        // A duplicate waits half of it for a permit.
+        c.request_timeout_secs = 2;
+    })
+    .await;
     let session = proxy.create_session().await;
     let source = done_stroke(&proxy, &session, 1_000).await;
     let (status, body) =
@@ -321,13 +326,25 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
     let strokes = count_rows(&proxy.db, "SELECT COUNT(*) FROM strokes").await;
     assert_eq!(strokes, 2, "nothing stored past the quota");
 
-    // Every duplicate permit taken: the next duplicate is busy, and nothing is stored.
-    let held: Vec<_> = (0..penmesh_proxy::MAX_DUPLICATES)
-        .map(|_| proxy.state.duplicate_permit().unwrap())
-        .collect();
+    // Every duplicate permit taken: the next duplicate waits its turn (1 s here), then is
+    // busy, and nothing is stored.
+    let mut held = Vec::new();
+    for _ in 0..penmesh_proxy::MAX_DUPLICATES {
+        held.push(proxy.state.duplicate_permit(Duration::ZERO).await.unwrap());
+    }
+    let asked = Instant::now();
     let (status, body) =
         duplicate(&proxy, &session, copy, json!({"placement": placement_json(3.0)})).await;
     assert_eq!((status, body["error"].as_str()), (503, Some("busy")), "{body}");
+    assert!(asked.elapsed() >= Duration::from_millis(900), "it waited its turn first");
+    // A permit freed while it waits: it is made.
+    let freed = async {
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        held.pop();
+    };
+    let body = json!({"placement": placement_json(4.0)});
+    let ((status, _), ()) = tokio::join!(duplicate(&proxy, &session, copy, body), freed);
+    assert_eq!(status, 413, "made once its turn came (past the quota here)");
     drop(held);
     assert_eq!(count_rows(&proxy.db, "SELECT COUNT(*) FROM strokes").await, 2);
 }
