@@ -28,10 +28,10 @@ use std::time::Duration;
 use axum::Json;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, StatusCode, header};
-use penmesh::protocol::{Imported, ImportedStroke, quantize_sample};
+use penmesh::protocol::{Imported, ImportedStroke, MAX_NAME_CHARS, check_text, quantize_sample};
 use penmesh::{
     AcutsParams, GlbMeta, GlbOptions, ImportedFrom, Kept, OutlineOptions, Placement, ReadStroke,
-    SceneError,
+    SceneError, StrokeExtras,
 };
 use uuid::Uuid;
 
@@ -101,11 +101,51 @@ fn scene_error(err: SceneError) -> AppError {
     AppError::BadRequest(format!("cannot import the file: {err}"))
 }
 
-/// Checks one stroke read from the file: its placement, brush and samples, each refusal naming
-/// the stroke (its id in the file and its node).
+/// Latest a file may say a stroke was drawn or imported, past now: clocks differ, by less.
+const CLOCK_SKEW_MS: i64 = 24 * 60 * 60 * 1000;
+
+/// Checks where a stroke of the file says it comes from: its id (not the nil UUID), not its
+/// own duplicate, its author's name (as any name: at most 200 characters, no NUL; cleaned when
+/// stored), its times (from the Unix epoch to now). `bad` names the stroke.
+fn check_origin(extras: &StrokeExtras, bad: &dyn Fn(String) -> AppError) -> Result<(), AppError> {
+    if extras.stroke.is_nil() {
+        return Err(bad("its id is the nil UUID".into()));
+    }
+    if extras.duplicate_of == Some(extras.stroke) {
+        return Err(bad("it names itself as the stroke it duplicates".into()));
+    }
+    let latest = now_ms() + CLOCK_SKEW_MS;
+    let mut authors = vec![("its author's name", &extras.author.name)];
+    let mut times = vec![("drawn_at", extras.drawn_at)];
+    if let Some(from) = &extras.imported_from {
+        if from.stroke.is_nil() {
+            return Err(bad("its imported_from.stroke is the nil UUID".into()));
+        }
+        authors.push(("its imported_from.author's name", &from.author.name));
+        times.extend([
+            ("imported_from.drawn_at", from.drawn_at),
+            ("imported_from.imported_at", from.imported_at),
+        ]);
+    }
+    for (what, name) in authors {
+        check_text(name, MAX_NAME_CHARS).map_err(|why| bad(format!("{what} {why}")))?;
+    }
+    for (what, at) in times {
+        if !(0..=latest).contains(&at) {
+            return Err(bad(format!(
+                "{what} = {at} is not a time from the Unix epoch to now (ms)"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Checks one stroke read from the file: where it comes from, its placement, brush and
+/// samples, each refusal naming the stroke (its id in the file and its node).
 fn check(read: &ReadStroke, max_samples: usize) -> Result<Placement, AppError> {
     let what = format!("stroke {} (node {})", read.extras.stroke, read.node);
     let bad = |why: String| AppError::BadRequest(format!("cannot import {what}: {why}"));
+    check_origin(&read.extras, &bad)?;
     let placement =
         Placement::new(read.placement).map_err(|e| bad(format!("its node's matrix: {e}")))?;
     read.extras.brush.validate().map_err(|e| bad(format!("its brush: {e}")))?;
@@ -286,12 +326,14 @@ pub async fn import_scene(
         ops.push(WriteOp::Append { stroke, seq: 0, samples: extras.samples.clone() });
         ops.push(WriteOp::Finish { stroke, kept });
         // Where it came from: an imported stroke imported again keeps its first origin.
-        let from = extras.imported_from.clone().unwrap_or_else(|| ImportedFrom {
+        let mut from = extras.imported_from.clone().unwrap_or_else(|| ImportedFrom {
             stroke: extras.stroke,
             author: extras.author.clone(),
             drawn_at: extras.drawn_at,
             imported_at: now,
         });
+        // Shown as any name is: what would mislead (bidirectional controls, …) removed.
+        from.author.name = crate::identity::clean_name(&from.author.name).unwrap_or_default();
         ops.push(WriteOp::MarkImported {
             stroke,
             from: Box::new(from),
