@@ -99,15 +99,17 @@ async function newSession(proxy) {
   return (await fetch(`${proxy.base}/v1/sessions`, { method: "POST" })).json();
 }
 
-/// Draws one stroke of `n` samples along a wide, slow curve (few retained), 4,096 a batch.
-async function drawLong(p, n, dx = 0) {
+/// Draws one stroke of `n` samples along a wide, slow curve (few retained), 4,096 a batch;
+/// with `wiggle`, zigzagging that many px across it (about every sample retained).
+async function drawLong(p, n, dx = 0, wiggle = 0) {
   const stroke = randomUUID();
   p.ws.send(JSON.stringify({ stroke_begin: { stroke } }));
   for (let seq = 0; seq < n; seq += 4096) {
     const points = [];
     for (let i = seq; i < Math.min(n, seq + 4096); i++) {
       const a = (i / n) * Math.PI;
-      points.push([Math.round((dx + 400 * Math.cos(a)) * 16) / 16, Math.round(400 * Math.sin(a) * 16) / 16, i, 0.5]);
+      const y = 400 * Math.sin(a) + (i % 2 ? wiggle : -wiggle);
+      points.push([Math.round((dx + 400 * Math.cos(a)) * 16) / 16, Math.round(y * 16) / 16, i, 0.5]);
     }
     p.ws.send(JSON.stringify({ points: { stroke, seq, points } }));
     if (seq >= 64 * 4096) await until(p, () => (p.acks.get(stroke) ?? 0) >= seq - 32 * 4096);
@@ -189,10 +191,12 @@ async function wrongToken() {
   const statuses = await Promise.all(Array.from({ length: 96 }, one));
   const most = peak();
   await sleep(1000);
+  const after = Math.round(rssMb(proxy.pid));
   const counts = {};
   for (const s of statuses) counts[s] = (counts[s] ?? 0) + 1;
   proxy.stop();
-  return { part: "wrong-token", statuses: counts, rss_mb: { before, most, after: Math.round(rssMb(proxy.pid) || 0) } };
+  // "error": the proxy answered and closed while the client still sent its body.
+  return { part: "wrong-token", statuses: counts, rss_mb: { before, most, after } };
 }
 
 async function prints() {
@@ -260,15 +264,19 @@ async function duplicates() {
   return result;
 }
 
-async function scenes() {
+/// Two scene exports at once of a session of one 20,000-sample zigzag (every sample retained)
+/// and `copies` duplicates of it.
+async function scenesOf(copies) {
   const proxy = await startProxy();
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
-  const source = await drawLong(p, 20000);
-  for (let i = 0; i < 250; i++) {
+  const source = await drawLong(p, 20000, 0, 3);
+  for (let i = 0; i < copies; i++) {
     const [status] = await duplicate(proxy, p, source, { placement: at(i, i) });
     if (status !== 201) throw new Error(`duplicate ${status}`);
   }
+  const info = await (await fetch(`${proxy.base}/v1/sessions/${session}/strokes`, { headers: { authorization: `Bearer ${token}` } })).json();
+  const retained = info.strokes.reduce((n, s) => n + s.n_retained, 0);
   const before = Math.round(rssMb(proxy.pid));
   const peak = rssPeak(proxy.pid);
   const answers = await Promise.all(
@@ -280,9 +288,16 @@ async function scenes() {
   );
   const most = peak();
   await sleep(1000);
-  const result = { part: "scenes", answers, rss_mb: { before, most, after: Math.round(rssMb(proxy.pid)) } };
+  const result = { part: `scenes of ${copies + 1} strokes`, retained, answers, rss_mb: { before, most, after: Math.round(rssMb(proxy.pid)) } };
   proxy.stop();
   return result;
+}
+
+/// The review's session (250 duplicates), then one at the bound (1,000,000 samples).
+async function scenes() {
+  const review = await scenesOf(250);
+  console.log(JSON.stringify(review));
+  return scenesOf(49);
 }
 
 async function race() {
