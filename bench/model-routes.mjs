@@ -9,10 +9,13 @@
 //     seconds while they ran and in the 5 s after the last client left, RSS at most.
 //   duplicates: a 1,000,000-sample stroke; 64 duplicates of it asked at once; their statuses,
 //     RSS at most, the canary meanwhile.
-//   scenes: a 20,000-sample stroke with 250 duplicates; 2 scene exports at once; statuses,
-//     RSS at most.
+//   scenes: a 20,000-sample zigzag (every sample retained) with 250 duplicates (the review's
+//     session), then with 49 (1,000,000 samples, the bound); 2 scene exports at once of each;
+//     statuses, RSS at most.
 //   race: 30 pairs of duplicates of two strokes naming the same new id at once; the statuses,
 //     and whether the stored stroke's raw samples are exactly one source's.
+//   history: 20,000 moves of one stroke, then 16 readers following its placement history page
+//     by page for 10 s; their statuses, RSS at most, the canary meanwhile.
 //
 // Usage (from the repository root, after `cargo build --release -p penmesh-proxy`):
 //   node --experimental-websocket bench/model-routes.mjs [part ...] [--bin target/release/penmesh-proxy]
@@ -325,7 +328,55 @@ async function race() {
   return { part: "race", pairs: tally };
 }
 
-const all = { "wrong-token": wrongToken, prints, duplicates, scenes, race };
+/// 20,000 moves of one stroke (16 clients moving it at once), then 16 readers each following
+/// its whole placement history, page by page, over and over for 10 s, while the canary draws.
+async function history() {
+  const proxy = await startProxy();
+  const { session, token } = await newSession(proxy);
+  const p = await join_(proxy, session, token);
+  const stroke = await drawLong(p, 200);
+  const started = performance.now();
+  let next = 0;
+  await Promise.all(
+    Array.from({ length: 16 }, async () => {
+      while (next < 20000) {
+        const k = next++;
+        const res = await fetch(`${proxy.base}/v1/strokes/${stroke}/placement`, {
+          method: "PUT",
+          headers: drawer(p, { "content-type": "application/json" }),
+          body: JSON.stringify(at(k, 0)),
+        });
+        if (res.status !== 204) throw new Error(`move ${res.status}`);
+      }
+    }),
+  );
+  const moving_s = Math.round((performance.now() - started) / 100) / 10;
+  const done = await canary(proxy);
+  await sleep(1000);
+  const peak = rssPeak(proxy.pid);
+  const until_ = performance.now() + 10000;
+  const statuses = {};
+  let pages = 0;
+  await Promise.all(
+    Array.from({ length: 16 }, async () => {
+      while (performance.now() < until_) {
+        let from = 0;
+        while (from !== undefined) {
+          const res = await fetch(`${proxy.base}/v1/strokes/${stroke}/placements?from=${from}`, { headers: drawer(p) });
+          statuses[res.status] = (statuses[res.status] ?? 0) + 1;
+          const body = await res.json();
+          pages++;
+          from = res.status === 200 ? body.next : undefined;
+        }
+      }
+    }),
+  );
+  const result = { part: "history", moves: 20000, moving_s, pages_read: pages, statuses, rss_mb_most: peak(), canary_ms: await done() };
+  proxy.stop();
+  return result;
+}
+
+const all = { "wrong-token": wrongToken, prints, duplicates, scenes, race, history };
 for (const part of parts.length ? parts : Object.keys(all)) {
   console.log(JSON.stringify(await all[part]()));
 }
