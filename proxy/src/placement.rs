@@ -145,6 +145,10 @@ pub async fn put_placement(
 
 /// Most placements in one page of a stroke's placement history.
 pub const MAX_PLACEMENTS_PAGE: u64 = 1000;
+/// Pages of placement histories read at once on one replica: each is a millisecond or so of a
+/// request thread's CPU, and readers that loop must leave the others' work its cores; the
+/// next waits its turn (up to [`DUPLICATE_WAIT`]), then 503 `busy`.
+pub const MAX_PLACEMENT_READS: usize = 1;
 
 /// A page of a stroke's placement history.
 #[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
@@ -166,7 +170,8 @@ pub struct PlacementsPage {
     responses((status = 200, body = PlacementHistory),
         (status = 400, description = "a limit of 0", body = ErrorBody),
         (status = 401, body = ErrorBody),
-        (status = 404, description = "no such stroke in this session", body = ErrorBody)))]
+        (status = 404, description = "no such stroke in this session", body = ErrorBody),
+        (status = 503, description = "busy: as many histories as allowed are being read", body = ErrorBody)))]
 pub async fn placements(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -179,6 +184,13 @@ pub async fn placements(
         limit => limit.unwrap_or(MAX_PLACEMENTS_PAGE).min(MAX_PLACEMENTS_PAGE),
     };
     let from = page.from.unwrap_or(0);
+    let wait = DUPLICATE_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let _permit = state.placement_read_permit(wait).await.ok_or_else(|| {
+        AppError::Busy(format!(
+            "{MAX_PLACEMENT_READS} placement histories are being read, the limit, and more wait \
+             their turn; try again shortly"
+        ))
+    })?;
     let pool = state.store.pool();
     // A stroke begun without a placement has no row for its begin: the identity, implied.
     let first: Option<String> = sqlx::query_scalar(
@@ -228,8 +240,8 @@ pub async fn placements(
 /// Duplicates made at once on one replica (the next is answered 503 `busy`): each copies up
 /// to a whole stroke's samples in the database through the writer.
 pub const MAX_DUPLICATES: usize = 2;
-/// How long a duplicate waits for its turn before 503 `busy`, at most (half the request timeout
-/// at most).
+/// How long a duplicate (or a page of a placement history) waits for its turn before 503
+/// `busy`, at most (half the request timeout at most).
 const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
 
 /// Duplicates a finished stroke: a new stroke (its own id; the participant of the

@@ -513,3 +513,28 @@ async fn an_import_sent_again_with_its_idempotency_key_is_stored_once() {
     import(&proxy, &target.stranger(), &glb, Some("import-1")).await;
     assert_eq!(strokes(&target).await, 8);
 }
+
+/// (3) Pages of placement histories are read `MAX_PLACEMENT_READS` at a time on a replica:
+/// with every permit held a read waits its turn (1 s here), then is 503 `busy`; one freed
+/// meanwhile lets it through.
+#[tokio::test]
+async fn placement_history_reads_take_turns() {
+    let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 2).await;
+    let session = proxy.create_session().await;
+    let stroke = done_stroke(&proxy, &session, 200).await;
+    let path = format!("/v1/strokes/{stroke}/placements");
+    let mut held = Vec::new();
+    for _ in 0..penmesh_proxy::MAX_PLACEMENT_READS {
+        held.push(proxy.state.placement_read_permit(Duration::ZERO).await.unwrap());
+    }
+    let asked = Instant::now();
+    let response = proxy.get(&path, &session).send().await.unwrap();
+    assert_eq!(response.status(), 503);
+    assert!(asked.elapsed() >= Duration::from_millis(900), "it waited its turn first");
+    let freed = async {
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        held.pop();
+    };
+    let (response, ()) = tokio::join!(proxy.get(&path, &session).send(), freed);
+    assert_eq!(response.unwrap().status(), 200);
+}
