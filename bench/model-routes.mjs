@@ -4,7 +4,7 @@
 //
 //   wrong-token: 96 connections each send PUT /v1/strokes/{id}/placement with a wrong token and
 //     a 15 MiB body; their statuses and the proxy's RSS before, at most, and after.
-//   prints: a 20,000-sample stroke and 40 duplicates side by side; 8 print requests, each
+//   prints: a 20,000-sample zigzag and 160 duplicates side by side; 8 print requests, each
 //     dropped by its client after 3 s; the answers (503 busy or dropped), the proxy's CPU
 //     seconds while they ran and in the 5 s after the last client left, RSS at most.
 //   duplicates: a 1,000,000-sample stroke; 64 duplicates of it asked at once; their statuses,
@@ -206,9 +206,9 @@ async function prints() {
   const proxy = await startProxy();
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
-  const source = await drawLong(p, 20000);
-  for (let i = 0; i < 40; i++) {
-    const [status] = await duplicate(proxy, p, source, { placement: at((i % 8) * 60, Math.floor(i / 8) * 60) });
+  const source = await drawLong(p, 20000, 0, 3);
+  for (let i = 0; i < 160; i++) {
+    const [status] = await duplicate(proxy, p, source, { placement: at((i % 16) * 60, Math.floor(i / 16) * 60) });
     if (status !== 201) throw new Error(`duplicate ${status}`);
   }
   const done = await canary(proxy);
