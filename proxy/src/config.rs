@@ -260,6 +260,11 @@ pub struct Config {
     #[arg(long, env = "PENMESH_MAX_SESSION_MESH_BYTES", default_value_t = 256 * 1024 * 1024)]
     pub max_session_mesh_bytes: u64,
 
+    /// Most samples one session's strokes may store for a duplicate or an import to be made
+    /// (drawn samples count toward it; a copy past it gets 413 `quota_exceeded`).
+    #[arg(long, env = "PENMESH_MAX_SESSION_SAMPLES", default_value_t = 50_000_000)]
+    pub max_session_samples: u64,
+
     /// Long unfinished strokes (2048 stored samples or more) replayed at once on this replica
     /// to rebuild what ACUTS retained (a session's history, a resume); more wait their turn.
     #[arg(long, env = "PENMESH_MAX_REPLAYS", default_value_t = 2)]

@@ -7,6 +7,8 @@
 //! [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking pool.
 
 use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -93,12 +95,14 @@ pub async fn export_print(
         )));
     };
     let name = format!("penmesh-{session}.{extension}");
-    let job = Job { state, session, rows, options, extension };
+    let cancel = Cancel::default();
+    let job = Job { state, session, rows, options, extension, permit, cancel: cancel.clone() };
     if wants_progress(&headers) {
-        return Ok(progress_stream(job, content_type, name, permit));
+        return Ok(progress_stream(job, content_type, name, cancel));
     }
+    // Dropped with this request (answered, timed out, or its client gone): the work stops.
+    let _stop = cancel.on_drop();
     let file = job.file(Box::new(|_, _, _| {})).await?;
-    drop(permit);
     let disposition = format!("attachment; filename=\"{name}\"");
     Ok((
         [
@@ -128,23 +132,79 @@ fn wants_progress(headers: &HeaderMap) -> bool {
 /// Where an export is: its `stage` (`reading`, `solids`, `union`), `done` of `total`.
 type Report = Box<dyn FnMut(&'static str, usize, usize) + Send>;
 
-/// One export to make, its checks passed.
+/// Whether anyone still waits for an export: set once nobody does (its request dropped,
+/// answered or timed out; a progress body dropped), and then the print's work stops at its
+/// next step.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Cancel(Arc<AtomicBool>);
+
+/// Sets its [`Cancel`] when dropped.
+pub(crate) struct CancelOnDrop(Cancel);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        (self.0).0.store(true, Ordering::Relaxed);
+    }
+}
+
+impl Cancel {
+    fn on_drop(&self) -> CancelOnDrop {
+        CancelOnDrop(self.clone())
+    }
+
+    fn is_set(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// The unwinding payload that stops a print's work between two steps (`print_mesh` takes no
+/// other way out): caught where the work was spawned, never a panic message.
+struct Cancelled;
+
+fn cancelled() -> AppError {
+    AppError::Busy("the export was stopped: nobody waits for it any more".into())
+}
+
+/// What an export's work on the blocking pool holds while it runs: its permit, so that at most
+/// [`MAX_PRINTS`] prints and [`MAX_SCENES`] scenes are being made, whether or not anyone still
+/// waits for them; counted in [`AppState::exports_working`] until it ends.
+pub(crate) struct Working {
+    _permit: tokio::sync::OwnedSemaphorePermit,
+    count: Arc<AtomicUsize>,
+}
+
+impl Working {
+    pub(crate) fn start(state: &AppState, permit: tokio::sync::OwnedSemaphorePermit) -> Working {
+        state.exports_working.fetch_add(1, Ordering::Relaxed);
+        Working { _permit: permit, count: state.exports_working.clone() }
+    }
+}
+
+impl Drop for Working {
+    fn drop(&mut self) {
+        self.count.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// One export to make, its checks passed, and its permit.
 struct Job {
     state: AppState,
     session: Uuid,
     rows: Vec<StrokeRow>,
     options: PrintOptions,
     extension: &'static str,
+    permit: tokio::sync::OwnedSemaphorePermit,
+    cancel: Cancel,
 }
 
 impl Job {
     async fn file(self, mut report: Report) -> Result<Vec<u8>, AppError> {
         if self.extension == "glb" {
             report("reading", 0, self.rows.len());
-            crate::scene::scene_file(&self.state, self.session, &self.rows, self.options.size_mm)
-                .await
+            let Job { state, session, rows, options, permit, .. } = self;
+            crate::scene::scene_file(&state, session, &rows, options.size_mm, permit).await
         } else {
-            print_file(&self.state, &self.rows, self.options, self.extension, report).await
+            print_file(self, report).await
         }
     }
 }
@@ -153,14 +213,10 @@ impl Job {
 /// `{"progress":{"stage","done","total"}}` per step (at most [`PROGRESS_LINES_PER_SECOND`] a
 /// second), then one line `{"file":{"content_type","name","bytes","base64"}}`, or
 /// `{"error":{"status","code","message"}}` when the export fails once the answer has begun.
-/// The job runs on its own task, holding `permit`, so it is one request's work on one replica
-/// and nothing is kept between requests.
-fn progress_stream(
-    job: Job,
-    content_type: &'static str,
-    name: String,
-    permit: tokio::sync::OwnedSemaphorePermit,
-) -> Response {
+/// The job runs on its own task, holding its permit, so it is one request's work on one
+/// replica and nothing is kept between requests; once the body is dropped (the client gone),
+/// `cancel` stops it.
+fn progress_stream(job: Job, content_type: &'static str, name: String, cancel: Cancel) -> Response {
     let (lines, received) = tokio::sync::mpsc::channel::<Bytes>(64);
     let progress = lines.clone();
     let mut last: Option<(&'static str, std::time::Instant)> = None;
@@ -178,7 +234,6 @@ fn progress_stream(
         }
     });
     tokio::spawn(async move {
-        let _permit = permit;
         let line = match job.file(report).await {
             Ok(file) => json!({ "file": {
                 "content_type": content_type,
@@ -190,9 +245,10 @@ fn progress_stream(
         };
         let _ = lines.send(ndjson(&line)).await;
     });
-    let body = futures_util::stream::unfold(received, |mut received| async move {
+    let stop = cancel.on_drop();
+    let body = futures_util::stream::unfold((received, stop), |(mut received, stop)| async move {
         let line = received.recv().await?;
-        Some((Ok::<_, std::convert::Infallible>(line), received))
+        Some((Ok::<_, std::convert::Infallible>(line), (received, stop)))
     });
     ([(header::CONTENT_TYPE, PROGRESS_TYPE)], axum::body::Body::from_stream(body)).into_response()
 }
@@ -256,25 +312,24 @@ async fn chosen_rows(
     Ok(rows)
 }
 
-/// The print of `rows` as STL or 3MF (`extension`), on the blocking pool.
-async fn print_file(
-    state: &AppState,
-    rows: &[StrokeRow],
-    options: PrintOptions,
-    extension: &'static str,
-    mut report: Report,
-) -> Result<Vec<u8>, AppError> {
+/// The print of the job's strokes as STL or 3MF, on the blocking pool, which holds the job's
+/// permit until the work ends; it stops between two steps once the job is cancelled.
+async fn print_file(job: Job, mut report: Report) -> Result<Vec<u8>, AppError> {
+    let Job { state, rows, options, extension, permit, cancel, .. } = job;
     let ids: Vec<Uuid> = rows.iter().map(|r| r.id).collect();
     let mut simplified = HashMap::with_capacity(ids.len());
     let mut raw = HashMap::with_capacity(ids.len());
     report("reading", 0, ids.len());
     for chunk in ids.chunks(STROKES_PER_READ) {
+        if cancel.is_set() {
+            return Err(cancelled());
+        }
         simplified.extend(state.store.simplified_many(chunk).await?);
         raw.extend(state.store.done_raw_samples_many(chunk).await?);
         report("reading", raw.len(), ids.len());
     }
     let mut strokes = Vec::with_capacity(rows.len());
-    for row in rows {
+    for row in &rows {
         let Some(simplified) = simplified.remove(&row.id) else {
             return Err(AppError::Conflict(format!("stroke {} has no simplified samples", row.id)));
         };
@@ -291,10 +346,15 @@ async fn print_file(
             solid: row.solid,
         });
     }
-    let file = tokio::task::spawn_blocking(move || {
+    let working = Working::start(&state, permit);
+    let work = tokio::task::spawn_blocking(move || {
+        let _working = working;
         // print_mesh's steps: one per stroke's solid, then the unions.
         let n = strokes.len();
         let mesh = penmesh_print::print_mesh(&strokes, &options, &mut |done, _| {
+            if cancel.is_set() {
+                std::panic::resume_unwind(Box::new(Cancelled));
+            }
             if done <= n {
                 report("solids", done, n);
             } else {
@@ -305,11 +365,21 @@ async fn print_file(
             "stl" => Ok(penmesh_print::write_stl(&mesh)),
             _ => penmesh_print::write_3mf(&mesh),
         })
-    })
-    .await
-    .map_err(anyhow::Error::from)?
-    .map_err(|e| AppError::Conflict(format!("no print: {e}")))?
-    .map_err(anyhow::Error::from)?;
+    });
+    let file = match work.await {
+        Ok(file) => file,
+        Err(err) if err.is_panic() => {
+            let payload = err.into_panic();
+            if payload.is::<Cancelled>() {
+                return Err(cancelled());
+            }
+            return Err(anyhow::anyhow!("the print's work panicked").into());
+        }
+        Err(err) => return Err(anyhow::Error::from(err).into()),
+    };
+    let file = file
+        .map_err(|e| AppError::Conflict(format!("no print: {e}")))?
+        .map_err(anyhow::Error::from)?;
     Ok(file)
 }
 

@@ -178,6 +178,35 @@ pub(crate) async fn owned_stroke(
     Ok((row, participant))
 }
 
+/// Most bytes of a small JSON body (a placement: 16 numbers; a duplicate's request: a
+/// placement and an id), however its numbers are written.
+pub(crate) const SMALL_BODY_BYTES: usize = 16 * 1024;
+
+/// A small body read whole, at most `limit` bytes (413 past it, told by `Content-Length` before
+/// anything is read): for the routes that read it only once the request is authorised.
+pub(crate) async fn small_body(
+    headers: &HeaderMap,
+    body: Body,
+    limit: usize,
+) -> Result<Bytes, AppError> {
+    let too_large =
+        || AppError::TooLarge(format!("the body is larger than this route takes: {limit} bytes"));
+    let length: Option<u64> =
+        headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse().ok());
+    if length.is_some_and(|n| n > limit as u64) {
+        return Err(too_large());
+    }
+    axum::body::to_bytes(body, limit).await.map_err(|err| {
+        if std::error::Error::source(&err)
+            .is_some_and(|e| e.is::<http_body_util::LengthLimitError>())
+        {
+            too_large()
+        } else {
+            AppError::BadRequest(format!("cannot read the body: {err}"))
+        }
+    })
+}
+
 fn wants_binary(headers: &HeaderMap) -> bool {
     headers
         .get(header::ACCEPT)

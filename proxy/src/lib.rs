@@ -38,6 +38,8 @@ pub use crate::config::{Config, SqliteSync};
 pub use crate::http::READY_DB_DEADLINE;
 pub use crate::identity::participant_id;
 pub use crate::mesh_build::PROXY_UPLOADER;
+pub use crate::placement::{MAX_DUPLICATES, MAX_PLACEMENT_READS, MAX_PLACEMENTS_PAGE};
+pub use crate::scene::MAX_SCENE_SAMPLES;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
 pub use crate::store::{decode_samples as decode_stored_samples, hash_token};

@@ -11,9 +11,11 @@
 //!   writer publishes the event with the commit: `NOTIFY` across replicas). A version-4
 //!   connection is not told: it sees every stroke in its own plane's coordinates.
 
+use std::time::Duration;
+
 use axum::Json;
-use axum::body::Bytes;
-use axum::extract::{Path, State};
+use axum::body::Body;
+use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, StatusCode};
 use penmesh::Placement;
 use penmesh::protocol::{
@@ -24,7 +26,9 @@ use sqlx::Row;
 use uuid::Uuid;
 
 use crate::events::{EventKind, SessionEvent};
-use crate::http::{AppError, ErrorBody, authorized_stroke, owned_stroke};
+use crate::http::{
+    AppError, ErrorBody, SMALL_BODY_BYTES, authorized_stroke, owned_stroke, small_body,
+};
 use crate::removal::Refused;
 use crate::state::AppState;
 use crate::store::{StrokeRow, WriteError, WriteOp, now_ms};
@@ -81,14 +85,15 @@ fn write_error(err: WriteError) -> AppError {
 }
 
 /// The drawer of the new strokes that `what` (a duplicate, an import) makes: the participant
-/// of the request's `x-penmesh-key`; 400 when it is missing or malformed.
+/// of the request's `x-penmesh-key`; 403 when it is missing (as on every route that needs a
+/// key: the request does not say who it speaks for), 400 when it is malformed.
 pub(crate) fn new_drawer(
     session: uuid::Uuid,
     headers: &axum::http::HeaderMap,
     what: &str,
 ) -> Result<ParticipantId, AppError> {
     crate::identity::request_participant(session, headers).map_err(|err| match err {
-        crate::identity::KeyError::Missing => AppError::BadRequest(format!(
+        crate::identity::KeyError::Missing => AppError::Forbidden(format!(
             "{what} needs a drawer: send your participant key (your hello.key) in the {} header",
             penmesh::protocol::KEY_HEADER
         )),
@@ -117,16 +122,19 @@ fn placement_body(body: &[u8]) -> Result<Placement, AppError> {
     responses((status = 204, description = "placed (committed, and told to the session)"),
         (status = 400, description = "not a placement (naming what is wrong), or a malformed key", body = ErrorBody),
         (status = 401, body = ErrorBody),
-        (status = 403, description = "not the stroke's drawer", body = ErrorBody),
+        (status = 403, description = "not the stroke's drawer, or no key", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
-        (status = 409, description = "the stroke is still being drawn", body = ErrorBody)))]
+        (status = 409, description = "the stroke is still being drawn", body = ErrorBody),
+        (status = 413, description = "a body over 16 KiB", body = ErrorBody)))]
 pub async fn put_placement(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
-    body: Bytes,
+    body: Body,
 ) -> Result<StatusCode, AppError> {
+    // The token, the stroke and its drawer first: a stranger's body is never read.
     let (row, by) = owned_stroke(&state, &headers, &id, "place it").await?;
+    let body = small_body(&headers, body, SMALL_BODY_BYTES).await?;
     let placement = placement_body(&body)?;
     check(&row, by).map_err(|refused| AppError::Conflict(refused.message))?;
     let (op, event) = request((row.session_id, row.participant, row.id), placement, "set", None);
@@ -135,31 +143,87 @@ pub async fn put_placement(
     Ok(StatusCode::NO_CONTENT)
 }
 
-/// Every placement the stroke had, oldest first (the last is its current one): each with who
-/// set it, when, and why (`begin`, `set`, `duplicate`). A stroke begun without one starts at
-/// the identity, listed with its drawer and its begin time.
+/// Most placements in one page of a stroke's placement history.
+pub const MAX_PLACEMENTS_PAGE: u64 = 1000;
+/// Pages of placement histories read at once on one replica: each is a millisecond or so of a
+/// request thread's CPU, and readers that loop must leave the others' work its cores; the
+/// next waits its turn (up to [`DUPLICATE_WAIT`]), then 503 `busy`.
+pub const MAX_PLACEMENT_READS: usize = 1;
+
+/// A page of a stroke's placement history.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+pub struct PlacementsPage {
+    /// The position in the history (0 is the stroke's begin) of the page's first placement
+    /// (default 0): the `next` of the page before.
+    from: Option<u64>,
+    /// Most placements in the page (default and most: 1000).
+    limit: Option<u64>,
+}
+
+/// Every placement the stroke had, oldest first (the last is its current one), a page at a
+/// time: each with who set it, when, and why (`begin`, `set`, `duplicate`). A stroke begun
+/// without one starts at the identity, listed with its drawer and its begin time. `next`, when
+/// present, is the `from` of the next page.
 #[utoipa::path(get, path = "/v1/strokes/{id}/placements", tag = "strokes",
-    params(("id" = Uuid, Path)),
+    params(("id" = Uuid, Path), PlacementsPage),
     security(("bearer" = [])),
     responses((status = 200, body = PlacementHistory),
+        (status = 400, description = "a limit of 0", body = ErrorBody),
         (status = 401, body = ErrorBody),
-        (status = 404, description = "no such stroke in this session", body = ErrorBody)))]
+        (status = 404, description = "no such stroke in this session", body = ErrorBody),
+        (status = 503, description = "busy: as many histories as allowed are being read", body = ErrorBody)))]
 pub async fn placements(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    Query(page): Query<PlacementsPage>,
     headers: HeaderMap,
 ) -> Result<Json<PlacementHistory>, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let rows = sqlx::query(
-        "SELECT matrix, set_by, set_at, cause FROM stroke_placements WHERE stroke_id = $1 \
-         ORDER BY id",
+    let limit = match page.limit {
+        Some(0) => return Err(AppError::BadRequest("limit=0: a page holds at least one".into())),
+        limit => limit.unwrap_or(MAX_PLACEMENTS_PAGE).min(MAX_PLACEMENTS_PAGE),
+    };
+    let from = page.from.unwrap_or(0);
+    let wait = DUPLICATE_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let _permit = state.placement_read_permit(wait).await.ok_or_else(|| {
+        AppError::Busy(format!(
+            "{MAX_PLACEMENT_READS} placement histories are being read, the limit, and more wait \
+             their turn; try again shortly"
+        ))
+    })?;
+    let pool = state.store.pool();
+    // A stroke begun without a placement has no row for its begin: the identity, implied.
+    let first: Option<String> = sqlx::query_scalar(
+        "SELECT cause FROM stroke_placements WHERE stroke_id = $1 ORDER BY id LIMIT 1",
     )
     .bind(row.id.to_string())
-    .fetch_all(state.store.pool())
+    .fetch_optional(pool)
     .await
     .map_err(anyhow::Error::from)?;
-    let mut placements = Vec::with_capacity(rows.len() + 1);
-    for r in rows {
+    let implied = first.as_deref().is_none_or(|cause| cause == "set");
+    let mut placements = Vec::with_capacity(limit as usize);
+    if implied && from == 0 {
+        placements.push(PlacementChange {
+            placement: Placement::IDENTITY,
+            by: row.participant,
+            at: row.created_at,
+            cause: "begin".into(),
+        });
+    }
+    let wanted = limit - placements.len() as u64;
+    // One more than the page, to tell whether the history goes on: a bounded read.
+    let rows = sqlx::query(
+        "SELECT matrix, set_by, set_at, cause FROM stroke_placements WHERE stroke_id = $1 \
+         ORDER BY id LIMIT $2 OFFSET $3",
+    )
+    .bind(row.id.to_string())
+    .bind(i64::try_from(wanted + 1).unwrap_or(i64::MAX))
+    .bind(i64::try_from(from.saturating_sub(implied as u64)).unwrap_or(i64::MAX))
+    .fetch_all(pool)
+    .await
+    .map_err(anyhow::Error::from)?;
+    let more = rows.len() as u64 > wanted;
+    for r in rows.into_iter().take(wanted as usize) {
         let matrix: Vec<u8> = r.try_get("matrix").map_err(anyhow::Error::from)?;
         let by: String = r.try_get("set_by").map_err(anyhow::Error::from)?;
         placements.push(PlacementChange {
@@ -169,42 +233,48 @@ pub async fn placements(
             cause: r.try_get("cause").map_err(anyhow::Error::from)?,
         });
     }
-    if placements.first().is_none_or(|p| p.cause == "set") {
-        let begin = PlacementChange {
-            placement: Placement::IDENTITY,
-            by: row.participant,
-            at: row.created_at,
-            cause: "begin".into(),
-        };
-        placements.insert(0, begin);
-    }
-    Ok(Json(PlacementHistory { stroke: row.id, placements }))
+    let next = more.then_some(from + limit);
+    Ok(Json(PlacementHistory { stroke: row.id, placements, next }))
 }
+
+/// Duplicates made at once on one replica (the next is answered 503 `busy`): each copies up
+/// to a whole stroke's samples in the database through the writer.
+pub const MAX_DUPLICATES: usize = 2;
+/// How long a duplicate (or a page of a placement history) waits for its turn before 503
+/// `busy`, at most (half the request timeout at most).
+const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
 
 /// Duplicates a finished stroke: a new stroke (its own id; the participant of the
 /// `x-penmesh-key` is its drawer; the source recorded as `duplicate_of`) with the same pen data
 /// (raw and simplified samples, brush, parameters), at a new placement. Its mesh is the
 /// source's, shared, never copied. The session sees it as any new stroke (its begin, samples,
 /// end, mesh and `peer_placement`); a version-4 client sees it in its own plane, on top of its
-/// source. Anyone in the session may duplicate any stroke it sees.
+/// source. Anyone in the session may duplicate any stroke it sees. Of two requests naming the
+/// same new id one is made; the same request again (same id, source and drawer) is answered
+/// as made, nothing stored twice; any other gets 409.
 #[utoipa::path(post, path = "/v1/strokes/{id}/duplicate", tag = "strokes",
     params(("id" = Uuid, Path),
         ("x-penmesh-key" = String, Header, description = "the duplicater's participant key (its hello.key)")),
     request_body = DuplicateRequest,
     security(("bearer" = [])),
-    responses((status = 201, description = "the new stroke", body = Duplicated),
-        (status = 400, description = "not a placement (naming what is wrong), or a missing or malformed key", body = ErrorBody),
+    responses((status = 201, description = "the new stroke (or the same request made before)", body = Duplicated),
+        (status = 400, description = "not a placement (naming what is wrong), or a malformed key", body = ErrorBody),
         (status = 401, body = ErrorBody),
+        (status = 403, description = "no key", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
-        (status = 409, description = "the source is still being drawn or taken back, or the new id is taken", body = ErrorBody)))]
+        (status = 409, description = "the source is still being drawn or taken back, or the new id is taken", body = ErrorBody),
+        (status = 413, description = "a body over 16 KiB, or the session's samples would pass its quota (`quota_exceeded`)", body = ErrorBody),
+        (status = 503, description = "busy: as many duplicates as allowed are being made", body = ErrorBody)))]
 pub async fn duplicate(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
-    body: Bytes,
+    body: Body,
 ) -> Result<(StatusCode, Json<Duplicated>), AppError> {
+    // The token, the stroke and the key first: a stranger's body is never read.
     let source = authorized_stroke(&state, &headers, &id).await?;
     let by = new_drawer(source.session_id, &headers, "a duplicate")?;
+    let body = small_body(&headers, body, SMALL_BODY_BYTES).await?;
     let asked: DuplicateRequest = serde_json::from_slice(&body).map_err(|e| {
         AppError::BadRequest(format!(
             "the body is not {{\"placement\": {{\"matrix\": [16 numbers]}}, \"stroke\"?: id}}: {e}"
@@ -217,27 +287,32 @@ pub async fn duplicate(
             if source.removed.is_some() { "taken back" } else { source.status.as_str() }
         )));
     }
+    // Duplicates asked at once (a class copying one stroke) take turns, up to a while.
+    let wait = DUPLICATE_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
+    let _permit = state.duplicate_permit(wait).await.ok_or_else(|| {
+        AppError::Busy(format!(
+            "{MAX_DUPLICATES} duplicates are being made, the limit, and more wait their turn; \
+             try again shortly"
+        ))
+    })?;
     let stroke = asked.stroke.unwrap_or_else(Uuid::new_v4);
-    if state.store.stroke(stroke).await?.is_some() {
-        return Err(AppError::Conflict(format!(
-            "stroke id {stroke} is taken; choose a new random id"
-        )));
+    if let Some(existing) = state.store.stroke(stroke).await? {
+        return made_before(&existing, &source, by);
     }
-    let raw = state.store.raw_samples(source.id).await?;
+    // What the session is told: the simplified samples (at most `max_stroke_retained`). The
+    // drawn samples are copied in the database, never read here.
     let simplified = state.store.simplified(source.id).await?.ok_or_else(|| {
         anyhow::anyhow!("stroke {} is done but has no simplified samples", source.id)
     })?;
-    let kept: Vec<penmesh::Kept> = simplified
-        .indices
-        .iter()
-        .zip(&simplified.samples)
-        .map(|(&index, &sample)| penmesh::Kept { index: index as usize, sample })
-        .collect();
     let mesh_of = mesh_owner(&state, source.id).await?;
     let mesh_at = state.store.mesh(source.id).await?.map(|m| m.created_at);
     let session = source.session_id;
-    let n_retained = kept.len() as u64;
+    let n_retained = simplified.samples.len() as u64;
+    let quota = state.config.max_session_samples;
+    let (place, placed) = request((session, by, stroke), asked.placement, "duplicate", None);
     let ops = vec![
+        WriteOp::Claim { stroke },
+        WriteOp::CountSamples { session, samples: source.n_points, quota },
         WriteOp::BeginStroke {
             stroke,
             session,
@@ -246,11 +321,10 @@ pub async fn duplicate(
             params: source.params,
             device: source.device.clone(),
         },
-        WriteOp::Append { stroke, seq: 0, samples: raw },
-        WriteOp::Finish { stroke, kept },
+        WriteOp::CopySamples { stroke, source: source.id },
         WriteOp::MarkDuplicate { stroke, source: source.id, mesh_of },
+        place,
     ];
-    let (place, placed) = request((session, by, stroke), asked.placement, "duplicate", None);
     let event = |kind| SessionEvent::new(session, kind);
     let mut events = vec![
         event(EventKind::StrokeBegin { participant: by, stroke, brush: source.brush }),
@@ -267,7 +341,6 @@ pub async fn duplicate(
     }
     events.push(placed);
     let mut ops = ops;
-    ops.push(place);
     // It is what its source is (the mesh it shares is that solid's).
     if !source.solid.is_rod() {
         let (set, told) =
@@ -275,9 +348,36 @@ pub async fn duplicate(
         ops.push(set);
         events.push(told);
     }
-    state.writer.write_with(ops, events).await.map_err(write_error)?;
+    match state.writer.write_with(ops, events).await {
+        Ok(()) => {}
+        // Another request named the id first: the same one made before, or a conflict.
+        Err(WriteError::Taken(why)) => {
+            return match state.store.stroke(stroke).await? {
+                Some(existing) => made_before(&existing, &source, by),
+                None => Err(AppError::Conflict(why)),
+            };
+        }
+        Err(WriteError::Quota(why)) => return Err(AppError::QuotaExceeded(why)),
+        Err(err) => return Err(write_error(err)),
+    }
     metrics::counter!("penmesh_strokes_total", "event" => "duplicated").increment(1);
     Ok((StatusCode::CREATED, Json(Duplicated { stroke, source: source.id })))
+}
+
+/// The answer to a duplicate whose new id is taken by `existing`: the same request made
+/// before (a duplicate of `source` by `by`: a retry) is answered as made; anything else is 409.
+fn made_before(
+    existing: &StrokeRow,
+    source: &StrokeRow,
+    by: ParticipantId,
+) -> Result<(StatusCode, Json<Duplicated>), AppError> {
+    if existing.duplicate_of == Some(source.id) && existing.participant == by {
+        return Ok((
+            StatusCode::CREATED,
+            Json(Duplicated { stroke: existing.id, source: source.id }),
+        ));
+    }
+    Err(AppError::Conflict(format!("stroke id {} is taken; choose a new random id", existing.id)))
 }
 
 /// The stroke whose mesh row `stroke` shows: its own, or its source's for a duplicate.

@@ -14,6 +14,9 @@ use crate::store::StrokeRow;
 
 /// Most bytes of stored meshes one scene holds: they are all in memory while it is made.
 pub const MAX_SCENE_MESH_BYTES: u64 = 256 * 1024 * 1024;
+/// Most simplified samples one scene holds: they are all in memory while it is made, as the
+/// samples and as their JSON in the file (about 100 bytes a sample in all: `docs/reliability.md`).
+pub const MAX_SCENE_SAMPLES: u64 = 1_000_000;
 /// Meshes read from the store per query.
 const MESHES_PER_READ: usize = 64;
 /// Simplified strokes read per query (bound parameters: SQLite allows 32,766).
@@ -34,14 +37,23 @@ fn author_name(
         .unwrap_or_default()
 }
 
-/// The GLB of `rows` (done strokes of `session`), the longest side `size_mm` mm.
+/// The GLB of `rows` (done strokes of `session`), the longest side `size_mm` mm. `permit` is
+/// held until the file is made, on the blocking pool, whether or not anyone still waits.
 pub async fn scene_file(
     state: &AppState,
     session: Uuid,
     rows: &[StrokeRow],
     size_mm: f64,
+    permit: tokio::sync::OwnedSemaphorePermit,
 ) -> Result<Vec<u8>, AppError> {
     let started = std::time::Instant::now();
+    let samples: u64 = rows.iter().map(|r| r.n_retained).sum();
+    if samples > MAX_SCENE_SAMPLES {
+        return Err(AppError::TooLarge(format!(
+            "the chosen strokes hold {samples} simplified samples, a scene holds at most \
+             {MAX_SCENE_SAMPLES}; choose fewer with `strokes`"
+        )));
+    }
     let names = state.store.participant_names(session).await?;
     let imports = state.store.session_imports(session).await?;
     // Which mesh row each stroke shows, and how large it is.
@@ -109,7 +121,9 @@ pub async fn scene_file(
         })
         .collect();
     let read = started.elapsed();
+    let working = crate::export::Working::start(state, permit);
     let file = tokio::task::spawn_blocking(move || {
+        let _working = working;
         let input = SceneInput {
             meshes: meshes.iter().map(Vec::as_slice).collect(),
             strokes: extras

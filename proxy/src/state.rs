@@ -61,6 +61,14 @@ pub struct Inner {
     /// One permit per scene being made (`crate::export::MAX_SCENES`): its own bound, so a
     /// print that takes seconds never holds up a scene that takes a fraction of one.
     scenes: Arc<tokio::sync::Semaphore>,
+    /// Exports whose work (on the blocking pool) is running: each holds its export permit
+    /// until its work has stopped (`crate::export`).
+    pub exports_working: Arc<std::sync::atomic::AtomicUsize>,
+    /// One permit per duplicate being made (`crate::placement::MAX_DUPLICATES`).
+    duplicates: Arc<tokio::sync::Semaphore>,
+    /// One permit per page of a placement history being read
+    /// (`crate::placement::MAX_PLACEMENT_READS`).
+    placement_reads: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -109,6 +117,11 @@ impl AppState {
                 large_bodies,
                 prints: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_PRINTS)),
                 scenes: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_SCENES)),
+                exports_working: Arc::default(),
+                duplicates: Arc::new(tokio::sync::Semaphore::new(crate::placement::MAX_DUPLICATES)),
+                placement_reads: Arc::new(tokio::sync::Semaphore::new(
+                    crate::placement::MAX_PLACEMENT_READS,
+                )),
                 session_limiter,
                 next_connection: AtomicU64::new(1),
             }),
@@ -142,6 +155,27 @@ impl AppState {
     pub fn export_permit(&self, scene: bool) -> Option<tokio::sync::OwnedSemaphorePermit> {
         let slots = if scene { &self.scenes } else { &self.prints };
         slots.clone().try_acquire_owned().ok()
+    }
+
+    /// The permit to make a duplicate, waiting up to `wait` while
+    /// [`crate::placement::MAX_DUPLICATES`] are being made (`None` then); it frees when
+    /// dropped.
+    pub async fn duplicate_permit(
+        &self,
+        wait: Duration,
+    ) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        let permit = self.duplicates.clone().acquire_owned();
+        tokio::time::timeout(wait, permit).await.ok()?.ok()
+    }
+
+    /// The permit to read a page of a placement history, waiting up to `wait` while
+    /// [`crate::placement::MAX_PLACEMENT_READS`] are being read (`None` then).
+    pub async fn placement_read_permit(
+        &self,
+        wait: Duration,
+    ) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        let permit = self.placement_reads.clone().acquire_owned();
+        tokio::time::timeout(wait, permit).await.ok()?.ok()
     }
 
     /// The permit to handle an HTTP body of about `bytes` (sent or received): none needed up

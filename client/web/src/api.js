@@ -44,10 +44,14 @@ export class Api {
     return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes?placements=true`)).arrayBuffer());
   }
 
-  /// A stroke's current placement (the last of `GET /v1/strokes/{id}/placements`).
+  /// A stroke's current placement (the last of `GET /v1/strokes/{id}/placements`, read a page
+  /// at a time: a page holds at most 1,000, and `next` says where the next one begins).
   async placement(stroke) {
-    const { placements } = await (await this.request(`/v1/strokes/${stroke}/placements`)).json();
-    return placements[placements.length - 1].placement.matrix;
+    for (let from = 0; ; ) {
+      const page = await (await this.request(`/v1/strokes/${stroke}/placements?from=${from}`)).json();
+      if (page.next === undefined) return page.placements[page.placements.length - 1].placement.matrix;
+      from = page.next;
+    }
   }
 
   /// Duplicates a finished stroke as a new one of ours (`id`) at `placement`; `key` is this

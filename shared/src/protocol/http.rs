@@ -83,6 +83,9 @@ pub struct PlacementChange {
 pub struct PlacementHistory {
     pub stroke: Uuid,
     pub placements: Vec<PlacementChange>,
+    /// Where the next page begins (its `from`), when the history goes on past this page.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub next: Option<u64>,
 }
 
 /// One solid a stroke had: which, who set it and when.

@@ -52,6 +52,26 @@ pub(super) fn node_matrix(node: &Value, index: usize) -> Result<[f64; 16], Scene
 
 /// A GLB's JSON document and its binary chunk (empty when it has none).
 pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
+    let (json_chunk, bin) = glb_chunks(bytes)?;
+    let json: Value = serde_json::from_slice(json_chunk).map_err(json_error)?;
+    if !json.is_object() {
+        return Err(SceneError::NotGlb("its JSON chunk is not a glTF object".into()));
+    }
+    Ok((json, bin))
+}
+
+/// Why a GLB's JSON chunk could not be read.
+pub(super) fn json_error(e: serde_json::Error) -> SceneError {
+    match e.classify() {
+        serde_json::error::Category::Data => {
+            SceneError::NotGlb(format!("its JSON chunk is not a glTF object: {e}"))
+        }
+        _ => SceneError::NotGlb(format!("its JSON chunk is not JSON: {e}")),
+    }
+}
+
+/// A GLB's JSON chunk, unread, and its binary chunk (empty when it has none).
+pub(super) fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], &[u8]), SceneError> {
     let word = |at: usize| {
         bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
     };
@@ -101,10 +121,5 @@ pub(super) fn parse_glb(bytes: &[u8]) -> Result<(Value, &[u8]), SceneError> {
     let json_chunk = chunk(12, CHUNK_JSON, "JSON")?
         .ok_or_else(|| SceneError::Truncated("it has no JSON chunk".into()))?;
     let bin = chunk(12 + 8 + json_chunk.len(), CHUNK_BIN, "BIN")?.unwrap_or_default();
-    let json: Value = serde_json::from_slice(json_chunk)
-        .map_err(|e| SceneError::NotGlb(format!("its JSON chunk is not JSON: {e}")))?;
-    if !json.is_object() {
-        return Err(SceneError::NotGlb("its JSON chunk is not a glTF object".into()));
-    }
-    Ok((json, bin))
+    Ok((json_chunk, bin))
 }

@@ -51,6 +51,14 @@ fn a_scene_reads_back_its_strokes_and_placements_exactly() {
         size_mm: 100.0,
     };
     let glb = scene_glb(&input).unwrap();
+    // Written a stroke at a time, the JSON is what one tree of the whole document writes.
+    let (json, _) = parse_glb(&glb).unwrap();
+    let whole = serde_json::to_vec(&json).unwrap();
+    let length = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    assert_eq!(
+        String::from_utf8_lossy(&glb[20..20 + length]).trim_end(),
+        String::from_utf8_lossy(&whole)
+    );
     let back = read_scene(&glb).unwrap();
     assert_eq!(back.len(), 3);
     assert_eq!(back[0].extras, a);

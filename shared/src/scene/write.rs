@@ -321,6 +321,37 @@ fn position_bound(accessor: &Value, key: &str) -> Option<[f64; 3]> {
     Some(out)
 }
 
+/// A member of the scene's document as it is written: its nodes apart, so that each stroke's
+/// pen data becomes JSON one stroke at a time, never as a tree of the whole scene's samples
+/// (a `Value` takes ten times the bytes of its text).
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+enum Part<'a> {
+    Value(Value),
+    Nodes(Vec<Node<'a>>),
+}
+
+/// A node of the scene: a stroke's is written with its extras added.
+enum Node<'a> {
+    Plain(Value),
+    Stroke { node: Value, extras: &'a StrokeExtras },
+}
+
+impl serde::Serialize for Node<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Node::Plain(node) => node.serialize(serializer),
+            Node::Stroke { node, extras } => {
+                // The node as one `Value`, as the whole document once was: the same bytes.
+                let mut node = node.clone();
+                let extras = serde_json::to_value(extras).map_err(serde::ser::Error::custom)?;
+                node["extras"] = json!({ EXTRAS_KEY: extras });
+                node.serialize(serializer)
+            }
+        }
+    }
+}
+
 /// The axes change of the root: penmesh's x right, y down the page, z out of it, to glTF's
 /// Y up, as the page shows the board (lying on the ground, seen from above).
 const AXES: [f64; 16] =
@@ -394,10 +425,8 @@ pub fn scene_glb(input: &SceneInput<'_>) -> Result<Vec<u8>, SceneError> {
             }
             None => Vec::new(),
         };
-        let mut node = json!({
-            "name": label,
-            "extras": { EXTRAS_KEY: stroke.extras },
-        });
+        // Its extras are added as it is written ([`Node::Stroke`]), not here.
+        let mut node = json!({ "name": label });
         if stroke.placement.map(f64::to_bits) != IDENTITY_MATRIX.map(f64::to_bits) {
             node["matrix"] = json!(stroke.placement.to_vec());
         }
@@ -450,7 +479,6 @@ pub fn scene_glb(input: &SceneInput<'_>) -> Result<Vec<u8>, SceneError> {
         "asset": { "version": "2.0", "generator": format!("penmesh {}", env!("CARGO_PKG_VERSION")) },
         "scene": 0,
         "scenes": [{ "name": "penmesh session", "nodes": [root_index] }],
-        "nodes": merger.nodes,
     });
     let mut put = |key: &str, list: Vec<Value>| {
         if !list.is_empty() {
@@ -484,17 +512,31 @@ pub fn scene_glb(input: &SceneInput<'_>) -> Result<Vec<u8>, SceneError> {
     if !merger.required.is_empty() {
         doc["extensionsRequired"] = json!(merger.required);
     }
-    let mut json_bytes = serde_json::to_vec(&doc).expect("a JSON value serialises");
-    json_bytes.resize(json_bytes.len().next_multiple_of(4), b' ');
-    let bin_chunk = if merger.bin.is_empty() { 0 } else { 8 + merger.bin.len() };
-    let total = 12 + 8 + json_bytes.len() + bin_chunk;
-    let mut glb = Vec::with_capacity(total);
+    // The stroke nodes with their extras, written one at a time.
+    let mut nodes: Vec<Node<'_>> = merger.nodes.into_iter().map(Node::Plain).collect();
+    for (stroke, &index) in input.strokes.iter().zip(&stroke_nodes) {
+        let node = std::mem::replace(&mut nodes[index], Node::Plain(Value::Null));
+        if let Node::Plain(node) = node {
+            nodes[index] = Node::Stroke { node, extras: stroke.extras };
+        }
+    }
+    let Value::Object(doc) = doc else { unreachable!("the document is an object") };
+    let mut parts: std::collections::BTreeMap<String, Part<'_>> =
+        doc.into_iter().map(|(key, value)| (key, Part::Value(value))).collect();
+    parts.insert("nodes".into(), Part::Nodes(nodes));
+    // The header, its lengths set once the JSON is written straight after it.
+    let mut glb = Vec::with_capacity(20 + merger.bin.len() + 8);
     glb.extend_from_slice(GLB_MAGIC);
     glb.extend_from_slice(&2u32.to_le_bytes());
-    glb.extend_from_slice(&(total as u32).to_le_bytes());
-    glb.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    glb.extend_from_slice(&[0; 8]);
     glb.extend_from_slice(&CHUNK_JSON.to_le_bytes());
-    glb.extend_from_slice(&json_bytes);
+    serde_json::to_writer(&mut glb, &parts).expect("a JSON document serialises");
+    glb.resize(glb.len().next_multiple_of(4), b' ');
+    let json_length = glb.len() - 20;
+    let bin_chunk = if merger.bin.is_empty() { 0 } else { 8 + merger.bin.len() };
+    let total = 12 + 8 + json_length + bin_chunk;
+    glb[8..12].copy_from_slice(&(total as u32).to_le_bytes());
+    glb[12..16].copy_from_slice(&(json_length as u32).to_le_bytes());
     if !merger.bin.is_empty() {
         glb.extend_from_slice(&(merger.bin.len() as u32).to_le_bytes());
         glb.extend_from_slice(&CHUNK_BIN.to_le_bytes());

@@ -10,6 +10,7 @@ mod export;
 mod http;
 mod identity;
 mod limits;
+mod model_bounds;
 mod model_roundtrip;
 mod old_database;
 mod postgres;

@@ -276,6 +276,32 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
         ("no samples", last_bad(|e| e["samples"] = json!([])), 400, "no samples"),
         ("a bad brush", last_bad(|e| e["brush"]["size"] = json!(-3.0)), 400, "its brush"),
         ("another format", last_bad(|e| e["format"] = json!(99)), 400, "format 99"),
+        // What the review of issue 49 found stored (its low items).
+        (
+            "its own duplicate",
+            last_bad(|e| e["duplicate_of"] = e["stroke"].clone()),
+            400,
+            "names itself as the stroke it duplicates",
+        ),
+        (
+            "a 100k-character author name",
+            last_bad(|e| e["author"]["name"] = json!("a".repeat(100_000))),
+            400,
+            "its author's name is 100000 characters",
+        ),
+        (
+            "a NUL in the author's name",
+            last_bad(|e| e["author"]["name"] = json!("Ad\u{0}a")),
+            400,
+            "its author's name holds a NUL byte",
+        ),
+        (
+            "drawn at i64::MIN",
+            last_bad(|e| e["drawn_at"] = json!(i64::MIN)),
+            400,
+            "drawn_at = -9223372036854775808",
+        ),
+        ("a nil id", last_bad(|e| e["stroke"] = json!(Uuid::nil())), 400, "the nil UUID"),
         (
             "a missing field",
             last_bad(|e| {
@@ -307,7 +333,7 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
         assert!(message.contains(text), "{what}: {message}");
         assert_eq!(strokes_of(&proxy.db, &target).await, 0, "{what}: nothing stored");
     }
-    // No participant key: no drawer.
+    // No participant key: no drawer (403, as on every route that needs a key).
     let response = proxy
         .http
         .post(proxy.url(&format!("/v1/sessions/{}/import", target.session)))
@@ -316,7 +342,7 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
         .send()
         .await
         .unwrap();
-    assert_eq!(response.status(), 400);
+    assert_eq!(response.status(), 403);
     assert!(response.text().await.unwrap().contains(KEY_HEADER));
     // Another session's token: 401.
     let response = proxy

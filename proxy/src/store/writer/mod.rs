@@ -200,10 +200,13 @@ const TRIM_RECORDS: i64 = 64;
 /// How often the writer looks for strokes to move because they sat in the log long enough.
 const IDLE_CHECK: Duration = Duration::from_millis(100);
 
-/// The stroke a `Finish` or `SetStatus` closes: its samples leave the log, it leaves the writer.
+/// The stroke a `Finish`, `SetStatus` or `CopySamples` closes: its samples leave the log, it
+/// leaves the writer.
 fn closes(op: &WriteOp) -> Option<Uuid> {
     match op {
-        WriteOp::Finish { stroke, .. } | WriteOp::SetStatus { stroke, .. } => Some(*stroke),
+        WriteOp::Finish { stroke, .. }
+        | WriteOp::SetStatus { stroke, .. }
+        | WriteOp::CopySamples { stroke, .. } => Some(*stroke),
         _ => None,
     }
 }
@@ -212,20 +215,28 @@ fn closes(op: &WriteOp) -> Option<Uuid> {
 /// add to the commit of everyone's samples that shares its transaction.
 const MESH_BYTES_PER_COMMIT: usize = 16 << 20;
 
+/// Most samples one transaction copies in the database (duplicates; more go in the next): what
+/// a duplicate of a long stroke may add to the commit of everyone's samples that shares its
+/// transaction.
+const COPIED_SAMPLES_PER_COMMIT: u64 = 1_000_000;
+
 /// How many of `batch`'s requests go in one transaction: up to (not including) the first that
 /// appends to a stroke an earlier request closed, so that a transaction moves a stroke out of
 /// the log after all of its appends, or that would take the meshes past
-/// [`MESH_BYTES_PER_COMMIT`].
+/// [`MESH_BYTES_PER_COMMIT`] or the copies past [`COPIED_SAMPLES_PER_COMMIT`].
 fn first_group(batch: &[WriteRequest]) -> usize {
     let mut closed = std::collections::HashSet::new();
     let mut mesh_bytes = 0;
+    let mut copied = 0;
     for (i, req) in batch.iter().enumerate() {
         let reopens = req
             .ops
             .iter()
             .any(|op| matches!(op, WriteOp::Append { stroke, .. } if closed.contains(stroke)));
         mesh_bytes += req.ops.iter().map(WriteOp::mesh_bytes).sum::<usize>();
-        if (reopens || mesh_bytes > MESH_BYTES_PER_COMMIT) && i > 0 {
+        copied += req.ops.iter().map(WriteOp::copied_samples).sum::<u64>();
+        let full = mesh_bytes > MESH_BYTES_PER_COMMIT || copied > COPIED_SAMPLES_PER_COMMIT;
+        if (reopens || full) && i > 0 {
             return i;
         }
         closed.extend(req.ops.iter().filter_map(closes));

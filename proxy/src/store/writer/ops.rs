@@ -55,6 +55,19 @@ pub enum WriteOp {
     /// Records where an imported stroke came from (`stroke_imports`), and the name its
     /// importer gave.
     MarkImported { stroke: Uuid, from: Box<penmesh::ImportedFrom>, importer_name: String },
+    /// Claims `stroke` as a new id: the request is refused ([`WriteError::Taken`]) when a
+    /// stroke of that id exists or an earlier request of the transaction creates one. Before
+    /// the `BeginStroke` of a stroke the client named (a duplicate), so that of two requests
+    /// naming the same new id exactly one is written.
+    Claim { stroke: Uuid },
+    /// Counts `samples` more stored samples toward `session`'s quota: the request is refused
+    /// ([`WriteError::Quota`]) when the session's stored samples (and those counted by earlier
+    /// requests of the transaction) would pass `quota`. Writes nothing.
+    CountSamples { session: Uuid, samples: u64, quota: u64 },
+    /// Copies the stored samples and the simplified stroke of the done stroke `source` into
+    /// the new stroke `stroke` (begun in the same request) and marks it `done`: in the
+    /// database, row by row as stored, never decoded in the proxy (a duplicate).
+    CopySamples { stroke: Uuid, source: Uuid },
 }
 
 impl WriteOp {
@@ -83,6 +96,14 @@ impl WriteOp {
             _ => 0,
         }
     }
+
+    /// Samples the op copies in the database (what [`WriteOp::CountSamples`] counts of a copy).
+    pub(super) fn copied_samples(&self) -> u64 {
+        match self {
+            WriteOp::CountSamples { samples, .. } => *samples,
+            _ => 0,
+        }
+    }
 }
 
 /// The writer failed to commit a request.
@@ -105,4 +126,7 @@ pub enum WriteError {
     /// The write would pass a storage quota (the message names it); nothing was written.
     #[error("{0}")]
     Quota(String),
+    /// A [`WriteOp::Claim`]ed stroke id is taken (the message names it); nothing was written.
+    #[error("{0}")]
+    Taken(String),
 }

@@ -10,8 +10,9 @@ use sqlx::AnyConnection;
 use uuid::Uuid;
 
 use super::known::{Known, load_stroke};
-use super::sql::put_mesh;
+use super::sql::{put_mesh, session_samples};
 use super::{WriteError, WriteOp, WriteRequest, closes};
+use crate::store::log;
 
 /// An op as it will be written: an append trimmed to what is not stored yet.
 pub(super) enum Planned<'a> {
@@ -34,6 +35,9 @@ pub(super) struct Plan<'a> {
     ends: HashMap<Uuid, u64>,
     /// Strokes it creates: they have no row yet, and exist once it commits.
     creates: HashSet<Uuid>,
+    /// Per session, its stored samples and those its planned requests count
+    /// ([`WriteOp::CountSamples`]), read from the database on first use.
+    session_samples: HashMap<Uuid, u64>,
 }
 
 /// One request's plan, kept apart until it is known not to be refused (reused: a group commit
@@ -43,6 +47,8 @@ struct RequestPlan<'a> {
     ends: HashMap<Uuid, u64>,
     ops: Vec<Planned<'a>>,
     creates: HashSet<Uuid>,
+    /// The samples it counts, by session.
+    counted: Vec<(Uuid, u64)>,
 }
 
 impl<'a> Plan<'a> {
@@ -63,11 +69,15 @@ impl<'a> Plan<'a> {
             req_plan.ends.clear();
             req_plan.ops.clear();
             req_plan.creates.clear();
+            req_plan.counted.clear();
             let refusal = plan.request(tx, req, &mut req_plan, known, writer).await?;
             if refusal.is_none() {
                 plan.ops.append(&mut req_plan.ops);
                 plan.ends.extend(req_plan.ends.drain());
                 plan.creates.extend(req_plan.creates.drain());
+                for (session, n) in req_plan.counted.drain(..) {
+                    *plan.session_samples.entry(session).or_default() += n;
+                }
             }
             plan.refused.push(refusal);
         }
@@ -113,6 +123,38 @@ impl<'a> Plan<'a> {
         match op {
             WriteOp::BeginStroke { stroke, .. } => {
                 req_plan.creates.insert(*stroke);
+            }
+            WriteOp::Claim { stroke } => {
+                let taken = known.contains_key(stroke)
+                    || self.loaded.contains_key(stroke)
+                    || self.creates.contains(stroke)
+                    || req_plan.creates.contains(stroke)
+                    || log::stroke_exists(tx, *stroke).await?;
+                if taken {
+                    return Ok(Some(WriteError::Taken(format!(
+                        "stroke id {stroke} is taken; choose a new random id"
+                    ))));
+                }
+            }
+            WriteOp::CountSamples { session, samples, quota } => {
+                let stored = match self.session_samples.get(session) {
+                    Some(&n) => n,
+                    None => {
+                        let n = session_samples(tx, *session).await?;
+                        self.session_samples.insert(*session, n);
+                        n
+                    }
+                };
+                let counted: u64 =
+                    req_plan.counted.iter().filter(|(s, _)| s == session).map(|(_, n)| n).sum();
+                if stored + counted + samples > *quota {
+                    return Ok(Some(WriteError::Quota(format!(
+                        "the session's strokes hold {} samples; {samples} more would pass its \
+                         quota of {quota} samples (--max-session-samples)",
+                        stored + counted
+                    ))));
+                }
+                req_plan.counted.push((*session, *samples));
             }
             // A stroke exists before anything of it is stored.
             WriteOp::Finish { stroke, .. }

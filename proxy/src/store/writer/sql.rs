@@ -180,6 +180,62 @@ pub(super) async fn put_mesh(
     ))))
 }
 
+/// The samples stored in `stroke_chunks` for the strokes of `session` (what its sample quota
+/// counts), read without reading the samples.
+pub(super) async fn session_samples(
+    conn: &mut AnyConnection,
+    session: Uuid,
+) -> anyhow::Result<u64> {
+    // PostgreSQL sums BIGINTs as NUMERIC, which the `Any` driver does not read.
+    let n: i64 = sqlx::query_scalar(
+        "SELECT CAST(COALESCE(SUM(c.n), 0) AS BIGINT) FROM stroke_chunks c \
+         JOIN strokes s ON s.id = c.stroke_id WHERE s.session_id = $1",
+    )
+    .bind(session.to_string())
+    .fetch_one(&mut *conn)
+    .await?;
+    Ok(n.max(0) as u64)
+}
+
+/// A `CopySamples` op: the stored rows of `source` (its chunks, as stored, and its simplified
+/// stroke) copied to `stroke` inside the database, and `stroke` marked `done`. The source is
+/// done, so all its samples are in `stroke_chunks`.
+async fn copy_samples(
+    conn: &mut AnyConnection,
+    stroke: Uuid,
+    source: Uuid,
+    now: i64,
+) -> anyhow::Result<()> {
+    let (stroke, source) = (stroke.to_string(), source.to_string());
+    sqlx::query(
+        "INSERT INTO stroke_chunks (stroke_id, seq, n, layout, data) \
+         SELECT $1, seq, n, layout, data FROM stroke_chunks WHERE stroke_id = $2",
+    )
+    .bind(&stroke)
+    .bind(&source)
+    .execute(&mut *conn)
+    .await?;
+    let simplified = sqlx::query(
+        "INSERT INTO simplified (stroke_id, indices, layout, data) \
+         SELECT $1, indices, layout, data FROM simplified WHERE stroke_id = $2 AND upto IS NULL",
+    )
+    .bind(&stroke)
+    .bind(&source)
+    .execute(&mut *conn)
+    .await?;
+    anyhow::ensure!(simplified.rows_affected() == 1, "stroke {source} has no simplified stroke");
+    sqlx::query(
+        "UPDATE strokes SET status = 'done', updated_at = $1, \
+         n_retained = (SELECT n_retained FROM strokes WHERE id = $2) WHERE id = $3",
+    )
+    .bind(now)
+    .bind(&source)
+    .bind(&stroke)
+    .execute(&mut *conn)
+    .await?;
+    Ok(())
+}
+
 /// Inserts a `Place` op's row of `stroke_placements`: its id, which orders the stroke's
 /// placements (the fan-out skips one not newer than what a client was told).
 pub(super) async fn place(conn: &mut AnyConnection, op: &WriteOp) -> anyhow::Result<i64> {
@@ -326,6 +382,11 @@ pub(super) async fn apply(
             .bind(importer_name.clone())
             .execute(&mut *conn)
             .await?;
+        }
+        // Checked when planned; nothing to write.
+        WriteOp::Claim { .. } | WriteOp::CountSamples { .. } => {}
+        WriteOp::CopySamples { stroke, source } => {
+            copy_samples(conn, *stroke, *source, now).await?
         }
         WriteOp::SetRemoved { stroke, removed: None } => {
             sqlx::query("UPDATE strokes SET removed_at = NULL, removed_by = NULL WHERE id = $1")

@@ -128,6 +128,8 @@ impl WriterLoop {
         let mut begun: Vec<Uuid> = Vec::new();
         let mut placed: Vec<i64> = Vec::new();
         let mut moves: Vec<(Uuid, u64, Vec<Sample>)> = Vec::new();
+        // Strokes claimed as new ids (`WriteOp::Claim`).
+        let mut claimed: Vec<Uuid> = Vec::new();
         for op in &plan.ops {
             let Planned::Other(op) = op else { continue };
             match op {
@@ -151,9 +153,14 @@ impl WriterLoop {
                     }
                     apply(tx, op, now).await?;
                 }
+                WriteOp::Claim { stroke } => claimed.push(*stroke),
                 WriteOp::BeginStroke { stroke, .. } => {
                     if apply(tx, op, now).await? {
                         begun.push(*stroke);
+                    } else if claimed.contains(stroke) {
+                        // Another writer (a replica) created it since it was planned: this
+                        // transaction fails, and the request alone is planned again, refused.
+                        anyhow::bail!("claimed stroke {stroke} was created meanwhile");
                     }
                 }
                 WriteOp::Place { .. } => placed.push(place(tx, op).await?),
