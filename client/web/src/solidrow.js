@@ -27,13 +27,23 @@ export function addSolidRow(panel, { api, key }) {
   const view = editor.view;
   const solidOf = (id) => view.strokes.get(id)?.solid || THE_ROD;
   const buttons = new Map();
+  // Each stroke's latest request: the next waits for it. The proxy stores a solid, then its
+  // mesh, in one request; two at once for one stroke (an undo right after a change) could
+  // store the first's mesh last, so the mesh would not be the solid's.
+  const inFlight = new Map(); // stroke -> Promise
   let depth;
   let mm;
 
   /// Sets each stroke of `solids` (id -> solid) to its solid; resolves to the ids set. A refusal
   /// is said in the proxy's words.
   async function send(solids) {
-    const results = await Promise.allSettled([...solids].map(([id, solid]) => api.setSolid(id, solid, key())));
+    const results = await Promise.allSettled(
+      [...solids].map(([id, solid]) => {
+        const request = (inFlight.get(id) || Promise.resolve()).catch(() => {}).then(() => api.setSolid(id, solid, key()));
+        inFlight.set(id, request);
+        return request;
+      }),
+    );
     const set = [];
     results.forEach((r, k) => {
       const [id, solid] = [...solids][k];

@@ -59,6 +59,14 @@ async function solids(base, s) {
   return Object.fromEntries((await storedStrokes(base, s)).map((x) => [x.id, x.solid]));
 }
 
+/// The triangles of a stroke's stored mesh (GET /v1/strokes/{id}/mesh).
+async function meshTriangles(base, s, stroke) {
+  const res = await fetch(`${base}/v1/strokes/${stroke}/mesh`, { headers: { authorization: `Bearer ${s.token}` } });
+  assert.equal(res.status, 200);
+  await res.arrayBuffer();
+  return Number(res.headers.get("x-penmesh-triangles"));
+}
+
 const sameSolid = (a, b) => a.kind === b.kind && a.depth === b.depth;
 
 /// Waits until the proxy has `want` (id -> solid) for every stroke it shows.
@@ -102,6 +110,7 @@ browserTest(async ({ proxy, browser }) => {
   await until("the square's mesh on both pages", async () => (await ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending)) && (await bob.evaluate(() => window.penmesh.meshes === 1)));
   const [plate] = Object.keys(await solids(base, s));
   await stored(base, s, { [plate]: ROD }, "a stroke is the rod");
+  const rodTriangles = await meshTriangles(base, s, plate);
   await showsPlate(bob, false, "solids-0-rod.png", "the rod");
   await ada.keyboard.press("v");
   await ada.mouse.click(X0, (Y0 + Y1) / 2);
@@ -126,6 +135,8 @@ browserTest(async ({ proxy, browser }) => {
   await stored(base, s, { [plate]: { kind: "filled", depth: 24 } }, "the depth undone");
   await ada.keyboard.press("Control+z");
   await stored(base, s, { [plate]: ROD }, "Filled undone");
+  // The proxy stores the rod's mesh again (the page shows what it stores).
+  await until("the proxy's mesh the rod's again", async () => (await meshTriangles(base, s, plate)) === rodTriangles);
   await showsPlate(bob, false, "solids-2-bob-undone.png", "Filled undone, on Bob's page");
   await ada.keyboard.press("Control+Shift+z");
   await stored(base, s, { [plate]: { kind: "filled", depth: 24 } }, "Filled redone");
