@@ -72,6 +72,10 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # on the walls, one manifold STL part, a second page live, undo of typed moves, repeats,
 # duplicates, deletes and imports.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/house.mjs
+# Solids on the page (issue 51): a square made Filled with a typed depth and a hole drawn as
+# one, live and after a reload on a second page, undo and redo, an open stroke's refusal in
+# words, and the STL one manifold part with the hole cut out.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/solids.mjs
 # The work plane at the model (the Plane tool, Front through the selection, a typed offset,
 # [ and ] by the camera), the eraser on any plane, arrow nudges, the people list's colours.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/workplane.mjs

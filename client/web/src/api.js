@@ -27,6 +27,7 @@ export class Api {
       } catch {}
       const err = new Error(`${init.method || "GET"} ${path}: HTTP ${res.status} ${detail}`);
       err.status = res.status;
+      err.detail = detail; // the proxy's own words
       throw err;
     }
     return res;
@@ -63,6 +64,18 @@ export class Api {
       body: JSON.stringify({ stroke: id, placement: { matrix: placement } }),
     });
     return (await res.json()).stroke;
+  }
+
+  /// Sets the solid (`{kind, depth}`) of one of our finished strokes; `key` is this tab's
+  /// participant key. The proxy builds its new mesh first, so a solid the stroke cannot be (an
+  /// open stroke filled) is refused (an Error with `status` 409 and the proxy's words) and
+  /// nothing changes; once stored it is told to every page (`peer_solid`, then `peer_mesh`).
+  async setSolid(stroke, solid, key) {
+    await this.request(`/v1/strokes/${stroke}/solid`, {
+      method: "PUT",
+      headers: { "x-penmesh-key": key, "content-type": "application/json" },
+      body: JSON.stringify(solid),
+    });
   }
 
   /// Asks the proxy to build (and store, and announce) the mesh of one of our strokes; `key` is

@@ -20,11 +20,18 @@ function placementKey(placement) {
   return isIdentity(placement) ? "board" : placement.join(",");
 }
 
+/// The key of the group of `participant`'s meshes at `placement`, holes apart.
+function groupKey(participant, placement, hole) {
+  return `${participant} ${hole ? "hole " : ""}${placementKey(placement)}`;
+}
+
 /// Every finished mesh of the scene, in groups of one person and one placement.
 export class StrokeGroups {
-  /// `parent`: the THREE.Object3D the groups' objects are added to.
-  constructor(material, parent) {
+  /// `parent`: the THREE.Object3D the groups' objects are added to. Holes (a stroke whose
+  /// solid is a hole) go in groups of their own, drawn with `holeMaterial`.
+  constructor(material, parent, holeMaterial = material) {
     this.material = material;
+    this.holeMaterial = holeMaterial;
     this.parent = parent;
     this.groups = new Map(); // "participant placement" -> MergedMeshes
   }
@@ -35,12 +42,12 @@ export class StrokeGroups {
   }
 
   /// Adds a stroke's mesh (`flat`, as batch.js `add` takes it) of `participant` in `colour` at
-  /// `placement`: its range, which knows its group.
-  add(flat, participant, colour, placement) {
-    const key = `${participant} ${placementKey(placement)}`;
+  /// `placement`, among the holes when `hole`: its range, which knows its group.
+  add(flat, participant, colour, placement, hole = false) {
+    const key = groupKey(participant, placement, hole);
     let group = this.groups.get(key);
     if (!group) {
-      group = new MergedMeshes(this.material, placement);
+      group = new MergedMeshes(hole ? this.holeMaterial : this.material, placement);
       group.key = key;
       this.parent.add(group.mesh);
       this.groups.set(key, group);
@@ -48,12 +55,12 @@ export class StrokeGroups {
     return group.add(flat, colour);
   }
 
-  /// The range of a stroke moved to `placement` (`participant`'s, in `colour`): the same one
-  /// when it is already in that placement's group, else one in that group, hidden and lifted
+  /// The range of a stroke moved to `placement` (`participant`'s, in `colour`, a hole or not):
+  /// the same one when it is already in that group, else one in that group, hidden and lifted
   /// as it was, the old one collapsed (its group dropped when nothing is left in it).
-  place(range, participant, colour, placement) {
-    if (range.group.key === `${participant} ${placementKey(placement)}`) return range;
-    const moved = this.add(range.flat, participant, colour, placement);
+  place(range, participant, colour, placement, hole = false) {
+    if (range.group.key === groupKey(participant, placement, hole)) return range;
+    const moved = this.add(range.flat, participant, colour, placement, hole);
     moved.group.setHidden(moved, range.hidden);
     moved.group.setLifted(moved, range.lifted);
     this.drop(range);

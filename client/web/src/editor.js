@@ -87,8 +87,11 @@ export class Editor {
     }
     // On the work plane (workplane.js): the stroke's placement from its begin.
     const placement = this.view.workPlacement;
-    const stroke = this.conn.begin({ ...this.brush }, device, placement);
+    // What it becomes (drawsolid.js: null, the rod, unless Filled or Hole is chosen).
+    const solid = this.drawSolid || null;
+    const stroke = this.conn.begin({ ...this.brush }, device, placement, solid);
     this.view.stroke(stroke, this.conn.me, this.brush);
+    if (solid) this.view.setSolid(stroke, this.conn.me, solid);
     if (placement) this.view.setPlacement(stroke, placement);
     this.ink.begin(stroke);
     this.strokeSamples(samples, true);

@@ -11,6 +11,8 @@
 // error before a Hello, a page switched to JSON with `encoding`): both kinds go to `receive`.
 // Protocol 5: a stroke begins on the work plane (`stroke_begin.placement`, kept with the stroke
 // for a resume) and `set_placement` places a finished one; `peer_placement` comes to `on`.
+// Protocol 6: a stroke may begin as a solid (`stroke_begin.solid`, kept likewise); `peer_solid`
+// comes to `on`.
 //
 // Every message from the proxy goes to `on(kind, message)` after this module has taken what it
 // needs from it; `retained` only for our own strokes not yet done, `stroke_done` also when a
@@ -345,12 +347,12 @@ export class Connection {
     return Boolean(this.me) && !this.drawing && !(last && !last.ended) && this.unfinished.length < MAX_UNFINISHED;
   }
 
-  /// Begins our stroke on the work plane `placement` (16 numbers; null: the board); returns
-  /// its id.
-  begin(brush, device, placement = null) {
+  /// Begins our stroke on the work plane `placement` (16 numbers; null: the board), to become
+  /// `solid` (`{kind, depth}`; null: the rod); returns its id.
+  begin(brush, device, placement = null, solid = null) {
     const stroke = crypto.randomUUID();
     const params = this.paramsFor(brush);
-    this.unfinished.push({ stroke, brush, device, params, placement, samples: [], sent: 0, acked: 0, ended: false });
+    this.unfinished.push({ stroke, brush, device, params, placement, solid, samples: [], sent: 0, acked: 0, ended: false });
     this.drawing = true;
     this.send({ stroke_begin: strokeBegin(this.unfinished[this.unfinished.length - 1]) });
     return stroke;
@@ -421,10 +423,10 @@ export class Connection {
   }
 }
 
-/// The `stroke_begin` of one of our strokes (`unfinished`'s entry): its placement only when it
-/// has one (a stroke kept by an older page has none: the board).
-function strokeBegin({ stroke, brush, device, params, placement }) {
-  return { stroke, brush, device, params, ...(placement ? { placement: { matrix: placement } } : {}) };
+/// The `stroke_begin` of one of our strokes (`unfinished`'s entry): its placement and solid only
+/// when it has them (a stroke kept by an older page has none: the board, the rod).
+function strokeBegin({ stroke, brush, device, params, placement, solid }) {
+  return { stroke, brush, device, params, ...(placement ? { placement: { matrix: placement } } : {}), ...(solid ? { solid } : {}) };
 }
 
 /// Whether a placement's 16 numbers are the identity (the board).

@@ -71,6 +71,21 @@ void main() {
   #include <colorspace_fragment>
 }`;
 
+// A hole (a stroke whose solid is a hole, docs/protocol.md "Solids") is shown as TinkerCAD
+// shows one: see-through grey, hatched with screen-space stripes, so what it cuts stays visible
+// under it. It is drawn over whatever is in front of it and writes no depth, so a hole inside
+// a plate (or behind a wall) still shows where it cuts, and the solids around it are drawn whole.
+const HOLE_FRAGMENT_SHADER = `
+varying vec3 vColour;
+void main() {
+  float stripe = step(5.0, mod(gl_FragCoord.x + gl_FragCoord.y, 10.0));
+  gl_FragColor = vec4(mix(vec3(0.45), vColour, 0.25), mix(0.25, 0.6, stripe));
+  #include <colorspace_fragment>
+}`;
+
+/// Whether a stroke's solid (`{kind, depth}` or null: the rod) is a hole.
+export const isHole = (solid) => Boolean(solid && solid.kind === "hole");
+
 /// Whether a WebGL context is drawn on the CPU (SwiftShader, llvmpipe).
 function softwareWebGL(gl) {
   const info = gl.getExtension("WEBGL_debug_renderer_info");
@@ -112,7 +127,8 @@ export class SceneView {
     this.rig = new CameraRig(this.camera, innerWidth, innerHeight);
     // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
     // line: its live ribbon, mesh: its range in its group's merged meshes (batch.js),
-    // placement: 16 numbers or null (the board), lifted: its own object while selected}
+    // placement: 16 numbers or null (the board), lifted: its own object while selected,
+    // solid: {kind, depth} or null (the rod), meshStale: its solid changed, its mesh not yet}
     this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
@@ -121,7 +137,8 @@ export class SceneView {
     this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { minHalfWidth: { value: 0 } } });
     // A live ribbon is one face: seen from either side.
     this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
-    this.groups = new StrokeGroups(this.material, this.world); // the finished meshes
+    this.holeMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: HOLE_FRAGMENT_SHADER, uniforms: this.material.uniforms, transparent: true, depthTest: false, depthWrite: false });
+    this.groups = new StrokeGroups(this.material, this.world, this.holeMaterial); // the finished meshes
     this.changedLines = new Set(); // strokes whose polyline is rebuilt at the next frame
     this.frames = 0; // frames rendered (the browser test checks that an idle page renders none)
     this.frameQueued = false;
@@ -205,7 +222,7 @@ export class SceneView {
   stroke(id, participant, brush) {
     let s = this.strokes.get(id);
     if (!s) {
-      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null, placement: null, lifted: null };
+      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null, placement: null, lifted: null, solid: null, meshStale: false };
       this.strokes.set(id, s);
     } else if (brush) {
       s.colour = strokeColour(participant, brush);
@@ -247,7 +264,21 @@ export class SceneView {
     const m = matrixOf(placement);
     if (s.line) s.line.matrix.copy(m);
     if (s.lifted) s.lifted.matrix.copy(m);
-    else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, placement);
+    else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, placement, isHole(s.solid));
+    this.requestRender();
+  }
+
+  /// Stroke `id`'s solid (`{kind, depth}`, docs/protocol.md "Solids"): a hole's mesh drawn as a
+  /// hole at once; the mesh itself is the old solid's until `replaceMesh` brings the new one
+  /// (the proxy builds it after the solid is set), so it is marked stale when it changed.
+  setSolid(id, participant, solid) {
+    const s = this.stroke(id, participant);
+    const before = s.solid || { kind: "line", depth: null };
+    s.solid = solid.kind === "line" && solid.depth === null ? null : solid;
+    if (before.kind === solid.kind && before.depth === solid.depth) return;
+    if (s.mesh) s.meshStale = true;
+    if (s.lifted) s.lifted.material = isHole(s.solid) ? this.holeMaterial : this.material;
+    else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement, isHole(s.solid));
     this.requestRender();
   }
 
@@ -274,7 +305,7 @@ export class SceneView {
     if (!s || !s.mesh) return null;
     if (!s.lifted) {
       s.mesh.group.setLifted(s.mesh, true);
-      s.lifted = new THREE.Mesh(s.mesh.group.geometryOf(s.mesh), this.material);
+      s.lifted = new THREE.Mesh(s.mesh.group.geometryOf(s.mesh), isHole(s.solid) ? this.holeMaterial : this.material);
       s.lifted.matrixAutoUpdate = false;
       s.lifted.matrix.copy(matrixOf(s.placement));
       s.lifted.visible = !s.removed;
@@ -292,7 +323,7 @@ export class SceneView {
     this.world.remove(s.lifted);
     s.lifted.geometry.dispose();
     s.lifted = null;
-    s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement);
+    s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement, isHole(s.solid));
     s.mesh.group.setLifted(s.mesh, false);
     this.requestRender();
   }
@@ -377,13 +408,34 @@ export class SceneView {
   addMesh(id, participant, flat) {
     const s = this.stroke(id, participant);
     if (s.mesh) return false;
-    s.mesh = this.groups.add(flat, participant, s.colour, s.placement);
+    s.mesh = this.groups.add(flat, participant, s.colour, s.placement, isHole(s.solid));
     if (s.removed) {
       s.mesh.group.setHidden(s.mesh, true);
       this.hiddenMeshCount += 1;
     }
     this.removeLine(s);
     this.meshCount += 1;
+    this.requestRender();
+    return true;
+  }
+
+  /// Shows stroke `id`'s new mesh (its solid changed) in place of the one it had: the old range
+  /// dropped, the new one in the group of its placement and solid, lifted out again when it was.
+  replaceMesh(id, participant, flat) {
+    const s = this.stroke(id, participant);
+    s.meshStale = false;
+    if (!s.mesh) return this.addMesh(id, participant, flat);
+    const lifted = Boolean(s.lifted);
+    if (lifted) {
+      this.world.remove(s.lifted);
+      s.lifted.geometry.dispose();
+      s.lifted = null;
+    }
+    const hidden = s.mesh.hidden;
+    this.groups.drop(s.mesh);
+    s.mesh = this.groups.add(flat, s.participant, s.colour, s.placement, isHole(s.solid));
+    s.mesh.group.setHidden(s.mesh, hidden);
+    if (lifted) this.liftOut(id);
     this.requestRender();
     return true;
   }

@@ -17,6 +17,8 @@ import { PALETTE, SceneView, colourOf, strokeColour } from "./scene.js";
 import { colourApart, saveBrush, savedBrush, savedName } from "./settings.js";
 import { Selection } from "./select.js";
 import { SelectionPanel } from "./selpanel.js";
+import { addSolidRow } from "./solidrow.js";
+import { attachDrawSolid } from "./drawsolid.js";
 import { TakeBack } from "./takeback.js";
 import { attachViews } from "./views.js";
 import { WorkPlane } from "./workplane.js";
@@ -36,6 +38,7 @@ export function startSession(session, token) {
   const errors = [];
   const timings = []; // own strokes: ms from pen-up to the mesh on screen
   const loading = new Set(); // strokes whose mesh is being fetched on its own
+  const fetchAgain = new Set(); // strokes whose mesh changed while it was being fetched
   const meshKnown = new Set(); // strokes the proxy has said have a mesh (the history, PeerMesh)
   const building = new Set(); // our strokes whose mesh build was asked for by this page
   // Meshes announced (PeerMesh) before the session's mesh bundle came: stroke -> participant.
@@ -94,6 +97,8 @@ export function startSession(session, token) {
   attachModelBar(editor, { workPlane, selection: editor.selection });
   attachViews(editor);
   editor.selectionPanel = new SelectionPanel(editor, editor.selection);
+  editor.selectionPanel.addRow(addSolidRow(editor.selectionPanel, { api, key: () => conn.participantKey() }));
+  attachDrawSolid(editor, $("draw-solid"));
   attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail, imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)) });
 
   // For the browser tests and the curious.
@@ -237,16 +242,29 @@ export function startSession(session, token) {
     else loadMesh(id, participant);
   }
 
-  async function loadMesh(id, participant) {
-    if (view.hasMesh(id) || loading.has(id)) return;
+  /// Fetches and shows stroke `id`'s mesh, unless it has one; a stroke whose solid changed
+  /// since its mesh came (view.setSolid), or `replace`, has its mesh fetched again and replaced.
+  /// A new mesh announced while one is being fetched is fetched after it (an undo right after
+  /// a change: the first fetch may bring the mesh before it).
+  async function loadMesh(id, participant, replace = false) {
+    const stale = replace || Boolean(view.strokes.get(id)?.meshStale);
+    if (loading.has(id)) {
+      if (stale) fetchAgain.add(id);
+      return;
+    }
+    if (view.hasMesh(id) && !stale) return;
     loading.add(id);
     try {
       const flat = await view.parse(await api.strokeMesh(id));
-      if (view.addMesh(id, participant, flat)) meshShown(id);
+      if (view.hasMesh(id)) {
+        view.replaceMesh(id, participant, flat);
+        if (editor.selection.ids.has(id)) editor.selection.refresh();
+      } else if (view.addMesh(id, participant, flat)) meshShown(id);
     } catch (err) {
       fail(`cannot show the mesh of stroke ${id}: ${err.message}`);
     } finally {
       loading.delete(id);
+      if (fetchAgain.delete(id)) loadMesh(id, participant, true);
     }
   }
 
@@ -351,6 +369,11 @@ export function startSession(session, token) {
         view.setPlacement(m.stroke, m.placement.matrix);
         // Only a selected stroke's box and gizmo follow it (a history's hundreds of placements
         // ask for no frame).
+        if (editor.selection.ids.has(m.stroke)) editor.selection.refresh();
+        break;
+      case "peer_solid":
+        // The mesh the proxy builds for it follows (peer_mesh), and replaces the one shown.
+        view.setSolid(m.stroke, m.participant, m.solid);
         if (editor.selection.ids.has(m.stroke)) editor.selection.refresh();
         break;
       case "error":

@@ -108,7 +108,7 @@ browserTest(async ({ proxy, browser }) => {
   const url = `${base}/s/${s.session}#token=${s.token}`;
   const ada = await openPage(browser, url, "ada");
   const bob = await openPage(browser, url, "bob");
-  assert.equal(await ada.evaluate(() => Number(document.querySelector('meta[name="penmesh-protocol"]').content)), 5, "the page speaks protocol 5");
+  assert.equal(await ada.evaluate(() => Number(document.querySelector('meta[name="penmesh-protocol"]').content)), 6, "the page speaks protocol 6");
 
   // 1. The seat on the board.
   await polyline(ada.cdp, [[320, 200], [480, 200], [480, 320], [320, 320], [320, 205]]);

@@ -91,7 +91,7 @@ browserTest(async ({ proxy, browser }) => {
   for (const [name, page] of [["Ada", ada], ["Bob", bob]]) {
     const [hello] = framesOf(page, "sent", "hello");
     assert.ok(hello && hello.binary, `${name}'s hello is a binary frame`);
-    assert.equal(hello.message.hello.protocol, 5, `${name} says protocol 5`);
+    assert.equal(hello.message.hello.protocol, 6, `${name} says protocol 6`);
     assert.ok(framesOf(page, "received", "welcome")[0].binary, `${name}'s welcome comes binary`);
   }
 

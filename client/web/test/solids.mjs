@@ -1,0 +1,217 @@
+// Solids on the page (issue 51), from user actions only (pen strokes, clicks, typed numbers,
+// keys; the page is read only to wait for it). Ada draws; Bob watches on a second page.
+// 1. A closed square drawn with the pen, made Filled in the selection's panel and given a depth
+//    typed in px: the proxy stores the solid, and Bob's page shows the plate live (its middle,
+//    empty before, is covered: read from a screenshot).
+// 2. Undo and redo of the two solid changes: the proxy's solid and Bob's pixels follow each.
+// 3. A small closed square drawn as a Hole directly (the choice beside the brush): stored with
+//    its begin, and shown on both pages as a hole (see-through grey over the plate).
+// 4. Bob reloads: the plate and the hole are as before.
+// 5. An open stroke made Filled is refused in the proxy's words, shown to Ada; nothing changes
+//    (the proxy's solid, and the history: the next undo takes the open stroke back).
+// 6. The STL through the Export menu: PrusaSlicer reads one manifold part with the hole cut out.
+// Screenshots: target/web-test/solids-*.png. Run by scripts/test.sh as
+// `node client/web/test/solids.mjs`.
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { join } from "node:path";
+import { ARTIFACTS, browserTest, isBackground, log, newSession, pixelsAt, storedStrokes, until } from "./harness.mjs";
+
+const VIEW = { width: 1000, height: 700 };
+// The plate, in page pixels (one unit of the board each at the page's first view).
+const [X0, X1, Y0, Y1] = [300, 500, 250, 450];
+// The hole: a small square inside the plate.
+const [H0, H1, K0, K1] = [400, 440, 330, 370];
+const HOLE_MIDDLE = [(H0 + H1) / 2, (K0 + K1) / 2];
+const PLATE_INSIDE = [340, 290]; // inside the plate, away from its ink and the hole
+const PLATE_DEPTH = 20; // px: the hole's default depth (24) goes through it
+const ROD = { kind: "line", depth: null };
+
+async function openPage(browser, url, name) {
+  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1, acceptDownloads: true });
+  const page = await context.newPage();
+  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
+  await page.goto(url);
+  page.cdp = await context.newCDPSession(page);
+  await synced(page);
+  return page;
+}
+
+const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+
+/// A pen stroke through the `corners`, at an even pressure.
+async function pen(cdp, corners) {
+  const ev = (type, [x, y]) =>
+    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
+  await ev("mousePressed", corners[0]);
+  for (let i = 1; i < corners.length; i++) {
+    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
+    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
+    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
+  }
+  await ev("mouseReleased", corners[corners.length - 1]);
+}
+
+const square = (x0, x1, y0, y1) => [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]];
+
+/// The proxy's shown strokes: id -> solid.
+async function solids(base, s) {
+  return Object.fromEntries((await storedStrokes(base, s)).map((x) => [x.id, x.solid]));
+}
+
+/// The triangles of a stroke's stored mesh (GET /v1/strokes/{id}/mesh).
+async function meshTriangles(base, s, stroke) {
+  const res = await fetch(`${base}/v1/strokes/${stroke}/mesh`, { headers: { authorization: `Bearer ${s.token}` } });
+  assert.equal(res.status, 200);
+  await res.arrayBuffer();
+  return Number(res.headers.get("x-penmesh-triangles"));
+}
+
+const sameSolid = (a, b) => a.kind === b.kind && a.depth === b.depth;
+
+/// Waits until the proxy has `want` (id -> solid) for every stroke it shows.
+async function stored(base, s, want, what) {
+  await until(`${what}: the proxy's solids`, async () => {
+    const got = await solids(base, s);
+    return Object.keys(got).length === Object.keys(want).length && Object.entries(want).every(([id, solid]) => got[id] && sameSolid(got[id], solid)) ? got : false;
+  });
+}
+
+/// The colours of `page`'s canvas at the plate's inside and the hole's middle (points of the
+/// board: where the page shows them is asked, as a reload fits the view to the drawing), from a
+/// screenshot.
+async function look(page, file) {
+  const at = await page.evaluate((points) => points.map(([x, y]) => window.penmesh.toPage(x, y, null)), [PLATE_INSIDE, HOLE_MIDDLE]);
+  const [plate, hole] = await pixelsAt(page, at, join(ARTIFACTS, file));
+  return { plate, hole };
+}
+
+const differ = (a, b) => Math.abs(a[0] - b[0]) + Math.abs(a[1] - b[1]) + Math.abs(a[2] - b[2]) >= 30;
+
+/// Waits until `page` shows the plate filled (or, `filled` false, its inside empty) with no
+/// mesh being replaced: checked on screen.
+async function showsPlate(page, filled, file, what) {
+  return until(`${what}: the plate ${filled ? "filled" : "empty"} on the page`, async () => {
+    const seen = await look(page, file);
+    return isBackground(seen.plate) !== filled ? seen : false;
+  });
+}
+
+browserTest(async ({ proxy, browser }) => {
+  const { base } = proxy;
+  const s = await newSession(base);
+  const url = `${base}/s/${s.session}#token=${s.token}`;
+  const ada = await openPage(browser, url, "ada");
+  const bob = await openPage(browser, url, "bob");
+  await ada.bringToFront();
+
+  // --- 1. a closed square, Filled, its depth typed -----------------------------------------
+  await pen(ada.cdp, square(X0, X1, Y0, Y1));
+  await until("the square's mesh on both pages", async () => (await ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending)) && (await bob.evaluate(() => window.penmesh.meshes === 1)));
+  const [plate] = Object.keys(await solids(base, s));
+  await stored(base, s, { [plate]: ROD }, "a stroke is the rod");
+  const rodTriangles = await meshTriangles(base, s, plate);
+  await showsPlate(bob, false, "solids-0-rod.png", "the rod");
+  await ada.keyboard.press("v");
+  await ada.mouse.click(X0, (Y0 + Y1) / 2);
+  await until("the square selected", async () => JSON.stringify(await ada.evaluate(() => window.penmesh.selected)) === JSON.stringify([plate]));
+  assert.ok(await ada.isVisible("#selection-solid"), "the selection's panel has a solid row");
+  assert.equal(await ada.getAttribute("#solid-line", "aria-pressed"), "true", "the row says the stroke is a line");
+  await ada.click("#solid-filled");
+  await stored(base, s, { [plate]: { kind: "filled", depth: 24 } }, "Filled");
+  await until("the row says Filled", async () => (await ada.getAttribute("#solid-filled", "aria-pressed")) === "true");
+  await ada.fill("#selection-solid-depth", String(PLATE_DEPTH));
+  await ada.press("#selection-solid-depth", "Enter");
+  const filled = { kind: "filled", depth: PLATE_DEPTH };
+  await stored(base, s, { [plate]: filled }, "the depth typed");
+  const mm = await ada.textContent("#selection-solid .mm");
+  assert.match(mm, /px · [\d.]+ mm/, `the depth in px and the print's mm: ${mm}`);
+  await showsPlate(bob, true, "solids-1-bob-filled.png", "Filled, live on Bob's page");
+  await showsPlate(ada, true, "solids-1-ada-filled.png", "Filled on Ada's page");
+  log(`the square filled ${PLATE_DEPTH} px deep (${mm}); Bob's page shows the plate`);
+
+  // --- 2. undo and redo of the solid, two steps each --------------------------------------------
+  await ada.keyboard.press("Control+z");
+  await stored(base, s, { [plate]: { kind: "filled", depth: 24 } }, "the depth undone");
+  await ada.keyboard.press("Control+z");
+  await stored(base, s, { [plate]: ROD }, "Filled undone");
+  // The proxy stores the rod's mesh again (the page shows what it stores).
+  await until("the proxy's mesh the rod's again", async () => (await meshTriangles(base, s, plate)) === rodTriangles);
+  await showsPlate(bob, false, "solids-2-bob-undone.png", "Filled undone, on Bob's page");
+  await ada.keyboard.press("Control+Shift+z");
+  await stored(base, s, { [plate]: { kind: "filled", depth: 24 } }, "Filled redone");
+  await ada.keyboard.press("Control+Shift+z");
+  await stored(base, s, { [plate]: filled }, "the depth redone");
+  await showsPlate(bob, true, "solids-2-bob-redone.png", "redone, on Bob's page");
+  log("undo and redo of Filled and of its depth: the proxy and Bob's page followed each");
+
+  // --- 3. a hole drawn as a hole --------------------------------------------------------------
+  await ada.keyboard.press("Escape");
+  await ada.click("#tool-draw");
+  await ada.selectOption("#draw-solid", "hole");
+  const plateSeen = await look(bob, "solids-3-before-hole.png");
+  await pen(ada.cdp, square(H0, H1, K0, K1));
+  const hole = await until("the hole stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate));
+  const holeSolid = { kind: "hole", depth: 24 };
+  await stored(base, s, { [plate]: filled, [hole]: holeSolid }, "the hole drawn as one");
+  for (const [page, name] of [[bob, "bob"], [ada, "ada"]]) {
+    await until(`the hole on ${name}'s page`, async () => {
+      const seen = await look(page, `solids-3-${name}-hole.png`);
+      // Over the plate, another colour than the plate's; the plate around it as it was.
+      return !isBackground(seen.hole) && differ(seen.hole, plateSeen.plate) && !isBackground(seen.plate);
+    });
+  }
+  log("the hole, drawn as one, shows on both pages over the plate");
+
+  // --- 4. a reload keeps both ------------------------------------------------------------------
+  const beforeReload = await look(bob, "solids-4-before-reload.png");
+  await bob.reload();
+  await synced(bob);
+  await until("Bob's meshes after the reload", () => bob.evaluate(() => window.penmesh.meshes === 2));
+  await until("the plate and the hole after Bob's reload", async () => {
+    const seen = await look(bob, "solids-4-bob-reloaded.png");
+    return !differ(seen.plate, beforeReload.plate) && !differ(seen.hole, beforeReload.hole);
+  });
+  log("after a reload, Bob's page shows the plate and the hole as before");
+
+  // --- 5. an open stroke made Filled is refused in words ---------------------------------------
+  await ada.selectOption("#draw-solid", "line");
+  await pen(ada.cdp, [[600, 250], [750, 250], [750, 400]]);
+  const open = await until("the open stroke stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate && id !== hole));
+  await until("the open stroke's mesh", () => ada.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
+  await ada.keyboard.press("v");
+  await ada.mouse.click(675, 250);
+  await until("the open stroke selected", async () => JSON.stringify(await ada.evaluate(() => window.penmesh.selected)) === JSON.stringify([open]));
+  await ada.click("#solid-filled");
+  const said = await until("the refusal said on screen", async () => {
+    const [text, shown] = await ada.$eval("#notice", (n) => [n.textContent, n.classList.contains("shown")]);
+    if (!shown || !/cannot make it filled: .*an open stroke cannot be filled: its ends are [\d.]+ px apart/.test(text)) throw new Error(`the notice says "${text}"${shown ? "" : " (not shown)"}`);
+    return text;
+  });
+  await ada.screenshot({ path: join(ARTIFACTS, "solids-5-refused.png") });
+  await stored(base, s, { [plate]: filled, [hole]: holeSolid, [open]: ROD }, "nothing changed");
+  assert.equal(await ada.getAttribute("#solid-line", "aria-pressed"), "true", "the row still says Line");
+  // The refusal is no step of the history: undo takes the open stroke itself back.
+  await ada.keyboard.press("Escape");
+  await ada.keyboard.press("Control+z");
+  await stored(base, s, { [plate]: filled, [hole]: holeSolid }, "undo after a refusal takes the open stroke back");
+  log(`an open stroke filled: refused, "${said}"`);
+
+  // --- 6. the STL, through the Export menu ----------------------------------------------------
+  await ada.keyboard.press("4");
+  await ada.screenshot({ path: join(ARTIFACTS, "solids-6-3d.png") });
+  if (!(await ada.isVisible("#download"))) await ada.click("#toggle-more");
+  await ada.click("#download");
+  const [download] = await Promise.all([ada.waitForEvent("download"), ada.click("#export-stl")]);
+  const stlFile = join(ARTIFACTS, "solids.stl");
+  await download.saveAs(stlFile);
+  const info = execFileSync("prusa-slicer", ["--loglevel", "1", "--info", stlFile], { encoding: "utf8" });
+  assert.match(info, /manifold = yes/, info);
+  assert.match(info, /number_of_parts =\s+1\b/, info);
+  const value = (name) => Number(new RegExp(`${name} = ([\\d.]+)`).exec(info)[1]);
+  const box = value("size_x") * value("size_y") * value("size_z");
+  // The hole (about 5 % of the plate's area, through it) is cut out: the plate's rounded
+  // corners alone lose well under 1 %.
+  assert.ok(value("volume") < 0.97 * box, `the hole is cut out of the plate: volume ${value("volume")} of a ${box.toFixed(0)} mm³ box`);
+  log(`the STL: one manifold part, ${value("volume").toFixed(0)} mm³ of a ${box.toFixed(0)} mm³ box (the hole cut out)`);
+});
