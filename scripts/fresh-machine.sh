@@ -70,6 +70,17 @@ chmod -R u+w "$root/work/shared"
 say "checkout $(git -C "$repo" rev-parse --short HEAD) in $root/work/penmesh"
 
 cp /etc/resolv.conf "$root/etc/resolv.conf"
+# The network's, not the project's: where this machine's network re-signs TLS (an egress proxy
+# with its own CA, as on the machine this was written on), its CAs are copied in, so that the
+# chroot reaches the registries as this machine does: Debian's ca-certificates (which the
+# README's command installs) takes them in for cargo, and Node is pointed at them.
+node_ca=()
+if compgen -G '/usr/local/share/ca-certificates/*.crt' >/dev/null; then
+  mkdir -p "$root/usr/local/share/ca-certificates"
+  cp /usr/local/share/ca-certificates/*.crt "$root/usr/local/share/ca-certificates/"
+  cat /usr/local/share/ca-certificates/*.crt >"$root/etc/network-extra-ca.pem"
+  node_ca=(NODE_EXTRA_CA_CERTS=/etc/network-extra-ca.pem)
+fi
 # A chroot is no place to start daemons that a package may bring.
 printf '#!/bin/sh\nexit 101\n' >"$root/usr/sbin/policy-rc.d" && chmod +x "$root/usr/sbin/policy-rc.d"
 mount -t proc proc "$root/proc"
@@ -83,7 +94,7 @@ failed=0
 run() {
   local name=$1 command=$2 start=$SECONDS
   say "== $name: $command"
-  if chroot "$root" /usr/bin/env -i HOME=/root TERM=dumb LANG=C.UTF-8 \
+  if chroot "$root" /usr/bin/env -i HOME=/root TERM=dumb LANG=C.UTF-8 "${node_ca[@]}" \
     PATH=/root/.cargo/bin:/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
     bash -c "cd /work/penmesh && $command"; then
     say "== $name: ok in $((SECONDS - start)) s"
