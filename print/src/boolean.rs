@@ -3,12 +3,15 @@
 //! the result. The rest of the print knows nothing of the library that does them.
 //!
 //! The library is Manifold (`manifold-rs`: C++ built from the crate's vendored source with cmake
-//! and ninja), or with the cargo feature `boolmesh` the pure-Rust `boolmesh` (a rewrite of
-//! Manifold's algorithm; its convex hull is parry's), kept for the comparison of issue 48
-//! (`docs/print.md`, "The boolean library").
+//! and ninja, which `scripts/native-deps.sh build` installs). The pure-Rust `boolmesh` was tried
+//! in its place behind this boundary (issue 48): it passed every print test, but left
+//! zero-volume shells in the 1,000-stroke board and took more memory and triangles
+//! (`docs/fresh-machine.md`, "The print's boolean library").
+
+use manifold_rs::{Manifold, Mesh};
 
 /// A closed solid.
-pub struct Solid(backend::Solid);
+pub struct Solid(Manifold);
 
 /// The triangles of a solid: positions and three indices per triangle, outward.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -21,85 +24,37 @@ impl Solid {
     /// The solid bounded by `positions` (x, y, z each) and `indices` (three a triangle, counter-
     /// clockwise seen from outside); `None` when they do not bound a closed manifold.
     pub fn from_mesh(positions: &[[f32; 3]], indices: &[u32]) -> Option<Solid> {
-        backend::from_mesh(positions, indices).map(Solid)
+        let vertices: Vec<f32> = positions.iter().flatten().copied().collect();
+        let manifold = Mesh::new(&vertices, indices).to_manifold();
+        (!manifold.is_empty()).then_some(Solid(manifold))
     }
 
     /// Nothing.
     pub fn empty() -> Solid {
-        Solid(backend::empty())
+        Solid(Manifold::empty())
     }
 
     /// Its convex hull.
     pub fn hull(&self) -> Solid {
-        Solid(backend::hull(&self.0))
+        Solid(self.0.hull())
     }
 
     /// What is in either.
     pub fn union(&self, other: &Solid) -> Solid {
-        Solid(backend::union(&self.0, &other.0))
+        Solid(self.0.union(&other.0)).evaluated()
     }
 
     /// What is in `self` and not in `other`.
     pub fn difference(&self, other: &Solid) -> Solid {
-        Solid(backend::difference(&self.0, &other.0))
+        Solid(self.0.difference(&other.0)).evaluated()
     }
 
     pub fn is_empty(&self) -> bool {
-        backend::is_empty(&self.0)
+        self.0.is_empty()
     }
 
     pub fn triangles(&self) -> Triangles {
-        backend::triangles(&self.0)
-    }
-}
-
-impl std::fmt::Debug for Solid {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Solid({} triangles)", self.triangles().indices.len() / 3)
-    }
-}
-
-#[cfg(not(feature = "boolmesh"))]
-mod backend {
-    use super::Triangles;
-    use manifold_rs::{Manifold, Mesh};
-
-    pub type Solid = Manifold;
-
-    pub fn from_mesh(positions: &[[f32; 3]], indices: &[u32]) -> Option<Solid> {
-        let vertices: Vec<f32> = positions.iter().flatten().copied().collect();
-        let manifold = Mesh::new(&vertices, indices).to_manifold();
-        (!manifold.is_empty()).then_some(manifold)
-    }
-
-    pub fn empty() -> Solid {
-        Manifold::empty()
-    }
-
-    pub fn hull(solid: &Solid) -> Solid {
-        solid.hull()
-    }
-
-    /// Manifold's booleans are lazy; each is evaluated at once (`is_empty` asks for the result)
-    /// so that the caller's progress tracks the work.
-    pub fn union(a: &Solid, b: &Solid) -> Solid {
-        let united = a.union(b);
-        let _ = united.is_empty();
-        united
-    }
-
-    pub fn difference(a: &Solid, b: &Solid) -> Solid {
-        let cut = a.difference(b);
-        let _ = cut.is_empty();
-        cut
-    }
-
-    pub fn is_empty(solid: &Solid) -> bool {
-        solid.is_empty()
-    }
-
-    pub fn triangles(solid: &Solid) -> Triangles {
-        let mesh = solid.to_mesh();
+        let mesh = self.0.to_mesh();
         let props = mesh.num_props() as usize;
         let positions = mesh
             .vertices()
@@ -108,69 +63,18 @@ mod backend {
             .collect();
         Triangles { positions, indices: mesh.indices() }
     }
+
+    /// Manifold's booleans are lazy; each is evaluated at once (asking whether it is empty
+    /// does) so that the caller's progress tracks the work.
+    fn evaluated(self) -> Solid {
+        let _ = self.0.is_empty();
+        self
+    }
 }
 
-#[cfg(feature = "boolmesh")]
-mod backend {
-    use super::Triangles;
-    use boolmesh::prelude::{Manifold, OpType, compute_boolean};
-
-    /// `None` is the empty solid (boolmesh has no empty manifold).
-    pub type Solid = Option<Manifold>;
-
-    pub fn from_mesh(positions: &[[f32; 3]], indices: &[u32]) -> Option<Solid> {
-        let pos: Vec<f64> = positions.iter().flatten().map(|&v| f64::from(v)).collect();
-        let idx: Vec<usize> = indices.iter().map(|&i| i as usize).collect();
-        let manifold = Manifold::new(&pos, &idx).ok()?;
-        (manifold.nf > 0).then_some(Some(manifold))
-    }
-
-    pub fn empty() -> Solid {
-        None
-    }
-
-    pub fn hull(solid: &Solid) -> Solid {
-        let points: Vec<_> = triangles(solid)
-            .positions
-            .iter()
-            .map(|p| parry3d_f64::math::Point::new(p[0], p[1], p[2]))
-            .collect();
-        if points.len() < 4 {
-            return None;
-        }
-        let (vertices, faces) = parry3d_f64::transformation::convex_hull(&points);
-        let pos: Vec<f64> = vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-        let idx: Vec<usize> = faces.iter().flatten().map(|&i| i as usize).collect();
-        Manifold::new(&pos, &idx).ok()
-    }
-
-    fn boolean(a: &Solid, b: &Solid, op: OpType) -> Solid {
-        match (a, b) {
-            (Some(a), Some(b)) => compute_boolean(a, b, op).ok().filter(|m| m.nf > 0),
-            (Some(a), None) => Some(a.clone()),
-            (None, Some(b)) if matches!(op, OpType::Add) => Some(b.clone()),
-            _ => None,
-        }
-    }
-
-    pub fn union(a: &Solid, b: &Solid) -> Solid {
-        boolean(a, b, OpType::Add)
-    }
-
-    pub fn difference(a: &Solid, b: &Solid) -> Solid {
-        boolean(a, b, OpType::Subtract)
-    }
-
-    pub fn is_empty(solid: &Solid) -> bool {
-        solid.is_none()
-    }
-
-    pub fn triangles(solid: &Solid) -> Triangles {
-        let Some(m) = solid else { return Triangles::default() };
-        Triangles {
-            positions: m.ps.iter().map(|p| [p.x, p.y, p.z]).collect(),
-            indices: m.hs.iter().map(|h| h.tail as u32).collect(),
-        }
+impl std::fmt::Debug for Solid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Solid({} triangles)", self.triangles().indices.len() / 3)
     }
 }
 
