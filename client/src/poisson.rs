@@ -98,7 +98,7 @@ pub const BUILT: bool = cfg!(feature = "poisson");
 pub const NOT_BUILT: &str = "the Poisson mesher is not in this build: build with \
     `--features poisson` (for example `cargo run --release --features poisson --bin penmesh -- \
     mesh ...`, or `--bin penmesh-lab`); it compiles Kazhdan's PoissonRecon (C++), which needs a \
-    C++ compiler and libclang: scripts/native-deps.sh installs them with apt-get";
+    C++ compiler and libclang: `scripts/native-deps.sh test` installs them with apt-get";
 
 /// An error naming the cargo feature when this build has no Poisson mesher: the commands that
 /// need it call this before any work.
