@@ -157,13 +157,16 @@ pub fn reconstruct(cloud: &PointCloud, options: &PoissonOptions) -> anyhow::Resu
     Ok(mesh)
 }
 
-/// PoissonRecon's isosurface of the cloud: its vertices and triangles.
+/// An isosurface: its vertices and triangles.
+type Surface = (Vec<Point3<f64>>, Vec<[usize; 3]>);
+
+/// PoissonRecon's isosurface of the cloud.
 #[cfg(feature = "poisson")]
 fn poisson_recon(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     options: &PoissonOptions,
-) -> anyhow::Result<(Vec<Point3<f64>>, Vec<[usize; 3]>)> {
+) -> anyhow::Result<Surface> {
     use poissonrecon::{PoissonParamsBuilder, SolutionParametersBuilder};
     let params = PoissonParamsBuilder::default()
         .solution_params(
@@ -184,7 +187,7 @@ fn poisson_recon(
     _: &[Point3<f64>],
     _: &[Vector3<f64>],
     _: &PoissonOptions,
-) -> anyhow::Result<(Vec<Point3<f64>>, Vec<[usize; 3]>)> {
+) -> anyhow::Result<Surface> {
     anyhow::bail!(NOT_BUILT)
 }
 
