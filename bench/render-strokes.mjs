@@ -2,7 +2,8 @@
 // pressure), as perfect-freehand's outline, as the paper's straight LRPDP mesh and as the smooth
 // LRPDP mesh (the default), the meshes rendered with three.js in headless Chromium.
 //
-// Usage (from the repository root, after `cargo build --release -p penmesh-client` and
+// Usage (from the repository root, after `cargo build --release -p penmesh-client` (with
+// `--features poisson` for --meshers) and
 // `npm ci --prefix bench`):
 //   node bench/render-strokes.mjs IN.{txt,hwr,csv,json} OUT.png [--px-per-unit K] [--zoom F]
 //        [--meshers [--poisson-depth D]]

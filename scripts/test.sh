@@ -20,10 +20,16 @@ export PROPTEST_RNG_SEED=${PROPTEST_RNG_SEED:-20261126}
 # The page's dependencies from its lock file (proxy/build.rs would run this too).
 (cd client/web && npm ci --no-audit --no-fund)
 
-# The native tools: libclang and C++ for PoissonRecon, cmake and ninja for Manifold, PrusaSlicer.
-./scripts/native-deps.sh
+# The native tools: the build's (a C/C++ compiler, cmake and ninja for Manifold) and the
+# tests' (libclang for the Poisson feature, PrusaSlicer), said before the build.
+./scripts/native-deps.sh test
 
-env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets
+# The paper's Poisson mesher (PoissonRecon, C++ through bindgen) is a cargo feature of the client
+# and the lab, off by default; every build here turns it on so that its tests run and one build
+# serves all the steps.
+features=(--features penmesh-lab/poisson)
+
+env -u PENMESH_TEST_POSTGRES_URL cargo test --workspace --all-targets "${features[@]}"
 
 echo "== browser test"
 chromium=${PENMESH_CHROMIUM:-/usr/bin/chromium}
@@ -31,7 +37,7 @@ if [ ! -x "$chromium" ] && command -v apt-get >/dev/null 2>&1; then
   apt-get install -y chromium || { apt-get update && apt-get install -y chromium; } ||
     echo "could not install chromium with apt-get" >&2
 fi
-cargo build --bin penmesh --bin penmesh-proxy --bin penmesh-lab
+cargo build --bin penmesh --bin penmesh-proxy --bin penmesh-lab "${features[@]}"
 # Fails (never skips) when Chromium is still missing.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/browser.mjs
 # The drawing tool: undo, redo, the eraser, brushes and names, with two people (issue 29).
@@ -90,7 +96,8 @@ rm -rf "$glbs"
 
 if [ -n "$pg_url" ]; then
   echo "== end-to-end suite on PostgreSQL"
-  PENMESH_TEST_POSTGRES_URL=$pg_url cargo test -p penmesh-e2e --all-targets
+  PENMESH_TEST_POSTGRES_URL=$pg_url cargo test -p penmesh-e2e --all-targets \
+    --features penmesh-client/poisson
   # Each test made its own database; drop them so runs do not pile up.
   if command -v psql >/dev/null 2>&1; then
     psql "$pg_url" -Atc "select datname from pg_database where datname like 'penmesh\_%'" 2>/dev/null |

@@ -19,10 +19,12 @@
 //!
 //! This lives in the client, not in the pure `penmesh` crate, although it does no I/O: it
 //! brings a C++ library and nalgebra, which the proxy (which links `penmesh`) never needs.
+//! The C++ is behind the client's cargo feature `poisson` (off by default: its bindgen needs
+//! libclang); without it the options still parse and validate, and [`ensure_built`] and
+//! [`reconstruct`] say how to get a build that has it.
 
 use nalgebra::{Point3, Vector3};
 use penmesh::{CloudOptions, Outline, PointCloud, StrokeMesh};
-use poissonrecon::{PoissonParamsBuilder, SolutionParametersBuilder};
 
 /// Default octree depth: the paper's mesh size (a plain-float GLB of 1-4 MB for the 300-px
 /// figure-8, `docs/results.md`) in about a second.
@@ -89,6 +91,22 @@ pub fn cloud_options(cloud: PoissonCloud) -> CloudOptions {
     CloudOptions::default().dense(true).closed(cloud == PoissonCloud::Closed)
 }
 
+/// Whether this build has the Poisson mesher (the cargo feature `poisson`).
+pub const BUILT: bool = cfg!(feature = "poisson");
+
+/// What a command that needs the mesher says in a build without it.
+pub const NOT_BUILT: &str = "the Poisson mesher is not in this build: build with \
+    `--features poisson` (for example `cargo run --release --features poisson --bin penmesh -- \
+    mesh ...`, or `--bin penmesh-lab`); it compiles Kazhdan's PoissonRecon (C++), which needs a \
+    C++ compiler and libclang: `scripts/native-deps.sh test` installs them with apt-get";
+
+/// An error naming the cargo feature when this build has no Poisson mesher: the commands that
+/// need it call this before any work.
+pub fn ensure_built() -> anyhow::Result<()> {
+    anyhow::ensure!(BUILT, NOT_BUILT);
+    Ok(())
+}
+
 /// The stroke's mesh by the paper's path: the dense layered point cloud of `outline` (closed
 /// or the paper's, [`PoissonOptions::cloud`]), then [`reconstruct`]. An empty outline gives an
 /// empty mesh.
@@ -99,9 +117,11 @@ pub fn poisson_mesh(outline: &Outline, options: &PoissonOptions) -> anyhow::Resu
 /// Screened Poisson reconstruction of an oriented point cloud: the isosurface as an indexed
 /// mesh wound outward (positive signed volume), with area-weighted vertex normals. Fewer than
 /// four points, or a cloud with no extent, give an empty mesh; bad options, or a failure
-/// inside PoissonRecon, an error.
+/// inside PoissonRecon, an error; so does a build without the feature `poisson`
+/// ([`NOT_BUILT`]).
 pub fn reconstruct(cloud: &PointCloud, options: &PoissonOptions) -> anyhow::Result<StrokeMesh> {
     options.validate()?;
+    ensure_built()?;
     let points: Vec<Point3<f64>> =
         cloud.points.iter().map(|p| Point3::new(p.x, p.y, p.z)).collect();
     let normals: Vec<Vector3<f64>> =
@@ -114,20 +134,10 @@ pub fn reconstruct(cloud: &PointCloud, options: &PoissonOptions) -> anyhow::Resu
     if points.len() < 4 || !extent.is_finite() || extent <= 0.0 {
         return Ok(StrokeMesh::default());
     }
-    let params = PoissonParamsBuilder::default()
-        .solution_params(
-            SolutionParametersBuilder::default()
-                .depth(options.depth)
-                .point_weight(options.screening)
-                .build(),
-        )
-        .build();
-    let surface = poissonrecon::reconstruct_surface(&points, &normals, &params)
-        .map_err(|e| anyhow::anyhow!("Poisson reconstruction of {} points: {e}", points.len()))?;
+    let (vertices, triangles) = poisson_recon(&points, &normals, options)?;
     let positions: Vec<[f32; 3]> =
-        surface.vertices.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
-    let indices = surface
-        .triangles
+        vertices.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+    let indices = triangles
         .iter()
         .flatten()
         .map(|&i| {
@@ -145,6 +155,40 @@ pub fn reconstruct(cloud: &PointCloud, options: &PoissonOptions) -> anyhow::Resu
     }
     mesh.normals = vertex_normals(&mesh);
     Ok(mesh)
+}
+
+/// An isosurface: its vertices and triangles.
+type Surface = (Vec<Point3<f64>>, Vec<[usize; 3]>);
+
+/// PoissonRecon's isosurface of the cloud.
+#[cfg(feature = "poisson")]
+fn poisson_recon(
+    points: &[Point3<f64>],
+    normals: &[Vector3<f64>],
+    options: &PoissonOptions,
+) -> anyhow::Result<Surface> {
+    use poissonrecon::{PoissonParamsBuilder, SolutionParametersBuilder};
+    let params = PoissonParamsBuilder::default()
+        .solution_params(
+            SolutionParametersBuilder::default()
+                .depth(options.depth)
+                .point_weight(options.screening)
+                .build(),
+        )
+        .build();
+    let surface = poissonrecon::reconstruct_surface(points, normals, &params)
+        .map_err(|e| anyhow::anyhow!("Poisson reconstruction of {} points: {e}", points.len()))?;
+    Ok((surface.vertices, surface.triangles))
+}
+
+/// Without the feature there is no PoissonRecon to call ([`reconstruct`] refuses first).
+#[cfg(not(feature = "poisson"))]
+fn poisson_recon(
+    _: &[Point3<f64>],
+    _: &[Vector3<f64>],
+    _: &PoissonOptions,
+) -> anyhow::Result<Surface> {
+    anyhow::bail!(NOT_BUILT)
 }
 
 /// Each vertex's normal: the sum of its triangles' (area-weighted) normals, normalised.
@@ -168,6 +212,27 @@ fn vertex_normals(mesh: &StrokeMesh) -> Vec<[f32; 3]> {
         .collect()
 }
 
+#[cfg(not(feature = "poisson"))]
+#[cfg(test)]
+mod without_the_feature {
+    use super::*;
+
+    #[test]
+    fn the_mesher_names_the_feature_that_brings_it() {
+        // A build without `poisson`: the options still validate, and asking for a mesh says
+        // which feature to build with and what it needs, instead of a mesh or a panic.
+        let error = ensure_built().unwrap_err().to_string();
+        assert!(error.contains("--features poisson") && error.contains("libclang"), "{error}");
+        let cloud = PointCloud {
+            points: vec![glam::DVec3::ZERO, glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z],
+            normals: vec![glam::DVec3::Z; 4],
+        };
+        let error = reconstruct(&cloud, &PoissonOptions::default()).unwrap_err().to_string();
+        assert!(error.contains("--features poisson"), "{error}");
+    }
+}
+
+#[cfg(feature = "poisson")]
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,6 +4,7 @@
 //! with cmake and ninja): the pure core `penmesh` stays pure Rust.
 
 mod apart;
+pub mod boolean;
 mod ordered;
 mod pieces;
 mod solid;

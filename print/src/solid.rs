@@ -22,12 +22,11 @@
 //! **Solids** (issue 51): a stroke with a depth is the prism of its region
 //! (`penmesh::solid_region`, `penmesh::prism_mesh`: a wall of its ink, or a plate), embedded by
 //! construction, so it is not cut into pieces. The print is the union of every `line` and
-//! `filled` solid minus the union of every `hole` ([`unite`], [`subtract`]: the two booleans
-//! the backend does). A hole reaches [`HOLE_MARGIN_MM`] beyond its faces, so that a hole as deep
+//! `filled` solid minus the union of every `hole` ([`unite`], then `crate::boolean`'s difference:
+//! the two booleans the backend does). A hole reaches [`HOLE_MARGIN_MM`] beyond its faces, so that a hole as deep
 //! as the plate it is drawn on goes through it rather than leaving a skin of zero thickness.
 
 use glam::{DMat4, DVec3};
-use manifold_rs::{Manifold, Mesh};
 use penmesh::{
     Brush, DEFAULT_THICKNESS, KeptError, Outline, OutlineOptions, PIXEL_TOLERANCE, PrismVertices,
     Sample, SolidError, SolidKind, SolidOptions, StrokeMesh, fitted_outline, prism_mesh,
@@ -35,6 +34,7 @@ use penmesh::{
 };
 
 use crate::apart::apart;
+use crate::boolean::{self, Triangles};
 use crate::ordered::in_order;
 use crate::pieces::pieces;
 
@@ -232,9 +232,8 @@ pub fn print_mesh(
     let mut holes = Vec::new();
     in_order(n, stroke_pieces, |index, meshes: Result<Vec<PieceMesh>, PrintError>| {
         for piece in meshes? {
-            let solid = to_manifold(index, &piece.mesh, &placements[index])?;
-            let solid =
-                if piece.hull { Solid { manifold: solid.manifold.hull(), ..solid } } else { solid };
+            let solid = placed_solid(index, &piece.mesh, &placements[index])?;
+            let solid = if piece.hull { Placed { body: solid.body.hull(), ..solid } } else { solid };
             if strokes[index].solid.kind() == SolidKind::Hole {
                 holes.push(solid);
             } else {
@@ -264,12 +263,11 @@ pub fn print_mesh(
         united
     } else {
         let cut = unite(holes, &mut step);
-        let result = subtract(&united, &cut);
+        let result = united.difference(&cut);
         step();
         result
     };
-    let mesh = united.to_mesh();
-    to_millimetres(&mesh, options.size_mm)
+    to_millimetres(&united.triangles(), options.size_mm)
 }
 
 impl PrintOptions {
@@ -349,13 +347,13 @@ fn kept_outline(outline: &Outline, keep: &[usize]) -> Outline {
     }
 }
 
-/// The placed solid as a Manifold; a mirror (a mirroring placement, or none: [`PRINT_AXES`] is
-/// one) turns the triangles inside out, so their winding is flipped back.
-fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Solid, PrintError> {
-    let vertices: Vec<f32> = mesh
+/// The placed solid; a mirror (a mirroring placement, or none: [`PRINT_AXES`] is one) turns the
+/// triangles inside out, so their winding is flipped back.
+fn placed_solid(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Placed, PrintError> {
+    let vertices: Vec<[f32; 3]> = mesh
         .positions
         .iter()
-        .flat_map(|p| {
+        .map(|p| {
             let q = place.matrix.transform_point3(DVec3::from(p.map(f64::from)));
             [q.x as f32, q.y as f32, q.z as f32]
         })
@@ -367,31 +365,27 @@ fn to_manifold(index: usize, mesh: &StrokeMesh, place: &Placement) -> Result<Sol
         }
     }
     let triangles = indices.len() / 3;
-    let manifold = Mesh::new(&vertices, &indices).to_manifold();
-    if manifold.is_empty() {
-        return Err(PrintError::NotManifold { index, triangles });
-    }
-    let (lo, hi) =
-        vertices.chunks_exact(3).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
-            let v = DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
-            (lo.min(v), hi.max(v))
-        });
-    Ok(Solid { manifold, centre: (lo + hi) / 2.0 })
+    let body = boolean::Solid::from_mesh(&vertices, &indices)
+        .ok_or(PrintError::NotManifold { index, triangles })?;
+    let (lo, hi) = vertices.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+        let v = DVec3::from(v.map(f64::from));
+        (lo.min(v), hi.max(v))
+    });
+    Ok(Placed { body, centre: (lo + hi) / 2.0 })
 }
 
 /// A placed solid and the centre of its bounds.
-struct Solid {
-    manifold: Manifold,
+struct Placed {
+    body: boolean::Solid,
     centre: DVec3,
 }
 
 /// Unites the solids as a balanced tree of compact regions: split at the median centre across
 /// the longer side, each half united, then the two. Each union meets only its neighbours' faces
-/// and has inputs of similar size. Manifold's booleans are lazy; each is evaluated at once so
-/// that `step` (called after each union) tracks the work.
-fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
+/// and has inputs of similar size. `step` is called after each union.
+fn unite(mut solids: Vec<Placed>, step: &mut dyn FnMut()) -> boolean::Solid {
     if solids.len() <= 1 {
-        return solids.pop().map_or_else(Manifold::empty, |s| s.manifold);
+        return solids.pop().map_or_else(boolean::Solid::empty, |s| s.body);
     }
     let (lo, hi) = solids.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), s| {
         (lo.min(s.centre), hi.max(s.centre))
@@ -409,29 +403,14 @@ fn unite(mut solids: Vec<Solid>, step: &mut dyn FnMut()) -> Manifold {
     let a = unite(solids, step);
     let b = unite(right, step);
     let united = a.union(&b);
-    // Evaluates the union now (Manifold builds a lazy tree until its result is asked for).
-    let _ = united.is_empty();
     step();
     united
 }
 
-/// `solid` minus `cut`, evaluated at once: with [`unite`], the one other boolean the print
-/// asks of its backend.
-fn subtract(solid: &Manifold, cut: &Manifold) -> Manifold {
-    let result = solid.difference(cut);
-    let _ = result.is_empty();
-    result
-}
-
-/// Manifold's output mesh scaled so its longest side is `size_mm`, its lowest corner moved to
-/// the origin.
-fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
-    let props = mesh.num_props() as usize;
-    let vertices = mesh.vertices();
-    let points: Vec<DVec3> = vertices
-        .chunks_exact(props)
-        .map(|v| DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
-        .collect();
+/// The united mesh scaled so its longest side is `size_mm`, its lowest corner moved to the
+/// origin.
+fn to_millimetres(mesh: &Triangles, size_mm: f64) -> Result<PrintMesh, PrintError> {
+    let points: Vec<DVec3> = mesh.positions.iter().map(|&p| DVec3::from(p)).collect();
     let lo = points.iter().fold(DVec3::INFINITY, |a, &p| a.min(p));
     let hi = points.iter().fold(DVec3::NEG_INFINITY, |a, &p| a.max(p));
     let longest = (hi - lo).max_element();
@@ -446,5 +425,5 @@ fn to_millimetres(mesh: &Mesh, size_mm: f64) -> Result<PrintMesh, PrintError> {
             [q.x as f32, q.y as f32, q.z as f32]
         })
         .collect();
-    Ok(PrintMesh { positions: apart(positions), indices: mesh.indices() })
+    Ok(PrintMesh { positions: apart(positions), indices: mesh.indices.clone() })
 }

@@ -112,6 +112,9 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         ..PoissonOptions::default()
     };
     poisson_options.validate()?;
+    if args.mesher == Mesher::Poisson {
+        poisson::ensure_built()?;
+    }
     let brush = Brush {
         size: args.brush_size,
         pressure_response: args.pressure_response,

@@ -37,7 +37,9 @@ async fn a_killed_proxy_loses_and_duplicates_nothing() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
+    // Mid-stroke: once the proxy has stored some of it (the client's start-up takes longer on a
+    // busy machine; the stroke itself is paced in real time, about five seconds).
+    until_samples_stored(&db).await;
     let port = proxy.port;
     proxy.kill();
     std::thread::sleep(Duration::from_millis(500));
@@ -69,6 +71,28 @@ async fn a_killed_proxy_loses_and_duplicates_nothing() {
         end += n;
     }
     assert_eq!(end, stored[0].n_points);
+}
+
+/// Waits until the proxy on `db` has stored samples of a stroke (its log or its chunks); fails
+/// after a minute.
+async fn until_samples_stored(db: &std::path::Path) {
+    let url = format!("sqlite://{}?mode=ro", db.display());
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    loop {
+        if let Ok(pool) = sqlx::SqlitePool::connect(&url).await {
+            let rows: Result<i64, _> = sqlx::query_scalar(
+                "SELECT (SELECT COUNT(*) FROM stroke_log) + (SELECT COUNT(*) FROM stroke_chunks)",
+            )
+            .fetch_one(&pool)
+            .await;
+            pool.close().await;
+            if rows.is_ok_and(|n| n > 0) {
+                return;
+            }
+        }
+        assert!(std::time::Instant::now() < deadline, "no samples stored in a minute");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
 }
 
 /// Forwards TCP connections to `upstream` until told to cut every open one.
@@ -121,10 +145,13 @@ async fn network_blips_mid_stroke_lose_and_duplicate_nothing() {
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     let client = cmd.spawn().unwrap();
-    for _ in 0..2 {
-        tokio::time::sleep(Duration::from_millis(1200)).await;
-        cut.send_modify(|n| *n += 1);
-    }
+    // The first blip once the stroke is flowing (not at a fixed time after the start: the
+    // client's start-up takes longer on a busy machine), the second 1.2 s of its real-time pace
+    // later.
+    until_samples_stored(&proxy.db).await;
+    cut.send_modify(|n| *n += 1);
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    cut.send_modify(|n| *n += 1);
     let out = tokio::task::spawn_blocking(move || wait(client)).await.unwrap();
 
     // Assert

@@ -134,7 +134,7 @@ await browserTest(async ({ proxy, browser }) => {
   await until("the page to say why the file is refused", () => other.evaluate(() => window.penmesh.errors.some((e) => e.includes("junk.glb") && e.includes("not a GLB"))));
   assert.equal((await storedStrokes(base, second)).length, 0, "nothing imported");
   await drop(glb, "model.glb");
-  await until("both imported strokes shown with their meshes", () => other.evaluate(() => window.penmesh.meshes >= 2), 30000);
+  await until("both imported strokes shown with their meshes", () => other.evaluate(() => window.penmesh.meshes >= 2));
   const imported = await storedStrokes(base, second);
   assert.equal(imported.length, 2);
   const me = await other.evaluate(() => window.penmesh.me);

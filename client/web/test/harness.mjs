@@ -48,7 +48,11 @@ function freePort() {
   });
 }
 
-export async function until(what, fn, timeoutMs = 20000) {
+/// Waits until `fn` returns something truthy, polling every 100 ms; fails naming `what` (and
+/// the last answer) after `timeoutMs`. The tests wait on conditions with this, never on time:
+/// the timeout is only how long a condition may take on a busy machine before it counts as
+/// never (60 s by default: the suites must pass with both cores kept busy, docs/web.md).
+export async function until(what, fn, timeoutMs = 60000) {
   const end = Date.now() + timeoutMs;
   let last;
   while (Date.now() < end) {
@@ -61,6 +65,27 @@ export async function until(what, fn, timeoutMs = 20000) {
     await new Promise((r) => setTimeout(r, 100));
   }
   throw new Error(`timed out waiting for ${what} (last: ${last instanceof Error ? last.message : JSON.stringify(last)})`);
+}
+
+/// Resolves once `page` has rendered two more animation frames: what it drew for the last
+/// change is on the screen (three.js renders on change, in a frame callback).
+export function nextFrames(page) {
+  return page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+}
+
+/// Resizes `page` and waits until the page has laid itself out at the new size: the window, the
+/// camera (session.js's resize handler) and the ink canvas all at `{ width, height }`. Chromium
+/// fires `resize` at its next frame, later still on a busy machine (issue 48).
+export async function resizeTo(page, { width, height }) {
+  await page.setViewportSize({ width, height });
+  await until(`the page laid out at ${width}x${height}`, () =>
+    page.evaluate(([w, h]) => {
+      const rig = window.penmesh && window.penmesh.view.rig;
+      const ink = document.getElementById("ink");
+      return innerWidth === w && innerHeight === h && rig && rig.width === w && rig.height === h && ink.width === w * devicePixelRatio;
+    }, [width, height]),
+  );
+  await nextFrames(page);
 }
 
 /// Starts the proxy; `children` collects every process to stop at the end.

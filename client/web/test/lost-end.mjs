@@ -69,7 +69,7 @@ await browserTest(async ({ proxy, browser }) => {
   const cdp = await context.newCDPSession(page);
   const drawnOf = new Map(); // stroke id -> the samples drawn
   const waitAllDone = async (what, meshes) =>
-    until(what, () => page.evaluate((n) => window.penmesh.meshes >= n && !window.penmesh.pending, meshes), 30000).catch(async (err) => {
+    until(what, () => page.evaluate((n) => window.penmesh.meshes >= n && !window.penmesh.pending, meshes)).catch(async (err) => {
       const state = await page.evaluate(() => ({ unfinished: window.penmesh.unfinished, meshes: window.penmesh.meshes, errors: window.penmesh.errors }));
       throw new Error(`${err.message}; the page: ${JSON.stringify(state)}; stored: ${JSON.stringify((await strokes()).map((s) => [s.id, s.status, s.n_points]))}`);
     });

@@ -46,7 +46,8 @@ try {
   });
   await counted.goto(`${base}/s/${s100.session}#token=${s100.token}`);
   await until("100 meshes", () => counted.evaluate(() => window.penmesh.meshes >= 100), 120000);
-  await counted.waitForTimeout(500);
+  // Every request the meshes brought finished (no request for 500 ms: Playwright's idle).
+  await counted.waitForLoadState("networkidle");
   const ws = await counted.evaluate(() => window.penmesh.wsBytes);
   log(`100-stroke session: ${http} bytes over HTTP (page, script, the meshes), ${ws} bytes of WebSocket payloads, ${http + ws} in all`);
   await counted.close();

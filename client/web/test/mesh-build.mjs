@@ -42,7 +42,7 @@ await browserTest(async ({ proxy, browser }) => {
   failures = Infinity;
   asked = 0;
   await drawStroke(cdp, { x0: 200, y0: 450, dx: 5, dy: -1, n: 50 });
-  await until("the page to report the failed build", () => page.evaluate(() => window.penmesh.errors.some((e) => e.includes("cannot build the mesh"))), 30000);
+  await until("the page to report the failed build", () => page.evaluate(() => window.penmesh.errors.some((e) => e.includes("cannot build the mesh"))));
   assert.equal(asked, 4, "the first try and three more");
   const meshless = (await stored()).filter((s) => !s.has_mesh);
   assert.equal(meshless.length, 1, "one stroke without a mesh");

@@ -9,7 +9,7 @@
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, strokeMiddle, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, log, newSession, nextFrames, selectForGizmo, storedStrokes, strokeMiddle, until } from "./harness.mjs";
 
 const VIEW = { width: 1000, height: 700 };
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
@@ -135,7 +135,7 @@ browserTest(async ({ proxy, browser }) => {
   const turned = await ada.evaluate(() => window.penmesh.camera);
   assert.ok(Math.abs(turned.pitch - pitch) < 0.01, `orbited to ${turned.pitch} rad, not 60°`);
   await ada.keyboard.press("Escape");
-  await ada.waitForTimeout(100);
+  await until("Esc back to drawing", () => ada.evaluate(() => window.penmesh.tool === "draw"));
   // The back: a U standing on the seat's edge, 140 units high (its plane's y is the height, its
   // x from the plane's origin at the seat's middle).
   const back = await ada.evaluate((corners) => corners.map(([x, y]) => window.penmesh.toPage(x, y)), [[-70, 5], [-70, 140], [70, 140], [70, 5]]);
@@ -287,10 +287,10 @@ browserTest(async ({ proxy, browser }) => {
   await bob.keyboard.press("f");
   await bob.keyboard.press("o");
   await drag(bob, [500, 300], [500 - 0.5 / ORBIT_PER_PX, 300 + 1.0 / ORBIT_PER_PX], 12);
-  await bob.waitForTimeout(300);
+  await nextFrames(bob);
   await bob.screenshot({ path: join(ARTIFACTS, "model-2-bob-turned.png") });
   await drag(bob, [500, 300], [500 + 1.2 / ORBIT_PER_PX, 300 - 0.4 / ORBIT_PER_PX], 12);
-  await bob.waitForTimeout(300);
+  await nextFrames(bob);
   await bob.screenshot({ path: join(ARTIFACTS, "model-3-bob-other-side.png") });
   log("the model agrees on every page and the proxy");
 });

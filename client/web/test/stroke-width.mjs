@@ -8,7 +8,7 @@
 import { join } from "node:path";
 import assert from "node:assert/strict";
 import { readGlb } from "../src/glb.js";
-import { ARTIFACTS, browserTest, log, newSession, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, log, newSession, nextFrames, until } from "./harness.mjs";
 
 const SIZE = 24;
 const RESPONSE = 0.5;
@@ -96,7 +96,8 @@ await browserTest(async ({ proxy, browser }) => {
     }
     await until(`mesh ${i + 1}`, () => page.evaluate((w) => window.penmesh.meshes >= w && !window.penmesh.pending, i + 1));
     if (i === 0) {
-      await page.waitForTimeout(200);
+      await until("the ink gone with the mesh", () => page.evaluate(() => window.penmesh.inked === 0));
+      await nextFrames(page);
       await page.screenshot({ path: join(ARTIFACTS, "width-mesh.png"), clip });
     }
     const res = await fetch(`${base}/v1/sessions/${session}/strokes`, { headers: auth });

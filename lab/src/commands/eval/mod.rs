@@ -284,6 +284,7 @@ fn run_meshes(args: &EvalArgs, params: AcutsParams) -> anyhow::Result<()> {
         ..Default::default()
     };
     poisson.validate()?;
+    penmesh_client::poisson::ensure_built()?;
     let names = args.algos.clone().unwrap_or_else(|| split_names(MESH_ALGOS));
     let algos = algos(&names, (args.acuts.resample, params))?;
     let shapes = match &args.curves {

@@ -73,6 +73,7 @@ pub struct BenchRow {
 }
 
 pub fn run(args: &PoissonBenchArgs) -> anyhow::Result<()> {
+    poisson::ensure_built()?;
     for &depth in args.depths.iter().chain(&args.old_depths) {
         PoissonOptions { depth, ..PoissonOptions::default() }.validate()?;
     }
@@ -213,7 +214,7 @@ fn bench_markdown(rows: &[BenchRow]) -> String {
     md
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "poisson"))]
 mod tests {
     use super::*;
 

@@ -527,7 +527,7 @@ pub(super) fn mesh_markdown(rows: &[MeshEvalRow], poisson: &PoissonOptions) -> S
     md
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "poisson"))]
 mod tests {
     use super::*;
 
