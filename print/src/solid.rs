@@ -233,7 +233,8 @@ pub fn print_mesh(
     in_order(n, stroke_pieces, |index, meshes: Result<Vec<PieceMesh>, PrintError>| {
         for piece in meshes? {
             let solid = placed_solid(index, &piece.mesh, &placements[index])?;
-            let solid = if piece.hull { Placed { body: solid.body.hull(), ..solid } } else { solid };
+            let solid =
+                if piece.hull { Placed { body: solid.body.hull(), ..solid } } else { solid };
             if strokes[index].solid.kind() == SolidKind::Hole {
                 holes.push(solid);
             } else {
