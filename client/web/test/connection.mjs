@@ -36,7 +36,7 @@ const heard = [];
 const conn = new Connection({
   session,
   token: "t",
-  protocol: 5,
+  protocol: 6,
   grid: [1 / 16, 1 / 8, 1 / 1024],
   params: [1.74, 45, 0.2],
   name: "Ada",
@@ -48,7 +48,7 @@ assert.equal(ws.binaryType, "arraybuffer", "binary frames arrive as ArrayBuffers
 ws.onopen();
 const [hello] = ws.sent;
 assert.ok(hello instanceof Uint8Array, "the hello is a binary frame");
-assert.equal(decodeClient(hello).hello.protocol, 5);
+assert.equal(decodeClient(hello).hello.protocol, 6);
 assert.equal(decodeClient(hello).hello.name, "Ada");
 
 // Frames from the proxy, binary and text mixed: each reaches `on` in order, the same object.
@@ -59,7 +59,7 @@ const binary = (m) => {
 const text = (m) => ({ data: JSON.stringify(m) });
 const placement = { matrix: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 250, 0, 0, 1] };
 const messages = [
-  { welcome: { protocol: 5, session, participant: me, resume: [] } },
+  { welcome: { protocol: 6, session, participant: me, resume: [] } },
   { peer_joined: { participant: stroke, name: "Bo" } },
   { peer_stroke_begin: { participant: stroke, stroke, brush: { size: 8, pressure_response: 0.5, min_radius: 0.25, color: null } } },
   { peer_retained: { participant: stroke, stroke, first: 0, points: [[100, 200, 0, 0.5], [101.5, 200.25, 8, 0.5625]] } },
@@ -82,7 +82,7 @@ assert.doesNotThrow(() => ws.onmessage({ data: bad.buffer }));
 assert.equal(heard.length, 1);
 assert.equal(heard[0][0], "error");
 assert.equal(heard[0][1].code, "malformed");
-assert.match(heard[0][1].message, /does not decode: version byte 4: this connection speaks protocol 5/);
+assert.match(heard[0][1].message, /does not decode: version byte 4: this connection speaks protocol 6/);
 
 // A move goes binary, then in JSON when the page is switched to it.
 heard.length = 0;
