@@ -127,7 +127,36 @@ pub async fn put_solid(
         err => AppError::Internal(err.into()),
     })?;
     metrics::counter!("penmesh_strokes_total", "event" => "solid").increment(1);
-    store_built(&state, &row, glb).await.map(Json)
+    store_solid_mesh(&state, &row, solid, glb).await.map(Json)
+}
+
+/// How many times a solid's mesh is built again for a solid committed meanwhile.
+const MAX_REBUILDS: usize = 8;
+
+/// Stores `glb`, the mesh built for `solid`, as the stroke's; then, while the stroke's stored
+/// solid is another (a change committed while this one was building or storing), builds and
+/// stores that one's. Two changes at once could otherwise leave the first one's mesh stored
+/// last: whichever request stores last checks afterwards, so the mesh that stays is the one of
+/// the solid stored then (a later change stores after its own commit).
+pub(crate) async fn store_solid_mesh(
+    state: &AppState,
+    row: &StrokeRow,
+    mut solid: Solid,
+    mut glb: Vec<u8>,
+) -> Result<MeshInfo, AppError> {
+    let mut rebuilds = 0;
+    loop {
+        let stored = store_built(state, row, glb).await?;
+        let current = state.store.stroke(row.id).await?.map(|r| r.solid);
+        match current {
+            Some(current) if current != solid && rebuilds < MAX_REBUILDS => {
+                rebuilds += 1;
+                solid = current;
+                glb = built_glb(state, row, solid).await?;
+            }
+            _ => return Ok(stored),
+        }
+    }
 }
 
 /// Every solid the stroke had, oldest first (the last is its current one): each with who set

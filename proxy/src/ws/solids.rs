@@ -9,7 +9,7 @@ use penmesh::protocol::{ErrorCode, PROTOCOL_VERSION, PeerSolid, SetSolid};
 use super::connection::{AfterCommit, Connection};
 use super::error::ConnError;
 use crate::http::AppError;
-use crate::mesh_build::{built_glb, store_built};
+use crate::mesh_build::built_glb;
 use crate::store::StrokeRow;
 
 /// The first protocol version with solids (and a `HistoryStroke` that carries its placement
@@ -49,10 +49,12 @@ impl Connection {
     /// After the commit: the answer, then the stroke's new mesh stored and announced, off the
     /// connection's loop.
     pub(super) fn answer_solid(&mut self, answer: PeerSolid, row: StrokeRow, glb: Vec<u8>) {
+        let answer_solid = answer.solid;
         self.send(penmesh::protocol::ServerMessage::PeerSolid(answer));
         let state = self.state.clone();
         tokio::spawn(async move {
-            if let Err(err) = store_built(&state, &row, glb).await {
+            if let Err(err) = crate::solid::store_solid_mesh(&state, &row, answer_solid, glb).await
+            {
                 tracing::warn!(stroke = %row.id, error = %err, "storing the mesh of a stroke's new solid");
             }
         });

@@ -399,3 +399,37 @@ async fn a_solid_leaves_in_the_scene_and_comes_back_exactly_with_an_import() {
     let causes: Vec<&str> = history.solids.iter().map(|s| s.cause.as_str()).collect();
     assert_eq!(causes, vec!["import"], "imported as a plate: never a rod");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn racing_solid_changes_leave_the_mesh_of_the_solid_stored_last() {
+    // Two changes of one stroke's solid at once, round after round: whichever is stored last,
+    // the stored mesh is that solid's (the bytes the proxy builds for it alone), never the
+    // other request's mesh stored after it.
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let mut ann = Participant::join(&proxy, &session, "Ann").await;
+    let drawer = TestSession { key: ann.key.clone(), ..session.clone() };
+    let stroke = Uuid::new_v4();
+    ann.draw(stroke, &circle(1.0), 16).await;
+    let plate = r#"{"kind": "filled", "depth": 12}"#;
+    let wall = r#"{"kind": "line", "depth": 40}"#;
+    let mut alone = std::collections::HashMap::new();
+    for body in [plate, wall] {
+        assert_eq!(put_solid(&proxy, &drawer, stroke, body).await.0, 200);
+        alone.insert(body, mesh_bytes(&proxy, &session, stroke).await);
+    }
+    assert_ne!(alone[plate], alone[wall]);
+    for round in 0..100 {
+        let (a, b) = tokio::join!(
+            put_solid(&proxy, &drawer, stroke, plate),
+            put_solid(&proxy, &drawer, stroke, wall)
+        );
+        assert_eq!((a.0, b.0), (200, 200), "round {round}: {a:?} {b:?}");
+        let stored = proxy.stroke_info(&session, stroke).await["solid"].clone();
+        let body = if stored["kind"] == "filled" { plate } else { wall };
+        assert!(
+            mesh_bytes(&proxy, &session, stroke).await == alone[body],
+            "round {round}: the stored mesh is not that of the stored solid {stored}"
+        );
+    }
+}
