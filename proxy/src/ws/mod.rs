@@ -57,6 +57,7 @@ mod removals;
 mod serve;
 mod solids;
 mod strokes;
+mod versions;
 
 pub use adapter::{split, ws_handler};
 pub use error::ReadError;
