@@ -5,10 +5,16 @@
 //! A bounded job like a mesh build: at most [`MAX_PRINTS`] prints and, apart, [`MAX_SCENES`]
 //! scenes at once on a replica (the next is answered 503 `busy`), at most
 //! [`MAX_EXPORT_STROKES`] strokes, the CPU work on the blocking pool.
+//!
+//! The work runs on a task of its own (`crate::flight`), which the request waits for: a print
+//! goes on while someone waits for it or within a request timeout of its 408, is kept once
+//! made, and the same request again (the same model) is answered from it or waits for that
+//! same work (`crate::kept_prints`). A print nobody wants any more stops at its next step.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -18,9 +24,12 @@ use base64::Engine as _;
 use penmesh::protocol::StrokeStatus;
 use penmesh_print::{PrintOptions, PrintStroke};
 use serde_json::json;
+use tokio::time::Instant;
 use uuid::Uuid;
 
+use crate::flight::{Flight, Outcome, Progress, Waiter};
 use crate::http::{AppError, authorize_session};
+use crate::kept_prints::{Joined, KEPT_FOR, PrintKey};
 use crate::query::Query;
 use crate::state::AppState;
 use crate::store::StrokeRow;
@@ -60,6 +69,7 @@ pub struct ExportQuery {
     responses((status = 200, description = "the GLB (model/gltf-binary), STL (model/stl) or 3MF (model/3mf) file; asked with `Accept: application/x-ndjson`, the progress lines and the file in the last (application/x-ndjson)"),
         (status = 400, body = crate::http::ErrorBody), (status = 401, body = crate::http::ErrorBody),
         (status = 404, description = "a chosen stroke is not in the session", body = crate::http::ErrorBody),
+        (status = 408, description = "not ready within the request timeout: a print goes on and is kept, so the same request again is answered with it (docs/reliability.md)", body = crate::http::ErrorBody),
         (status = 409, description = "nothing done to export", body = crate::http::ErrorBody),
         (status = 413, description = "too many strokes", body = crate::http::ErrorBody),
         (status = 503, description = "busy: another print (or, for a scene, as many scenes as allowed) is being made", body = crate::http::ErrorBody)))]
@@ -69,7 +79,51 @@ pub async fn export_print(
     Query(query): Query<ExportQuery>,
     headers: HeaderMap,
 ) -> Result<Response, AppError> {
-    let session = authorize_session(&state, &headers, None, &session).await?;
+    // The route keeps its own request timeout (the router's is not on it), so that its 408
+    // leaves the print going on for the retry (`Waiter::timed_out`).
+    let timeout = Duration::from_secs(state.config.request_timeout_secs);
+    let deadline = Instant::now() + timeout;
+    let asked = tokio::time::timeout_at(deadline, ask(&state, &session, &query, &headers));
+    let (waiter, content_type, name) = asked.await.map_err(|_| timed_out(timeout))??;
+    if wants_progress(&headers) {
+        return Ok(progress_stream(waiter, content_type, name));
+    }
+    let file = match tokio::time::timeout_at(deadline, waiter.outcome()).await {
+        Ok(outcome) => outcome.map_err(|err| err.again())?,
+        Err(_) => {
+            waiter.timed_out(timeout);
+            return Err(timed_out(timeout));
+        }
+    };
+    let disposition = format!("attachment; filename=\"{name}\"");
+    Ok((
+        [
+            (header::CONTENT_TYPE, content_type.to_string()),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        file,
+    )
+        .into_response())
+}
+
+/// The 408 of an export not ready within the request timeout.
+fn timed_out(timeout: Duration) -> AppError {
+    AppError::TimedOut(format!(
+        "the export was not ready within the request timeout ({} s); a print goes on and is \
+         kept: the same request again is answered with it",
+        timeout.as_secs()
+    ))
+}
+
+/// The request's checks, then a waiter of its export: the print kept or being made for the
+/// same model, or new work on a task of its own; its content type and file name.
+async fn ask(
+    state: &AppState,
+    session: &str,
+    query: &ExportQuery,
+    headers: &HeaderMap,
+) -> Result<(Waiter, &'static str, String), AppError> {
+    let session = authorize_session(state, headers, None, session).await?;
     let (content_type, extension) = match query.format.as_str() {
         "stl" => ("model/stl", "stl"),
         "3mf" => ("model/3mf", "3mf"),
@@ -86,32 +140,45 @@ pub async fn export_print(
         min_thickness_mm: query.min_thickness_mm.unwrap_or(penmesh_print::DEFAULT_MIN_THICKNESS_MM),
     };
     options.validate().map_err(|e| AppError::BadRequest(e.to_string()))?;
-    let rows = chosen_rows(&state, session, query.strokes.as_deref()).await?;
-    let scene = extension == "glb";
-    let Some(permit) = state.export_permit(scene) else {
-        let (limit, what) = if scene { (MAX_SCENES, "scene") } else { (MAX_PRINTS, "print") };
-        return Err(AppError::Busy(format!(
-            "{limit} {what}(s) are being made, the limit; try again shortly"
-        )));
-    };
+    let rows = chosen_rows(state, session, query.strokes.as_deref()).await?;
     let name = format!("penmesh-{session}.{extension}");
-    let cancel = Cancel::default();
-    let job = Job { state, session, rows, options, extension, permit, cancel: cancel.clone() };
-    if wants_progress(&headers) {
-        return Ok(progress_stream(job, content_type, name, cancel));
-    }
-    // Dropped with this request (answered, timed out, or its client gone): the work stops.
-    let _stop = cancel.on_drop();
-    let file = job.file(Box::new(|_, _, _| {})).await?;
-    let disposition = format!("attachment; filename=\"{name}\"");
-    Ok((
-        [
-            (header::CONTENT_TYPE, content_type.to_string()),
-            (header::CONTENT_DISPOSITION, disposition),
-        ],
-        file,
-    )
-        .into_response())
+    let waiter = if extension == "glb" {
+        let permit = state.export_permit(true).ok_or_else(|| busy(MAX_SCENES, "scene"))?;
+        let (flight, waiter) = Flight::start();
+        let state = state.clone();
+        tokio::spawn(async move {
+            flight.report(Progress { stage: "reading", done: 0, total: rows.len() });
+            let file = crate::scene::scene_file(&state, session, &rows, options.size_mm, permit);
+            flight.finish(file.await.map(Bytes::from).map_err(Arc::new));
+        });
+        waiter
+    } else {
+        let key = PrintKey::of(session, extension, &options, &rows);
+        let kept = state.kept_prints.clone();
+        match kept.join(key.clone(), || state.export_permit(false)) {
+            None => return Err(busy(MAX_PRINTS, "print")),
+            Some(Joined::Existing(waiter)) => waiter,
+            Some(Joined::Started(flight, waiter, permit)) => {
+                let state = state.clone();
+                tokio::spawn(async move {
+                    let work = Work { rows, options, extension, permit };
+                    let file = print_file(&state, work, &flight).await;
+                    flight.finish(file.map(Bytes::from).map_err(Arc::new));
+                    if kept.finished(&key, &flight) {
+                        tokio::time::sleep(KEPT_FOR).await;
+                        kept.forget(&key, &flight);
+                    }
+                });
+                waiter
+            }
+        }
+    };
+    Ok((waiter, content_type, name))
+}
+
+/// The 503 of an export past its replica's bound.
+fn busy(limit: usize, what: &str) -> AppError {
+    AppError::Busy(format!("{limit} {what}(s) are being made, the limit; try again shortly"))
 }
 
 /// The media type a client asks with `Accept` to be told the export's progress.
@@ -129,32 +196,23 @@ fn wants_progress(headers: &HeaderMap) -> bool {
         .any(|t| t.split(';').next().is_some_and(|t| t.trim() == PROGRESS_TYPE))
 }
 
-/// Where an export is: its `stage` (`reading`, `solids`, `union`), `done` of `total`.
+/// Where an export is, told to its flight at most [`PROGRESS_LINES_PER_SECOND`] times a second
+/// (and at every new stage, and at a stage's end).
 type Report = Box<dyn FnMut(&'static str, usize, usize) + Send>;
 
-/// Whether anyone still waits for an export: set once nobody does (its request dropped,
-/// answered or timed out; a progress body dropped), and then the print's work stops at its
-/// next step.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Cancel(Arc<AtomicBool>);
-
-/// Sets its [`Cancel`] when dropped.
-pub(crate) struct CancelOnDrop(Cancel);
-
-impl Drop for CancelOnDrop {
-    fn drop(&mut self) {
-        (self.0).0.store(true, Ordering::Relaxed);
-    }
-}
-
-impl Cancel {
-    fn on_drop(&self) -> CancelOnDrop {
-        CancelOnDrop(self.clone())
-    }
-
-    fn is_set(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
-    }
+fn report_to(flight: Arc<Flight>) -> Report {
+    let mut last: Option<(&'static str, std::time::Instant)> = None;
+    let gap = Duration::from_secs(1) / PROGRESS_LINES_PER_SECOND;
+    Box::new(move |stage, done, total| {
+        let due = match last {
+            Some((at_stage, at)) => at_stage != stage || done == total || at.elapsed() >= gap,
+            None => true,
+        };
+        if due {
+            last = Some((stage, std::time::Instant::now()));
+            flight.report(Progress { stage, done, total });
+        }
+    })
 }
 
 /// The unwinding payload that stops a print's work between two steps (`print_mesh` takes no
@@ -186,71 +244,56 @@ impl Drop for Working {
     }
 }
 
-/// One export to make, its checks passed, and its permit.
-struct Job {
-    state: AppState,
-    session: Uuid,
+/// A print to make, its checks passed, and its permit.
+struct Work {
     rows: Vec<StrokeRow>,
     options: PrintOptions,
     extension: &'static str,
     permit: tokio::sync::OwnedSemaphorePermit,
-    cancel: Cancel,
-}
-
-impl Job {
-    async fn file(self, mut report: Report) -> Result<Vec<u8>, AppError> {
-        if self.extension == "glb" {
-            report("reading", 0, self.rows.len());
-            let Job { state, session, rows, options, permit, .. } = self;
-            crate::scene::scene_file(&state, session, &rows, options.size_mm, permit).await
-        } else {
-            print_file(self, report).await
-        }
-    }
 }
 
 /// The answer to an export that asked for its progress: 200 `application/x-ndjson`, a line
-/// `{"progress":{"stage","done","total"}}` per step (at most [`PROGRESS_LINES_PER_SECOND`] a
-/// second), then one line `{"file":{"content_type","name","bytes","base64"}}`, or
-/// `{"error":{"status","code","message"}}` when the export fails once the answer has begun.
-/// The job runs on its own task, holding its permit, so it is one request's work on one
-/// replica and nothing is kept between requests; once the body is dropped (the client gone),
-/// `cancel` stops it.
-fn progress_stream(job: Job, content_type: &'static str, name: String, cancel: Cancel) -> Response {
-    let (lines, received) = tokio::sync::mpsc::channel::<Bytes>(64);
-    let progress = lines.clone();
-    let mut last: Option<(&'static str, std::time::Instant)> = None;
-    let gap = std::time::Duration::from_secs(1) / PROGRESS_LINES_PER_SECOND;
-    let report: Report = Box::new(move |stage, done, total| {
-        let due = match last {
-            Some((at_stage, at)) => at_stage != stage || done == total || at.elapsed() >= gap,
-            None => true,
-        };
-        if due {
-            last = Some((stage, std::time::Instant::now()));
-            let line = json!({ "progress": { "stage": stage, "done": done, "total": total } });
-            // A full channel (a slow reader) drops the step: the next one says more.
-            let _ = progress.try_send(ndjson(&line));
+/// `{"progress":{"stage","done","total"}}` per step the flight tells, then one line
+/// `{"file":{"content_type","name","bytes","base64"}}`, or `{"error":{"status","code",
+/// "message"}}` when the export fails once the answer has begun. Once the body is dropped (the
+/// client gone), its waiter is, and a print nobody else wants stops.
+fn progress_stream(waiter: Waiter, content_type: &'static str, name: String) -> Response {
+    let progress = waiter.progress();
+    let start = Some((waiter, progress, name));
+    let body = futures_util::stream::unfold(start, move |state| async move {
+        let (waiter, mut progress, name) = state?;
+        loop {
+            tokio::select! {
+                biased;
+                outcome = waiter.outcome() => {
+                    let line = last_line(outcome, content_type, &name).await;
+                    return Some((Ok::<_, std::convert::Infallible>(line), None));
+                }
+                _ = progress.changed() => {
+                    let Some(Progress { stage, done, total }) = *progress.borrow_and_update() else {
+                        continue;
+                    };
+                    let line = json!({ "progress": { "stage": stage, "done": done, "total": total } });
+                    return Some((Ok(ndjson(&line)), Some((waiter, progress, name))));
+                }
+            }
         }
     });
-    tokio::spawn(async move {
-        let line = match job.file(report).await {
-            Ok(file) => json!({ "file": {
-                "content_type": content_type,
-                "name": name,
-                "bytes": file.len(),
-                "base64": base64::engine::general_purpose::STANDARD.encode(&file),
-            }}),
-            Err(err) => error_line(err).await,
-        };
-        let _ = lines.send(ndjson(&line)).await;
-    });
-    let stop = cancel.on_drop();
-    let body = futures_util::stream::unfold((received, stop), |(mut received, stop)| async move {
-        let line = received.recv().await?;
-        Some((Ok::<_, std::convert::Infallible>(line), (received, stop)))
-    });
     ([(header::CONTENT_TYPE, PROGRESS_TYPE)], axum::body::Body::from_stream(body)).into_response()
+}
+
+/// The last line of a progress answer: the file, or the error.
+async fn last_line(outcome: Outcome, content_type: &str, name: &str) -> Bytes {
+    let line = match outcome {
+        Ok(file) => json!({ "file": {
+            "content_type": content_type,
+            "name": name,
+            "bytes": file.len(),
+            "base64": base64::engine::general_purpose::STANDARD.encode(&file),
+        }}),
+        Err(err) => error_line(err.again()).await,
+    };
+    ndjson(&line)
 }
 
 fn ndjson(line: &serde_json::Value) -> Bytes {
@@ -303,6 +346,16 @@ async fn chosen_rows(
     if rows.is_empty() {
         return Err(AppError::Conflict("the session has no done stroke to export".into()));
     }
+    // A placement stored before translations had a bound reads, but no model holds it.
+    for row in &rows {
+        if let Err(err) = row.placement.check_translation() {
+            return Err(AppError::Conflict(format!(
+                "stroke {} cannot be exported: its placement, stored before translations were \
+                 bounded, is out of bounds: {err}; move it",
+                row.id
+            )));
+        }
+    }
     if rows.len() > MAX_EXPORT_STROKES {
         return Err(AppError::TooLarge(format!(
             "{} strokes: an export takes at most {MAX_EXPORT_STROKES}; choose some with `strokes`",
@@ -312,16 +365,21 @@ async fn chosen_rows(
     Ok(rows)
 }
 
-/// The print of the job's strokes as STL or 3MF, on the blocking pool, which holds the job's
-/// permit until the work ends; it stops between two steps once the job is cancelled.
-async fn print_file(job: Job, mut report: Report) -> Result<Vec<u8>, AppError> {
-    let Job { state, rows, options, extension, permit, cancel, .. } = job;
+/// The print of the work's strokes as STL or 3MF, on the blocking pool, which holds the
+/// work's permit until it ends; it stops between two steps once `flight` is not wanted.
+async fn print_file(
+    state: &AppState,
+    work: Work,
+    flight: &Arc<Flight>,
+) -> Result<Vec<u8>, AppError> {
+    let Work { rows, options, extension, permit } = work;
+    let mut report = report_to(flight.clone());
     let ids: Vec<Uuid> = rows.iter().map(|r| r.id).collect();
     let mut simplified = HashMap::with_capacity(ids.len());
     let mut raw = HashMap::with_capacity(ids.len());
     report("reading", 0, ids.len());
     for chunk in ids.chunks(STROKES_PER_READ) {
-        if cancel.is_set() {
+        if !flight.is_wanted() {
             return Err(cancelled());
         }
         simplified.extend(state.store.simplified_many(chunk).await?);
@@ -346,13 +404,14 @@ async fn print_file(job: Job, mut report: Report) -> Result<Vec<u8>, AppError> {
             solid: row.solid,
         });
     }
-    let working = Working::start(&state, permit);
+    let working = Working::start(state, permit);
+    let flight = flight.clone();
     let work = tokio::task::spawn_blocking(move || {
         let _working = working;
         // print_mesh's steps: one per stroke's solid, then the unions.
         let n = strokes.len();
         let mesh = penmesh_print::print_mesh(&strokes, &options, &mut |done, _| {
-            if cancel.is_set() {
+            if !flight.is_wanted() {
                 std::panic::resume_unwind(Box::new(Cancelled));
             }
             if done <= n {

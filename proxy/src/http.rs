@@ -61,8 +61,32 @@ pub enum AppError {
     /// This replica is at a limit (e.g. `max_connections`): try again later or elsewhere.
     #[error("{0}")]
     Busy(String),
+    /// Not answered within the request timeout (a route that keeps its own: the export).
+    #[error("{0}")]
+    TimedOut(String),
     #[error("internal error")]
     Internal(#[from] anyhow::Error),
+}
+
+impl AppError {
+    /// The same error again, for each request answered with one outcome (an export's waiters,
+    /// `crate::flight`); an internal error keeps its cause as text.
+    pub fn again(&self) -> AppError {
+        match self {
+            AppError::Unauthorized => AppError::Unauthorized,
+            AppError::Forbidden(m) => AppError::Forbidden(m.clone()),
+            AppError::NotFound(m) => AppError::NotFound(m.clone()),
+            AppError::BadRequest(m) => AppError::BadRequest(m.clone()),
+            AppError::Conflict(m) => AppError::Conflict(m.clone()),
+            AppError::TooLarge(m) => AppError::TooLarge(m.clone()),
+            AppError::QuotaExceeded(m) => AppError::QuotaExceeded(m.clone()),
+            AppError::ShuttingDown => AppError::ShuttingDown,
+            AppError::TooManyRequests(wait) => AppError::TooManyRequests(*wait),
+            AppError::Busy(m) => AppError::Busy(m.clone()),
+            AppError::TimedOut(m) => AppError::TimedOut(m.clone()),
+            AppError::Internal(err) => AppError::Internal(anyhow::anyhow!("{err:#}")),
+        }
+    }
 }
 
 impl IntoResponse for AppError {
@@ -77,6 +101,7 @@ impl IntoResponse for AppError {
             AppError::QuotaExceeded(_) => (StatusCode::PAYLOAD_TOO_LARGE, "quota_exceeded"),
             AppError::ShuttingDown => (StatusCode::SERVICE_UNAVAILABLE, "shutting_down"),
             AppError::Busy(_) => (StatusCode::SERVICE_UNAVAILABLE, "busy"),
+            AppError::TimedOut(_) => (StatusCode::REQUEST_TIMEOUT, "timeout"),
             AppError::TooManyRequests(_) => (StatusCode::TOO_MANY_REQUESTS, "too_many_requests"),
             AppError::Internal(err) => {
                 tracing::error!(error = ?err, "request failed");

@@ -312,11 +312,15 @@ pub fn router(state: AppState) -> Router {
     let request_timeout = Duration::from_secs(state.config.request_timeout_secs);
     // The WebSocket lives as long as the connection: no request timeout on it.
     let websocket = Router::new().route("/v1/sessions/{session}/ws", get(ws::ws_handler));
+    // The export keeps its own request timeout, whose 408 leaves a print going on for the
+    // retry (`export::export_print`); the send deadline is the same.
+    let export = Router::new()
+        .route("/v1/sessions/{session}/export", get(export::export_print))
+        .layer(axum::middleware::from_fn_with_state(request_timeout, send_deadline::arm));
     Router::new()
         .route("/v1/sessions", post(http::create_session))
         .route("/v1/sessions/{session}/strokes", get(http::list_strokes))
         .route("/v1/sessions/{session}/meshes", get(session_meshes::session_meshes))
-        .route("/v1/sessions/{session}/export", get(export::export_print))
         .route("/v1/sessions/{session}/import", post(import::import_scene))
         .route("/v1/strokes/{id}/simplified", get(http::simplified))
         .route("/v1/strokes/{id}/raw", get(http::raw))
@@ -336,6 +340,7 @@ pub fn router(state: AppState) -> Router {
         .route("/metrics", get(http::metrics))
         .layer(TimeoutLayer::with_status_code(StatusCode::REQUEST_TIMEOUT, request_timeout))
         .layer(axum::middleware::from_fn_with_state(request_timeout, send_deadline::arm))
+        .merge(export)
         .merge(websocket)
         .layer(DefaultBodyLimit::max(body_limit))
         .layer(trace_layer())

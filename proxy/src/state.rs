@@ -64,6 +64,8 @@ pub struct Inner {
     /// Exports whose work (on the blocking pool) is running: each holds its export permit
     /// until its work has stopped (`crate::export`).
     pub exports_working: Arc<std::sync::atomic::AtomicUsize>,
+    /// The prints being made or kept on this replica, by model (`crate::kept_prints`).
+    pub kept_prints: Arc<crate::kept_prints::KeptPrints>,
     /// One permit per duplicate being made (`crate::placement::MAX_DUPLICATES`).
     duplicates: Arc<tokio::sync::Semaphore>,
     /// One permit per page of a placement history being read
@@ -118,6 +120,7 @@ impl AppState {
                 prints: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_PRINTS)),
                 scenes: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_SCENES)),
                 exports_working: Arc::default(),
+                kept_prints: Arc::default(),
                 duplicates: Arc::new(tokio::sync::Semaphore::new(crate::placement::MAX_DUPLICATES)),
                 placement_reads: Arc::new(tokio::sync::Semaphore::new(
                     crate::placement::MAX_PLACEMENT_READS,

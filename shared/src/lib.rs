@@ -72,7 +72,8 @@ pub use crate::metrics::{
     simplification_metrics,
 };
 pub use crate::placement::{
-    IDENTITY_MATRIX, MAX_SCALE, MIN_SCALE, Placement, PlacementError, SIMILARITY_TOLERANCE,
+    IDENTITY_MATRIX, MAX_SCALE, MAX_TRANSLATION, MIN_SCALE, Placement, PlacementError,
+    SIMILARITY_TOLERANCE,
 };
 pub use crate::prism::{PrismVertices, prism_mesh};
 pub use crate::region::{

@@ -14,7 +14,12 @@
 //! - the last row (`matrix[3]`, `[7]`, `[11]`, `[15]`) exactly `0, 0, 0, 1` (an affine map);
 //! - the upper-left 3×3 `A` a rotation (or a mirror) times a uniform scale `s`: `AᵀA = s²·I`
 //!   within [`SIMILARITY_TOLERANCE`], relative to `s²`;
-//! - `s` within [[`MIN_SCALE`], [`MAX_SCALE`]].
+//! - `s` within [[`MIN_SCALE`], [`MAX_SCALE`]];
+//! - each element of the translation within ±[`MAX_TRANSLATION`].
+//!
+//! A stored placement ([`Placement::from_bytes`]) is read with every check but the last, so
+//! that one stored before the translation had a bound still reads; what uses a placement's
+//! place (the export) asks [`Placement::check_translation`] and refuses it by name.
 //!
 //! The identity is the default: the board, z = 0, where every stroke stored before protocol
 //! version 5 and every stroke of an older client lies.
@@ -30,6 +35,12 @@ pub const SIMILARITY_TOLERANCE: f64 = 1e-6;
 pub const MIN_SCALE: f64 = 1e-3;
 /// Largest uniform scale of a placement.
 pub const MAX_SCALE: f64 = 1e3;
+/// Largest translation of a placement along each axis, in px: the largest sample coordinate
+/// (`MAX_COORDINATE`, 10⁶) times the largest scale, so anything a stroke can reach by its own
+/// coordinates a placement can too. Far past any real model, and far inside what `f64` keeps
+/// to the sample grid (1/16 px up to 2⁴⁹) and what a scene or a print can hold beside strokes
+/// of a few px (1e39 made every print fail; 1e20 shrank the others to nothing in a GLB).
+pub const MAX_TRANSLATION: f64 = crate::model::MAX_COORDINATE * MAX_SCALE;
 
 /// The identity matrix, column-major.
 pub const IDENTITY_MATRIX: [f64; 16] =
@@ -76,6 +87,11 @@ pub enum PlacementError {
     NotSimilarity { deviation: f64 },
     #[error("the matrix scales by {scale}, outside [{MIN_SCALE}, {MAX_SCALE}]")]
     Scale { scale: f64 },
+    #[error(
+        "matrix[{index}] = {value:e}: a translation (elements 12, 13, 14) is at most \
+         {MAX_TRANSLATION:e} px along each axis"
+    )]
+    Translation { index: usize, value: f64 },
     #[error("a stored placement is {0} bytes, not 128")]
     Stored(usize),
 }
@@ -86,6 +102,21 @@ impl Placement {
 
     /// Validates `matrix` (column-major) as a placement.
     pub fn new(matrix: [f64; 16]) -> Result<Placement, PlacementError> {
+        let placement = Placement::similarity(matrix)?;
+        placement.check_translation()?;
+        Ok(placement)
+    }
+
+    /// Whether its translation is within ±[`MAX_TRANSLATION`] along each axis.
+    pub fn check_translation(&self) -> Result<(), PlacementError> {
+        match (12..15).find(|&i| self.matrix[i].abs() > MAX_TRANSLATION) {
+            Some(index) => Err(PlacementError::Translation { index, value: self.matrix[index] }),
+            None => Ok(()),
+        }
+    }
+
+    /// Every check of [`Placement::new`] but the translation's bound.
+    fn similarity(matrix: [f64; 16]) -> Result<Placement, PlacementError> {
         if let Some((index, &value)) = matrix.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PlacementError::NonFinite { index, value });
         }
@@ -158,7 +189,8 @@ impl Placement {
         self.matrix.iter().flat_map(|v| v.to_le_bytes()).collect()
     }
 
-    /// Reads the stored form ([`Placement::to_bytes`]), validating it again.
+    /// Reads the stored form ([`Placement::to_bytes`]), validating it again, all but the
+    /// translation's bound (a placement stored before it still reads).
     pub fn from_bytes(bytes: &[u8]) -> Result<Placement, PlacementError> {
         if bytes.len() != 128 {
             return Err(PlacementError::Stored(bytes.len()));
@@ -167,7 +199,7 @@ impl Placement {
         for (value, chunk) in matrix.iter_mut().zip(bytes.chunks_exact(8)) {
             *value = f64::from_le_bytes(chunk.try_into().expect("chunks of 8"));
         }
-        Placement::new(matrix)
+        Placement::similarity(matrix)
     }
 
     /// Reads `m0,m1,…,m15` (the native client's `--placement`).
@@ -263,6 +295,32 @@ mod tests {
         let mut zero = [0.0; 16];
         zero[15] = 1.0;
         assert!(Placement::new(zero).unwrap_err().to_string().contains("scales by 0"));
+    }
+
+    // A translation is bounded on every axis, either sign, at MAX_TRANSLATION exactly; a
+    // stored one past it still reads, and says what is wrong when asked.
+    #[test]
+    fn a_translation_past_its_bound_is_refused_but_a_stored_one_reads() {
+        for index in 12..15 {
+            for sign in [1.0, -1.0] {
+                let mut m = IDENTITY_MATRIX;
+                m[index] = sign * MAX_TRANSLATION;
+                Placement::new(m).unwrap();
+                m[index] = sign * 1e39;
+                let err = Placement::new(m).unwrap_err().to_string();
+                let want = format!("matrix[{index}] = {:e}: a translation", sign * 1e39);
+                assert!(err.contains(&want) && err.contains("at most 1e9 px"), "{err}");
+            }
+        }
+        let mut m = IDENTITY_MATRIX;
+        m[13] = 1e20;
+        let stored: Vec<u8> = m.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let read = Placement::from_bytes(&stored).unwrap();
+        let err = read.check_translation().unwrap_err().to_string();
+        assert!(err.contains("matrix[13] = 1e20"), "{err}");
+        let json = r#"{"matrix":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,1e39,1]}"#;
+        let err = serde_json::from_str::<Placement>(json).unwrap_err().to_string();
+        assert!(err.contains("matrix[14] = 1e39"), "{err}");
     }
 
     // JSON, the stored bytes and the parser keep every bit; JSON refuses a bad matrix.

@@ -325,6 +325,21 @@ async fn bad_imports_are_refused_naming_what_is_wrong_and_store_nothing() {
             400,
             "not a similarity",
         ),
+        (
+            "a translation far past any model",
+            edited(&glb, |json| {
+                let node = json["nodes"]
+                    .as_array_mut()
+                    .unwrap()
+                    .iter_mut()
+                    .filter(|n| n["extras"]["penmesh"].is_object())
+                    .nth(4)
+                    .unwrap();
+                node["matrix"] = json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1e30, 0, 0, 1]);
+            }),
+            400,
+            "a translation (elements 12, 13, 14) is at most 1e9 px",
+        ),
     ];
     for (what, body, code, text) in cases {
         let (status, answer) = import(&proxy, &target, body).await;
