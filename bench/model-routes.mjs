@@ -14,6 +14,10 @@
 //     statuses, RSS at most.
 //   race: 30 pairs of duplicates of two strokes naming the same new id at once; the statuses,
 //     and whether the stored stroke's raw samples are exactly one source's.
+//   retry: a long random walk (--walk samples, 400,000 by default) and 9 duplicates beside it;
+//     a client asks for the print and, answered 408, asks again at once (503 busy: after a
+//     second), until the file or 240 s; each answer's status and time, the proxy's CPU seconds
+//     until the file, the prints it made (/metrics), then the same request again.
 //   history: 20,000 moves of one stroke, then 16 readers following its placement history page
 //     by page for 10 s; their statuses, RSS at most, the canary meanwhile.
 //
@@ -247,6 +251,85 @@ async function prints() {
   return result;
 }
 
+/// Draws one stroke of `n` samples as a seeded random walk (1.5 px a step, its heading turning
+/// a little each step, kept within a 900 px square), 4,096 a batch.
+async function drawWalk(p, n, seed = 7) {
+  let state = seed;
+  const random = () => ((state = (state * 1103515245 + 12345) % 2147483648) / 2147483648);
+  const stroke = randomUUID();
+  p.ws.send(JSON.stringify({ stroke_begin: { stroke } }));
+  let [x, y, heading] = [450, 450, 0];
+  for (let seq = 0; seq < n; seq += 4096) {
+    const points = [];
+    for (let i = seq; i < Math.min(n, seq + 4096); i++) {
+      heading += (random() - 0.5) * 0.6;
+      x += 1.5 * Math.cos(heading);
+      y += 1.5 * Math.sin(heading);
+      if (x < 0 || x > 900) heading = Math.PI - heading;
+      if (y < 0 || y > 900) heading = -heading;
+      x = Math.min(900, Math.max(0, x));
+      y = Math.min(900, Math.max(0, y));
+      points.push([Math.round(x * 16) / 16, Math.round(y * 16) / 16, i, 0.3 + 0.4 * random()]);
+    }
+    p.ws.send(JSON.stringify({ points: { stroke, seq, points } }));
+    if (seq >= 64 * 4096) await until(p, () => (p.acks.get(stroke) ?? 0) >= seq - 32 * 4096);
+  }
+  await until(p, () => (p.acks.get(stroke) ?? 0) >= n);
+  p.ws.send(JSON.stringify({ stroke_end: { stroke, n_points: n } }));
+  await until(p, () => p.done.has(stroke));
+  return stroke;
+}
+
+/// The proxy's `penmesh_prints_total{answer="made"}` (null from a proxy without it).
+async function printsMade(proxy) {
+  const text = await (await fetch(`${proxy.base}/metrics`)).text();
+  const line = text.split("\n").find((l) => l.startsWith('penmesh_prints_total{answer="made"}'));
+  return line ? Number(line.split(" ").pop()) : null;
+}
+
+async function retry() {
+  const proxy = await startProxy();
+  const { session, token } = await newSession(proxy);
+  const p = await join_(proxy, session, token);
+  const source = await drawWalk(p, Number(option("--walk", 400000)));
+  for (let i = 1; i <= 9; i++) {
+    const [status] = await duplicate(proxy, p, source, { placement: at(i * 300, (i % 3) * 300) });
+    if (status !== 201) throw new Error(`duplicate ${status}`);
+  }
+  const url = `${proxy.base}/v1/sessions/${session}/export?format=stl`;
+  const ask = async () => {
+    const started = performance.now();
+    const res = await fetch(url, { headers: { authorization: `Bearer ${token}` } });
+    const body = Buffer.from(await res.arrayBuffer());
+    return { status: res.status, s: Math.round((performance.now() - started) / 100) / 10, body };
+  };
+  const cpu0 = cpuSeconds(proxy.pid);
+  const t0 = performance.now();
+  const answers = [];
+  let file = null;
+  while (!file && performance.now() - t0 < 240000) {
+    const { status, s, body } = await ask();
+    answers.push(`${status} after ${s} s`);
+    if (status === 200) file = body;
+    else if (status === 503) await sleep(1000);
+    else if (status !== 408) throw new Error(`${status}: ${body}`);
+  }
+  const delivered_s = file ? Math.round((performance.now() - t0) / 100) / 10 : null;
+  const cpu_s = Math.round((cpuSeconds(proxy.pid) - cpu0) * 10) / 10;
+  const again = file ? await ask() : null;
+  const result = {
+    part: "retry",
+    answers,
+    delivered_s,
+    stl_bytes: file?.length ?? null,
+    cpu_s,
+    prints_made: await printsMade(proxy),
+    asked_again: again && { status: again.status, s: again.s, same_bytes: again.body.equals(file) },
+  };
+  proxy.stop();
+  return result;
+}
+
 async function duplicates() {
   const proxy = await startProxy();
   const { session, token } = await newSession(proxy);
@@ -376,7 +459,7 @@ async function history() {
   return result;
 }
 
-const all = { "wrong-token": wrongToken, prints, duplicates, scenes, race, history };
+const all = { "wrong-token": wrongToken, prints, retry, duplicates, scenes, race, history };
 for (const part of parts.length ? parts : Object.keys(all)) {
   console.log(JSON.stringify(await all[part]()));
 }
