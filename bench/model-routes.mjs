@@ -23,6 +23,7 @@
 //
 // Usage (from the repository root, after `cargo build --release -p penmesh-proxy`):
 //   node --experimental-websocket bench/model-routes.mjs [part ...] [--bin target/release/penmesh-proxy]
+//     [--timeout-secs 30] (the proxy's --request-timeout-secs) [--walk 400000] (the retry part's)
 // Prints one JSON object per part.
 import { spawn } from "node:child_process";
 import { mkdtempSync, readFileSync, rmSync } from "node:fs";
@@ -45,7 +46,9 @@ const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 async function startProxy() {
   const work = mkdtempSync(join(tmpdir(), "penmesh-model-routes-"));
   const port = 20000 + Math.floor(Math.random() * 20000);
-  const proc = spawn(BIN, ["--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`], {
+  const timeout = option("--timeout-secs", "30");
+  const settings = ["--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`, "--request-timeout-secs", timeout];
+  const proc = spawn(BIN, ["--host", "127.0.0.1", ...settings], {
     stdio: ["ignore", "ignore", "pipe"],
     env: { ...process.env, RUST_LOG: "warn" },
   });
@@ -252,7 +255,7 @@ async function prints() {
 }
 
 /// Draws one stroke of `n` samples as a seeded random walk (1.5 px a step, its heading turning
-/// a little each step, kept within a 900 px square), 4,096 a batch.
+/// a little each step, kept within a 900 px square; the pressure a slow wave), 4,096 a batch.
 async function drawWalk(p, n, seed = 7) {
   let state = seed;
   const random = () => ((state = (state * 1103515245 + 12345) % 2147483648) / 2147483648);
@@ -262,14 +265,14 @@ async function drawWalk(p, n, seed = 7) {
   for (let seq = 0; seq < n; seq += 4096) {
     const points = [];
     for (let i = seq; i < Math.min(n, seq + 4096); i++) {
-      heading += (random() - 0.5) * 0.6;
+      heading += (random() - 0.5) * 0.08;
       x += 1.5 * Math.cos(heading);
       y += 1.5 * Math.sin(heading);
       if (x < 0 || x > 900) heading = Math.PI - heading;
       if (y < 0 || y > 900) heading = -heading;
       x = Math.min(900, Math.max(0, x));
       y = Math.min(900, Math.max(0, y));
-      points.push([Math.round(x * 16) / 16, Math.round(y * 16) / 16, i, 0.3 + 0.4 * random()]);
+      points.push([Math.round(x * 16) / 16, Math.round(y * 16) / 16, i, 0.5 + 0.2 * Math.sin(i / 500)]);
     }
     p.ws.send(JSON.stringify({ points: { stroke, seq, points } }));
     if (seq >= 64 * 4096) await until(p, () => (p.acks.get(stroke) ?? 0) >= seq - 32 * 4096);
@@ -296,6 +299,7 @@ async function retry() {
     const [status] = await duplicate(proxy, p, source, { placement: at(i * 300, (i % 3) * 300) });
     if (status !== 201) throw new Error(`duplicate ${status}`);
   }
+  console.error(`walk drawn and duplicated`);
   const url = `${proxy.base}/v1/sessions/${session}/export?format=stl`;
   const ask = async () => {
     const started = performance.now();

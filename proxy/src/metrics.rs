@@ -9,7 +9,9 @@
 //! `penmesh_commit_failures_total`, `penmesh_sessions_total`, `penmesh_meshes_total`;
 //! sessions: `penmesh_fanout_events_total` (peer events sent), `penmesh_fanout_syncs_total`
 //! (history sent: joins and resyncs), `penmesh_fanout_lagged_total` (queues that overflowed),
-//! `penmesh_listener_resyncs_total` (the `LISTEN` connection dropped).
+//! `penmesh_listener_resyncs_total` (the `LISTEN` connection dropped); exports:
+//! `penmesh_prints_total{answer}` (`made`: a print's work started; `existing`: a request
+//! answered by a print kept or being made, `crate::kept_prints`).
 
 use std::sync::OnceLock;
 
@@ -93,6 +95,10 @@ fn describe() {
     describe_histogram!("penmesh_commit_batch_requests", "Write requests per group commit");
     describe_histogram!("penmesh_commit_batch_samples", "Samples per group commit");
     describe_counter!("penmesh_commit_failures_total", "Write requests that failed to commit");
+    describe_counter!(
+        "penmesh_prints_total",
+        "Print requests: made (the work started) or existing (a kept print, or one being made)"
+    );
     describe_counter!(
         "penmesh_log_set_aside_total",
         "Append-log records set aside in stroke_log_set_aside: their entries cannot be moved"
