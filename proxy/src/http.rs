@@ -463,8 +463,10 @@ pub async fn raw(
 /// What only a stroke's drawer may do with its mesh, as the refusals say it.
 pub(crate) const STORE_MESH: &str = "store or build its mesh";
 
-/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
-/// the stroke's drawer may (its participant key in `x-penmesh-key`). Vertex and triangle counts
+/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`, a mesh of the stroke's solid),
+/// replacing any earlier one; only the stroke's drawer may (its participant key in
+/// `x-penmesh-key`). A duplicate gets a mesh of its own; duplicates of the stroke that share
+/// its mesh and are another solid keep the one they showed. Vertex and triangle counts
 /// are read from the GLB's accessors. The uploader stored is the drawer's participant id. The
 /// GLB may require `KHR_mesh_quantization` and `EXT_meshopt_compression` (what penmesh writes)
 /// and no other extension; a compressed view must decode to what it claims.
@@ -509,14 +511,19 @@ pub async fn put_mesh(
     }
     let counts = crate::glb::inspect(&body, limit)
         .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
-    store_mesh(&state, &row, body.to_vec(), counts, Some(participant.to_string())).await.map(Json)
+    // An upload is taken to be of the stroke's solid when it was asked.
+    let (solid, glb) = (row.solid, body.to_vec());
+    store_mesh(&state, &row, solid, glb, counts, Some(participant.to_string())).await.map(Json)
 }
 
-/// Stores a done stroke's checked GLB and tells the session's peers (`PeerMesh`): the one path
-/// of an uploaded mesh and of one the proxy built (`crate::mesh_build`).
+/// Stores a done stroke's checked GLB, a mesh of `solid`, and tells the session's peers
+/// (`PeerMesh`): the one path of an uploaded mesh and of one the proxy built
+/// (`crate::mesh_build`). The duplicates that shared the stroke's mesh and are another solid
+/// keep the one they showed (`store/writer/sharing.rs`).
 pub(crate) async fn store_mesh(
     state: &AppState,
     row: &StrokeRow,
+    solid: penmesh::Solid,
     glb: Vec<u8>,
     counts: crate::glb::MeshCounts,
     uploader: Option<String>,
@@ -541,7 +548,7 @@ pub(crate) async fn store_mesh(
         },
     );
     let quota = state.config.max_session_mesh_bytes;
-    let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, quota };
+    let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, solid, quota };
     state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
         WriteError::Quota(why) => AppError::QuotaExceeded(why),
         err => AppError::Internal(err.into()),

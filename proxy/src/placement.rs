@@ -246,8 +246,8 @@ const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
 
 /// Duplicates a finished stroke: a new stroke (its own id; the participant of the
 /// `x-penmesh-key` is its drawer; the source recorded as `duplicate_of`) with the same pen data
-/// (raw and simplified samples, brush, parameters), at a new placement. Its mesh is the
-/// source's, shared, never copied. The session sees it as any new stroke (its begin, samples,
+/// (raw and simplified samples, brush, parameters, solid), at a new placement. Its mesh is
+/// the source's, shared, never copied, and stays what it is when the source's changes. The session sees it as any new stroke (its begin, samples,
 /// end, mesh and `peer_placement`); a version-4 client sees it in its own plane, on top of its
 /// source. Anyone in the session may duplicate any stroke it sees. Of two requests naming the
 /// same new id one is made; the same request again (same id, source and drawer) is answered
@@ -262,7 +262,7 @@ const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
         (status = 401, body = ErrorBody),
         (status = 403, description = "no key", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
-        (status = 409, description = "the source is still being drawn or taken back, or the new id is taken", body = ErrorBody),
+        (status = 409, description = "the source is still being drawn or taken back, its solid changed while it was being duplicated, or the new id is taken", body = ErrorBody),
         (status = 413, description = "a body over 16 KiB, or the session's samples would pass its quota (`quota_exceeded`)", body = ErrorBody),
         (status = 503, description = "busy: as many duplicates as allowed are being made", body = ErrorBody)))]
 pub async fn duplicate(
@@ -304,7 +304,6 @@ pub async fn duplicate(
     let simplified = state.store.simplified(source.id).await?.ok_or_else(|| {
         anyhow::anyhow!("stroke {} is done but has no simplified samples", source.id)
     })?;
-    let mesh_of = mesh_owner(&state, source.id).await?;
     let mesh_at = state.store.mesh(source.id).await?.map(|m| m.created_at);
     let session = source.session_id;
     let n_retained = simplified.samples.len() as u64;
@@ -322,7 +321,7 @@ pub async fn duplicate(
             device: source.device.clone(),
         },
         WriteOp::CopySamples { stroke, source: source.id },
-        WriteOp::MarkDuplicate { stroke, source: source.id, mesh_of },
+        WriteOp::MarkDuplicate { stroke, source: source.id, shares: Some(source.solid) },
         place,
     ];
     let event = |kind| SessionEvent::new(session, kind);
@@ -378,18 +377,4 @@ fn made_before(
         ));
     }
     Err(AppError::Conflict(format!("stroke id {} is taken; choose a new random id", existing.id)))
-}
-
-/// The stroke whose mesh row `stroke` shows: its own, or its source's for a duplicate.
-async fn mesh_owner(state: &AppState, stroke: Uuid) -> Result<Uuid, AppError> {
-    let of: Option<Option<String>> =
-        sqlx::query_scalar("SELECT mesh_of FROM strokes WHERE id = $1")
-            .bind(stroke.to_string())
-            .fetch_optional(state.store.pool())
-            .await
-            .map_err(anyhow::Error::from)?;
-    match of.flatten() {
-        Some(id) => Ok(Uuid::parse_str(&id).map_err(anyhow::Error::from)?),
-        None => Ok(stroke),
-    }
 }

@@ -146,7 +146,7 @@ pub(crate) async fn store_solid_mesh(
 ) -> Result<MeshInfo, AppError> {
     let mut rebuilds = 0;
     loop {
-        let stored = store_built(state, row, glb).await?;
+        let stored = store_built(state, row, solid, glb).await?;
         let current = state.store.stroke(row.id).await?.map(|r| r.solid);
         match current {
             Some(current) if current != solid && rebuilds < MAX_REBUILDS => {
