@@ -4,6 +4,7 @@
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 
+mod change_history;
 mod cluster;
 mod config;
 mod events;
@@ -38,7 +39,8 @@ pub use crate::config::{Config, SqliteSync};
 pub use crate::http::READY_DB_DEADLINE;
 pub use crate::identity::participant_id;
 pub use crate::mesh_build::PROXY_UPLOADER;
-pub use crate::placement::{MAX_DUPLICATES, MAX_PLACEMENT_READS, MAX_PLACEMENTS_PAGE};
+pub use crate::change_history::{MAX_HISTORY_PAGE, MAX_HISTORY_READS};
+pub use crate::placement::MAX_DUPLICATES;
 pub use crate::scene::MAX_SCENE_SAMPLES;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;
