@@ -34,12 +34,12 @@ mod ws;
 
 // The surface the binaries, the client's in-process demo and the end-to-end tests use; the
 // rest of the crate is private to it.
+pub use crate::change_history::{MAX_HISTORY_PAGE, MAX_HISTORY_READS};
 pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, REAP_INTERVAL};
 pub use crate::config::{Config, SqliteSync};
 pub use crate::http::READY_DB_DEADLINE;
 pub use crate::identity::participant_id;
 pub use crate::mesh_build::PROXY_UPLOADER;
-pub use crate::change_history::{MAX_HISTORY_PAGE, MAX_HISTORY_READS};
 pub use crate::placement::MAX_DUPLICATES;
 pub use crate::scene::MAX_SCENE_SAMPLES;
 pub use crate::startup::{Application, router};

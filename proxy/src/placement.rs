@@ -178,8 +178,7 @@ pub async fn placements(
             cause: c.cause,
         })
     });
-    let placements =
-        begin.into_iter().map(Ok).chain(stored).collect::<anyhow::Result<Vec<_>>>()?;
+    let placements = begin.into_iter().map(Ok).chain(stored).collect::<anyhow::Result<Vec<_>>>()?;
     Ok(Json(PlacementHistory { stroke: row.id, placements, next: page.next }))
 }
 

@@ -89,8 +89,7 @@ async fn a_sources_new_solid_leaves_its_duplicates_showing_the_mesh_of_theirs() 
     }
     let meshes = || count_rows(&proxy.db, "SELECT COUNT(*) FROM meshes");
     assert_eq!(meshes().await, 1, "shared, not copied");
-    bob.wait_for(|v| copies.iter().all(|c| v.strokes.get(c).is_some_and(|s| s.meshes == 1)))
-        .await;
+    bob.wait_for(|v| copies.iter().all(|c| v.strokes.get(c).is_some_and(|s| s.meshes == 1))).await;
     let source_meshes = bob.view.strokes[&source].meshes;
 
     let (status, text) = put_solid(&proxy, &drawer, source, WALL).await;

@@ -54,7 +54,11 @@ pub(crate) async fn put_solid(
     (status, response.text().await.unwrap())
 }
 
-pub(crate) async fn mesh_bytes(proxy: &TestProxy, session: &TestSession, stroke: uuid::Uuid) -> Vec<u8> {
+pub(crate) async fn mesh_bytes(
+    proxy: &TestProxy,
+    session: &TestSession,
+    stroke: uuid::Uuid,
+) -> Vec<u8> {
     let response = proxy.get(&format!("/v1/strokes/{stroke}/mesh"), session).send().await.unwrap();
     assert_eq!(response.status(), 200);
     response.bytes().await.unwrap().to_vec()
