@@ -547,13 +547,16 @@ pub(crate) async fn store_mesh(
             created_at: mesh.created_at,
         },
     );
-    let quota = state.config.max_session_mesh_bytes;
+    let (quota, mesh_at) = (state.config.max_session_mesh_bytes, mesh.created_at);
     let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, solid, quota };
     state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
         WriteError::Quota(why) => AppError::QuotaExceeded(why),
         err => AppError::Internal(err.into()),
     })?;
     metrics::counter!("penmesh_meshes_total").increment(1);
+    if let Err(err) = tell_sharers(state, row, mesh_at).await {
+        tracing::warn!(stroke = %row.id, error = %err, "telling a stored mesh's sharers");
+    }
     Ok(MeshInfo {
         stroke: row.id,
         bytes,
@@ -561,6 +564,25 @@ pub(crate) async fn store_mesh(
         triangles: counts.triangles,
         uploader,
     })
+}
+
+/// Tells the session that the duplicates still sharing `row`'s mesh row (those of its solid)
+/// show its new mesh too, stored at `created_at`: a `peer_mesh` each, so that a page fetches
+/// it. A page fetches a stroke's current mesh, so one told never shows a wrong one; the
+/// stored mesh does not depend on it (a failure is only logged).
+async fn tell_sharers(state: &AppState, row: &StrokeRow, created_at: i64) -> anyhow::Result<()> {
+    let sharers = state.store.mesh_sharers(row.id).await?;
+    if sharers.is_empty() {
+        return Ok(());
+    }
+    let events = sharers
+        .into_iter()
+        .map(|(stroke, participant)| {
+            let kind = EventKind::Mesh { participant, stroke, created_at };
+            SessionEvent::new(row.session_id, kind)
+        })
+        .collect();
+    Ok(state.writer.write_with(Vec::new(), events).await?)
 }
 
 /// The stroke's mesh as `model/gltf-binary`, as stored: from penmesh, quantised and compressed

@@ -148,28 +148,33 @@ async fn a_sources_new_solid_leaves_its_duplicates_showing_the_mesh_of_theirs() 
 
 // The same rule for a mesh stored any other way: one built or uploaded for a source replaces
 // what its duplicates of the same solid show (a duplicate made before its source had a mesh
-// gets it); one uploaded for a duplicate is that duplicate's own, the source's untouched.
+// gets it), and a watching page is told of each; one uploaded for a duplicate is that
+// duplicate's own, the source's untouched.
 #[tokio::test]
 async fn a_mesh_built_or_uploaded_follows_the_same_rule_for_duplicates() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
     let mut ann = Participant::join(&proxy, &session, "Ann").await;
+    let mut bob = Participant::join(&proxy, &session, "Bob").await;
     let drawer = TestSession { key: ann.key.clone(), ..session.clone() };
     let source = Uuid::new_v4();
     ann.draw(source, &circle(1.0), 16).await;
     let early = duplicated(&proxy, &drawer, source).await;
     assert_eq!(mesh_status(&proxy, &session, early).await, 404, "no mesh yet");
 
-    // Built for the source: its duplicate of the same solid shows it.
+    // Built for the source: its duplicate of the same solid shows it, and a watching page is
+    // told so (a `peer_mesh` of the duplicate).
     assert_eq!(proxy.build_mesh(&drawer, source).send().await.unwrap().status(), 200);
     let built = mesh_bytes(&proxy, &session, source).await;
     assert!(mesh_bytes(&proxy, &session, early).await == built);
+    bob.wait_for(|v| v.strokes.get(&early).is_some_and(|s| s.meshes == 1)).await;
 
-    // Uploaded for the source (the same solid): the duplicate follows.
+    // Uploaded for the source (the same solid): the duplicate follows, told again.
     let upload = minimal_glb(3, 3);
     assert_eq!(proxy.put_mesh(&drawer, source, upload.clone()).send().await.unwrap().status(), 200);
     assert!(mesh_bytes(&proxy, &session, source).await == upload);
     assert!(mesh_bytes(&proxy, &session, early).await == upload);
+    bob.wait_for(|v| v.strokes.get(&early).is_some_and(|s| s.meshes == 2)).await;
 
     // Uploaded for the duplicate: its own, shown; the source's stays.
     let own = minimal_glb(4, 6);
