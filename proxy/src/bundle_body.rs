@@ -22,7 +22,7 @@ use crate::store::BundleEntry;
 /// Meshes read from storage at once for a bundle: about this many bytes (a larger mesh alone).
 pub const PIECE_BYTES: u64 = 1 << 20;
 
-/// A bundle's layout (`docs/protocol.md`, "HTTP"; `shared/src/protocol/mesh_bundle.rs`).
+/// A bundle's layout (`docs/protocol.md`, "The HTTP side"; `shared/src/protocol/mesh_bundle.rs`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, utoipa::ToSchema)]
 pub enum Layout {
     /// Per stroke its ids and its mesh.
