@@ -70,6 +70,17 @@ browserTest(async ({ proxy, browser, children }) => {
   const meshBytes = [...meshes].reduce((n, glb) => n + 4 + glb.byteLength, 0);
   assert.equal(body.byteLength, 12 + meshBytes + 173 * bundle.length);
   log(`bundle: ${body.byteLength} bytes for ${bundle.length} strokes and 2 meshes (${meshBytes} bytes)`);
+  // Bytes that are not a bundle: an Error naming where, never a stroke made up.
+  const last = bundle.length - 1;
+  const damaged = (at, set) => {
+    const copy = body.slice(0);
+    set(new DataView(copy), body.byteLength - at);
+    return copy;
+  };
+  assert.throws(() => decodeMeshBundle(body.slice(0, body.byteLength - 1)), new RegExp(`ends inside stroke ${last}`));
+  assert.throws(() => decodeMeshBundle(damaged(4, (v, at) => v.setUint32(at, 2, true))), new RegExp(`stroke ${last} shows mesh 2, but it has 2`));
+  assert.throws(() => decodeMeshBundle(damaged(13, (v, at) => v.setUint8(at, 7))), new RegExp(`stroke ${last}'s solid is of kind 7`));
+  assert.throws(() => decodeMeshBundle(body.slice(0, 10)), /ends inside its head/);
 
   const url = `${base}/s/${s.session}#token=${s.token}`;
   const open = async (name, routeSocket) => {
