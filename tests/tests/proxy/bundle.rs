@@ -117,7 +117,7 @@ async fn a_table_bundle_sends_each_mesh_once_with_every_strokes_placement_and_so
     // Every stroke the list has, in its order, with its placement, its solid and its mesh.
     let expected = listed(&proxy, &session).await;
     let got: Vec<(Uuid, Placement, Solid)> =
-        strokes.iter().map(|s| (s.stroke, s.placement.clone(), s.solid)).collect();
+        strokes.iter().map(|s| (s.stroke, s.placement, s.solid)).collect();
     assert_eq!(got, expected);
     let ids: Vec<Uuid> = strokes.iter().map(|s| s.stroke).collect();
     let mut wanted = vec![source];
