@@ -4,6 +4,7 @@
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 
+mod bundle_body;
 mod cluster;
 mod config;
 mod events;

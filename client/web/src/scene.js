@@ -85,6 +85,8 @@ void main() {
 
 /// Whether a stroke's solid (`{kind, depth}` or null: the rod) is a hole.
 export const isHole = (solid) => Boolean(solid && solid.kind === "hole");
+/// Whether two solids (`{kind, depth}`; null: the rod) are the same.
+export const sameSolid = (a, b) => (a?.kind ?? "line") === (b?.kind ?? "line") && (a?.depth ?? null) === (b?.depth ?? null);
 
 /// Whether a WebGL context is drawn on the CPU (SwiftShader, llvmpipe).
 function softwareWebGL(gl) {
@@ -273,9 +275,9 @@ export class SceneView {
   /// (the proxy builds it after the solid is set), so it is marked stale when it changed.
   setSolid(id, participant, solid) {
     const s = this.stroke(id, participant);
-    const before = s.solid || { kind: "line", depth: null };
+    const same = sameSolid(s.solid, solid);
     s.solid = solid.kind === "line" && solid.depth === null ? null : solid;
-    if (before.kind === solid.kind && before.depth === solid.depth) return;
+    if (same) return;
     if (s.mesh) s.meshStale = true;
     if (s.lifted) s.lifted.material = isHole(s.solid) ? this.holeMaterial : this.material;
     else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement, isHole(s.solid));
