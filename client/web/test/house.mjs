@@ -299,7 +299,11 @@ browserTest(async ({ proxy, browser }) => {
     data.items.add(new File([bytes], "house.glb"));
     document.dispatchEvent(new DragEvent("drop", { dataTransfer: data, bubbles: true, cancelable: true }));
   }, glb.toString("base64"));
-  await until("the house imported", async () => Object.keys(await stored(base, s)).length === 14, 30000);
+  await until("the house imported", async () => Object.keys(await stored(base, s)).length === 14);
+  // The import is a step of Ada's history once its answer has come (the page says so): its
+  // strokes reach the pages before it, on a busy machine long enough for a Ctrl+Z to take back
+  // the step before.
+  await until("the page says the import", () => ada.$eval("#notice", (n) => n.textContent === "imported 7 strokes from house.glb"));
   await settled(base, s, ada, bob, "the import");
   await ada.keyboard.press("Control+z");
   await until("the import undone in one step", async () => Object.keys(await stored(base, s)).length === 7);
