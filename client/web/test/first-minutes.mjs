@@ -27,6 +27,32 @@ async function openPage(browser, url, { viewport = DESKTOP, touch = false, brush
   return page;
 }
 
+/// Checks that `page`'s toolbar is one row: its visible controls (buttons, inputs, selects) in
+/// the window, none overlapping another, the status, the model bar or the people list. Returns
+/// their ids.
+async function toolbarFits(page, what) {
+  const { controls, others, width } = await page.evaluate(() => {
+    const box = (e) => {
+      const r = e.getBoundingClientRect();
+      return { id: e.id || e.textContent, x: r.x, y: r.y, width: r.width, height: r.height };
+    };
+    const shown = (e) => e.getClientRects().length > 0;
+    return {
+      controls: [...document.querySelectorAll("#bar button, #bar input, #bar select")].filter(shown).map(box),
+      others: ["status", "modelbar", "people"].map((id) => document.getElementById(id)).filter(shown).map(box),
+      width: innerWidth,
+    };
+  });
+  const overlap = (a, b) => a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+  const top = Math.min(...controls.map((c) => c.y));
+  for (const [i, a] of controls.entries()) {
+    assert.ok(a.x >= 0 && a.x + a.width <= width, `${what}: #${a.id} is not inside the window: ${JSON.stringify(a)}`);
+    assert.ok(a.y < top + 24, `${what}: #${a.id} is on a second row: ${JSON.stringify(a)}`);
+    for (const b of [...controls.slice(i + 1), ...others]) assert.ok(!overlap(a, b), `${what}: #${a.id} overlaps #${b.id}: ${JSON.stringify([a, b])}`);
+  }
+  return controls.map((c) => c.id);
+}
+
 const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
 
 /// Non-transparent pixels of the ink canvas, in the rectangle (all of it when none is given).
@@ -214,12 +240,23 @@ const checks = {
     }
   },
 
-  // 5. A phone: one row of large buttons, nothing covering the name or the status, a pinch
+  // 5. The toolbar is one row whatever the width: at 1000 px every control, at 800 px the rest
+  //    behind ⋯, no two controls overlapping, none over the status, the model bar or the people.
+  //    A phone: one row of large buttons, nothing covering the name or the status, a pinch
   //    zooms and draws nothing.
   async 5({ base, browser }) {
     const s = await newSession(base);
+    const desktop = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    await synced(desktop);
+    const all = await toolbarFits(desktop, "at 1000 px");
+    for (const id of ["undo", "colour", "size", "name", "fit", "copy-link", "download", "new"]) assert.ok(all.includes(id), `at 1000 px the toolbar shows #${id}: ${all}`);
+    await desktop.screenshot({ path: join(ARTIFACTS, "first-5-desktop.png") });
+    await resizeTo(desktop, { width: 800, height: 700 });
+    const narrow = await toolbarFits(desktop, "at 800 px");
+    assert.ok(narrow.includes("toggle-more") && !narrow.includes("new"), `at 800 px the rest is behind ⋯: ${narrow}`);
     const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`, { viewport: PHONE, touch: true });
     await synced(page);
+    await toolbarFits(page, "on a phone");
     const bar = await page.locator("#bar").boundingBox();
     assert.ok(bar.height <= 56, `the toolbar is ${bar.height} px high: more than one row`);
     for (const b of await page.locator("#bar button:visible").all()) {
@@ -228,12 +265,13 @@ const checks = {
     }
     await button(page, "more").click();
     const boxes = {};
-    for (const id of ["people", "name", "status"]) {
+    for (const id of ["people", "name", "status", "views"]) {
       assert.ok(await page.locator(`#${id}`).isVisible(), `#${id} is not shown`);
       boxes[id] = await page.locator(`#${id}`).boundingBox();
     }
     const overlap = (a, b) => a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
     assert.ok(!overlap(boxes.people, boxes.name) && !overlap(boxes.people, boxes.status), `the people list covers the name or the status: ${JSON.stringify(boxes)}`);
+    assert.ok(!overlap(boxes.views, boxes.status) && !overlap(boxes.views, boxes.people), `the views cover the status or the people list: ${JSON.stringify(boxes)}`);
     await page.screenshot({ path: join(ARTIFACTS, "first-5-phone-menu.png") });
     await button(page, "more").click();
     await pinch(page.cdp, [195, 500], 30, 120);
