@@ -7,25 +7,16 @@
 // target/web-test/first-*.png. Exits 1 when any check fails, naming each.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, nextFrames, pixelsAt, resizeTo, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, nextFrames, openPage as open, pixelsAt, resizeTo, sessionUrl, storedStrokes, synced, until } from "./harness.mjs";
 
-const DESKTOP = { width: 1000, height: 700 };
 const PHONE = { width: 390, height: 844 };
 
 const button = (page, name) => page.getByRole("button", { name, exact: false });
 const toolButton = (page, name) => page.locator("#bar button").filter({ hasText: name });
 
-/// Opens the session in a browser context of its own (another person); returns the page with
-/// its CDP session as `page.cdp`.
-async function openPage(browser, url, { viewport = DESKTOP, touch = false, brush = null, name = "page", permissions = [] } = {}) {
-  const context = await browser.newContext({ viewport, deviceScaleFactor: 1, hasTouch: touch, isMobile: touch, permissions });
-  if (brush) await context.addInitScript((b) => sessionStorage.setItem("penmesh:brush", JSON.stringify(b)), brush);
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  return page;
-}
+/// Opens the session as another person (harness.mjs `openPage`), not waiting for it: the checks
+/// wait for what each needs (a refused link never syncs).
+const openPage = (browser, url, options = {}) => open(browser, url, { wait: false, ...options });
 
 /// Checks that `page`'s toolbar is one row: its visible controls (buttons, inputs, selects) in
 /// the window, none overlapping another, the status, the model bar or the people list. Returns
@@ -52,8 +43,6 @@ async function toolbarFits(page, what) {
   }
   return controls.map((c) => c.id);
 }
-
-const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
 
 /// Non-transparent pixels of the ink canvas, in the rectangle (all of it when none is given).
 function inkPixels(page, rect = null) {
@@ -86,7 +75,7 @@ const checks = {
   //    E and Esc.
   async 1({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     for (const y of [200, 300, 400]) await line(page.cdp, 300, 500, y);
     await until("three meshes", () => page.evaluate(() => window.penmesh.shown === 3 && !window.penmesh.pending));
@@ -113,7 +102,7 @@ const checks = {
   //    resize. Checked by where the strokes are stored.
   async 2({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     // Nothing drawn yet: one page pixel is one unit, page (x, y) is stroke (x, y).
     await page.mouse.move(500, 350);
@@ -155,7 +144,7 @@ const checks = {
   //    meshes are in, the ink is empty.
   async 3({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`, { touch: true });
+    const page = await openPage(browser, sessionUrl(base, s), { touch: true });
     await synced(page);
     await pinch(page.cdp, [500, 350], 40, 160);
     // The touch events are handled when CDP answers: a stroke begun would be on the page now.
@@ -211,7 +200,7 @@ const checks = {
     await joiner.locator("#join-link").fill("not a link");
     await button(joiner, "Join").click();
     await until("the pasted text refused in words", () => joiner.getByText("not a session link").isVisible());
-    await joiner.locator("#join-link").fill(`${base}/s/${s.session}#token=${s.token}`);
+    await joiner.locator("#join-link").fill(sessionUrl(base, s));
     await button(joiner, "Join").click();
     await synced(joiner);
     await joiner.context().close();
@@ -246,7 +235,7 @@ const checks = {
   //    zooms and draws nothing.
   async 5({ base, browser }) {
     const s = await newSession(base);
-    const desktop = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const desktop = await openPage(browser, sessionUrl(base, s));
     await synced(desktop);
     const all = await toolbarFits(desktop, "at 1000 px");
     for (const id of ["undo", "colour", "size", "name", "fit", "copy-link", "download", "new"]) assert.ok(all.includes(id), `at 1000 px the toolbar shows #${id}: ${all}`);
@@ -254,7 +243,7 @@ const checks = {
     await resizeTo(desktop, { width: 800, height: 700 });
     const narrow = await toolbarFits(desktop, "at 800 px");
     assert.ok(narrow.includes("toggle-more") && !narrow.includes("new"), `at 800 px the rest is behind ⋯: ${narrow}`);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`, { viewport: PHONE, touch: true });
+    const page = await openPage(browser, sessionUrl(base, s), { viewport: PHONE, touch: true });
     await synced(page);
     await toolbarFits(page, "on a phone");
     const bar = await page.locator("#bar").boundingBox();
@@ -292,7 +281,7 @@ const checks = {
   //    line, not dashes. (The mesh's width against the ink: stroke-width.mjs.)
   async 6({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const ada = await openPage(browser, url, { brush: { size: 24, pressure_response: 0.5, min_radius: 0.25, color: 0x2266dd }, name: "Ada" });
     const bob = await openPage(browser, url, { name: "Bob" });
     await synced(ada);
@@ -338,7 +327,7 @@ const checks = {
   // 7. The name box selects its text, so typing replaces it; guests' colours stay apart.
   async 7({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const pages = [];
     for (let i = 0; i < 4; i++) {
       pages.push(await openPage(browser, url, { name: `guest ${i}` }));
@@ -368,7 +357,7 @@ const checks = {
   //    erasing another's stroke each say why nothing happened.
   async 8({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const ada = await openPage(browser, url, { name: "Ada" });
     await synced(ada);
     await ada.locator("#name").fill("Ada");
@@ -402,7 +391,7 @@ const checks = {
   //    three back, Redo erases them again.
   async eraser({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     for (const y of [200, 300, 400]) await line(page.cdp, 300, 500, y);
     await until("three meshes", () => page.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
@@ -427,7 +416,7 @@ const checks = {
   // 9. Sharing: "Copy link" copies the session's link; "New session" asks first.
   async 9({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const page = await openPage(browser, url, { permissions: ["clipboard-read", "clipboard-write"] });
     await synced(page);
     await button(page, "Copy link").click();

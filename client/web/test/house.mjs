@@ -19,9 +19,8 @@ import { execFileSync } from "node:child_process";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 import { decodeServer } from "../src/codec.js";
-import { ARTIFACTS, browserTest, log, newSession, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, adaAndBob, browserTest, log, newSession, openPage, polyline, sessionUrl, storedStrokes, until } from "./harness.mjs";
 
-const VIEW = { width: 1000, height: 700 };
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
 // The floor, in page pixels (one unit of the board each at the page's first view).
 const [X0, X1, Y0, Y1] = [300, 500, 250, 450];
@@ -34,29 +33,6 @@ async function act(what, fn) {
   actions += 1;
   steps.push(what);
   await fn();
-}
-
-async function openPage(browser, url, name, { holdPlacements = false } = {}) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1, acceptDownloads: true });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  if (holdPlacements) await holdPlacementFrames(page);
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-  return page;
-}
-
-async function pen(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
 }
 
 /// Routes `page`'s WebSocket through the test, which holds back every `peer_placement` frame the
@@ -156,14 +132,10 @@ const near = (a, b, tol = 0.5) => Math.abs(a - b) <= tol;
 
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
-  const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
-  await ada.bringToFront();
+  const { s, ada, bob } = await adaAndBob(browser, base);
 
   // --- the floor: a square drawn with the pen on the board ----------------------------------
-  await act("pen: the floor", () => pen(ada.cdp, [[X0, Y0], [X1, Y0], [X1, Y1], [X0, Y1], [X0, Y0]]));
+  await act("pen: the floor", () => polyline(ada.cdp, [[X0, Y0], [X1, Y0], [X1, Y1], [X0, Y1], [X0, Y0]]));
   await until("the floor's mesh", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
   const [floor] = Object.keys(await stored(base, s));
   await act("V (Select)", () => ada.keyboard.press("v"));
@@ -322,9 +294,9 @@ browserTest(async ({ proxy, browser }) => {
   // after the drop was made, before the position is typed. The page shows its own latest move
   // throughout, the position typed keeps the drop, and a click on the wall picks it.
   const s2 = await newSession(base);
-  const cy = await openPage(browser, `${base}/s/${s2.session}#token=${s2.token}`, "cy", { holdPlacements: true });
+  const cy = await openPage(browser, sessionUrl(base, s2), { name: "cy", prepare: holdPlacementFrames });
   await cy.bringToFront();
-  await pen(cy.cdp, [[X0, Y0], [X1, Y0], [X1, Y1], [X0, Y1], [X0, Y0]]);
+  await polyline(cy.cdp, [[X0, Y0], [X1, Y0], [X1, Y1], [X0, Y1], [X0, Y0]]);
   await until("Cy's square's mesh", () => cy.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
   const [wall] = Object.keys(await stored(base, s2));
   await cy.keyboard.press("v");

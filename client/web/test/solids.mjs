@@ -18,9 +18,8 @@
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { join } from "node:path";
-import { ARTIFACTS, browserTest, isBackground, log, newSession, pixelsAt, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, adaAndBob, browserTest, isBackground, log, pixelsAt, polyline, storedStrokes, synced, until } from "./harness.mjs";
 
-const VIEW = { width: 1000, height: 700 };
 // The plate, in page pixels (one unit of the board each at the page's first view).
 const [X0, X1, Y0, Y1] = [300, 500, 250, 450];
 // The hole: a small square inside the plate.
@@ -34,31 +33,6 @@ const TYPED_MM = 6;
 const HALF_MM = 50;
 // How far the print's thickness may be from the panel's mm: the panel rounds to 0.1 mm.
 const MM_TOLERANCE = 0.06;
-
-async function openPage(browser, url, name) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1, acceptDownloads: true });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  await synced(page);
-  return page;
-}
-
-const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-
-/// A pen stroke through the `corners`, at an even pressure.
-async function pen(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
-}
 
 const square = (x0, x1, y0, y1) => [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]];
 
@@ -107,14 +81,10 @@ async function showsPlate(page, filled, file, what) {
 
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
-  const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
-  await ada.bringToFront();
+  const { s, ada, bob } = await adaAndBob(browser, base);
 
   // --- 1. a closed square, Filled, its depth typed -----------------------------------------
-  await pen(ada.cdp, square(X0, X1, Y0, Y1));
+  await polyline(ada.cdp, square(X0, X1, Y0, Y1));
   await until("the square's mesh on both pages", async () => (await ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending)) && (await bob.evaluate(() => window.penmesh.meshes === 1)));
   const [plate] = Object.keys(await solids(base, s));
   await stored(base, s, { [plate]: ROD }, "a stroke is the rod");
@@ -158,7 +128,7 @@ browserTest(async ({ proxy, browser }) => {
   await ada.click("#tool-draw");
   await ada.selectOption("#draw-solid", "hole");
   const plateSeen = await look(bob, "solids-3-before-hole.png");
-  await pen(ada.cdp, square(H0, H1, K0, K1));
+  await polyline(ada.cdp, square(H0, H1, K0, K1));
   const hole = await until("the hole stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate));
   const holeSolid = { kind: "hole", depth: 24 };
   await stored(base, s, { [plate]: filled, [hole]: holeSolid }, "the hole drawn as one");
@@ -184,7 +154,7 @@ browserTest(async ({ proxy, browser }) => {
 
   // --- 5. an open stroke made Filled is refused in words ---------------------------------------
   await ada.selectOption("#draw-solid", "line");
-  await pen(ada.cdp, [[600, 250], [750, 250], [750, 400]]);
+  await polyline(ada.cdp, [[600, 250], [750, 250], [750, 400]]);
   const open = await until("the open stroke stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate && id !== hole));
   await until("the open stroke's mesh", () => ada.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
   await ada.keyboard.press("v");
