@@ -10,7 +10,10 @@
 // 2. the STL export (through the Export menu) is one manifold part for PrusaSlicer;
 // 3. Bob's page shows every placement the proxy stores (typed moves live on the other page);
 // 4. undo covers a typed move, a repeated duplicate, a duplicate, a delete and an import (each
-//    one step), checked on the proxy and on Bob's page.
+//    one step), checked on the proxy and on Bob's page;
+// 5. (Cy, a session of her own) the proxy's answers to moves held back and let through late
+//    leave the wall where the page last moved it;
+// 6. a click in the same task as a move picks the moved stroke where it is now.
 // The actions are counted (docs/web.md "How to model": the goal is at most 30; the user test
 // took 80-90). Screenshots: target/web-test/house-*.png.
 // Run by scripts/test.sh as `node client/web/test/house.mjs`.
@@ -19,7 +22,7 @@ import { execFileSync } from "node:child_process";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 import { decodeServer } from "../src/codec.js";
-import { ARTIFACTS, adaAndBob, browserTest, log, newSession, openPage, polyline, sessionUrl, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, VIEW, adaAndBob, browserTest, log, newSession, nextFrames, openPage, polyline, sessionUrl, storedStrokes, until } from "./harness.mjs";
 
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
 // The floor, in page pixels (one unit of the board each at the page's first view).
@@ -320,4 +323,30 @@ browserTest(async ({ proxy, browser }) => {
   assert.ok(near(late.lo[2], 0, 1e-6) && near(late.lo[1], Y1, 1e-6) && near(late.hi[1], Y1, 1e-6), `the wall dropped, at y = ${Y1}: ${JSON.stringify(late)}`);
   await click(cy, [(X0 + X1) / 2, Y1], "Cy's wall, clicked after its moves were answered", wall);
   log("moves answered late: the page kept its latest move, the typed position kept the drop, a click picked the wall");
+
+  // --- 6. a click before the page has drawn a move ---------------------------------------------
+  // Cy draws a floor under her wall, then (Select on, nothing selected) moves the wall back to
+  // stand through the middle of the page, over the floor's right edge, and clicks its right
+  // side there before the page draws another frame: the pick is of the wall where it is now,
+  // not of the floor under where it was drawn last. (A click in the same task as the move: the
+  // only way to be sure no frame comes between, so both are done in the page.)
+  await cy.keyboard.press("Escape");
+  await polyline(cy.cdp, [[X0, Y0], [X1, Y0], [X1, Y1], [X0, Y1], [X0, Y0]]);
+  await until("Cy's floor's mesh", () => cy.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
+  await cy.keyboard.press("v");
+  await nextFrames(cy); // the floor drawn: where the page draws it is where a click finds it
+  const middle = [VIEW.width / 2, VIEW.height / 2];
+  const picked = await cy.evaluate(
+    ([id, [x, y], dy]) => {
+      const m = [...window.penmesh.placements[id]];
+      m[13] += dy; // along y, to stand through the middle of the page
+      window.penmesh.place(id, m);
+      const ink = document.getElementById("ink");
+      for (const [type, buttons] of [["pointerdown", 1], ["pointerup", 0]]) ink.dispatchEvent(new PointerEvent(type, { clientX: x, clientY: y, pointerId: 9, pointerType: "mouse", button: 0, buttons, bubbles: true }));
+      return window.penmesh.selected;
+    },
+    [wall, middle, middle[1] - Y1],
+  );
+  assert.deepEqual(picked, [wall], "a click right after a move picks the wall where it is now, not the floor under it");
+  log("a click before the page drew the move picked the moved wall");
 });
