@@ -1,11 +1,12 @@
 // The selection panel's solid row (issue 51, docs/protocol.md "Solids"): what the selected
 // strokes become, Line / Filled / Hole, and the depth, in px or in the print's mm (either typed;
-// the mm at the print's scale, scene.js `mmPerUnit`, as the Export menu makes it). A change is sent over HTTP (`PUT /v1/strokes/{id}/solid`) for each of our
-// selected strokes and is one command of the page's one history: undo sets each stroke's solid
-// before it back, redo the one after. The proxy builds the new mesh before it stores the solid,
-// so a solid a stroke cannot be (an open stroke filled) is refused with its words, shown to the
-// person, and nothing changes; the stroke's new mesh comes with `peer_solid` and `peer_mesh`
-// (session.js, scene.js `setSolid`, `replaceMesh`).
+// the mm at the print's scale, scene.js `mmPerUnit`, as the Export menu makes it). A change is
+// sent over HTTP (`PUT /v1/strokes/{id}/solid`) for each of our selected strokes and is one
+// command of the page's one history: undo sets each stroke's solid before it back, redo the one
+// after. The proxy builds the new mesh before it stores the solid, so a solid a stroke cannot be
+// (an open stroke filled) is refused with its words, shown to the person, and nothing changes;
+// the stroke's new mesh comes with `peer_solid` and `peer_mesh` (session.js, scene.js
+// `setSolid`, `replaceMesh`).
 
 /// The depth (px) a stroke made Filled or Hole gets when it has none yet (the rod's).
 export const DEFAULT_DEPTH_PX = 24;
