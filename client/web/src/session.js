@@ -100,7 +100,21 @@ export function startSession(session, token) {
   editor.selectionPanel = new SelectionPanel(editor, editor.selection);
   editor.selectionPanel.addRow(addSolidRow(editor.selectionPanel, { api, key: () => conn.participantKey() }));
   attachDrawSolid(editor, $("draw-solid"));
-  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail, imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)) });
+  attachExport({
+    button: $("download"),
+    session,
+    token,
+    key: () => conn.participantKey(),
+    name: () => controls.name,
+    notice: (t) => editor.notice(t),
+    fail,
+    imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)),
+    // The print's size scales every mm the page shows (the selection's panel, the gizmo's).
+    printSize: (mm) => {
+      view.printMm = mm;
+      editor.selection.changed();
+    },
+  });
 
   // For the browser tests and the curious.
   window.penmesh = {
