@@ -4,6 +4,7 @@
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 
+mod bundle_body;
 mod change_history;
 mod cluster;
 mod config;
