@@ -43,10 +43,11 @@ const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
 const BIN = resolve(option("--bin", join(root, "target/release/penmesh-proxy")));
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-async function startProxy() {
+/// The proxy on a fresh SQLite file, with `extra` flags.
+async function startProxy(extra = []) {
   const work = mkdtempSync(join(tmpdir(), "penmesh-model-routes-"));
   const port = 20000 + Math.floor(Math.random() * 20000);
-  const proc = spawn(BIN, ["--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`], {
+  const proc = spawn(BIN, ["--host", "127.0.0.1", "--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`, ...extra], {
     stdio: ["ignore", "ignore", "pipe"],
     env: { ...process.env, RUST_LOG: "warn" },
   });
@@ -207,8 +208,12 @@ async function wrongToken() {
   return { part: "wrong-token", statuses: counts, rss_mb: { before, most, after } };
 }
 
+// The parts below measure what a session of many duplicates or moves costs, not how fast they
+// may be made: the rates of duplicates and moves are off (`--… 0`).
+const UNLIMITED = ["--duplicate-samples-per-second", "0", "--move-rate-per-second", "0"];
+
 async function prints() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 20000, 0, 3);
@@ -253,7 +258,7 @@ async function prints() {
 }
 
 async function duplicates() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 1_000_000);
@@ -275,7 +280,7 @@ async function duplicates() {
 /// Two scene exports at once of a session of one 20,000-sample zigzag (every sample retained)
 /// and `copies` duplicates of it.
 async function scenesOf(copies) {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 20000, 0, 3);
@@ -336,7 +341,7 @@ async function race() {
 /// 20,000 moves of one stroke (16 clients moving it at once), then 16 readers each following
 /// its whole placement history, page by page, over and over for 10 s, while the canary draws.
 async function history() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const stroke = await drawLong(p, 200);
