@@ -26,8 +26,8 @@
 // `--page DIR` serves the page's script from DIR/app.js (`node client/web/build.mjs DIR` in a
 // checkout of another commit) instead of the proxy's, so two pages can be paired with one
 // build of the Rust; both arms of a pair should then use it (it is sent unzipped).
-// `--save-bundle` keeps the board's mesh bundle (`GET .../meshes?placements=true`) for
-// bench/page-merge.mjs.
+// `--save-bundle` keeps the board's mesh bundle as the page reads it (`GET
+// .../meshes?layout=PMB3`) for bench/page-merge.mjs.
 //
 // `--planes 3` puts person k's strokes on plane k mod 3 (`penmesh draw --placement`, protocol
 // 5): the board, the front plane standing on it through y = 350, the side plane through x = 500
@@ -253,7 +253,7 @@ async function measurePage(context, url, expected) {
     Object.fromEntries(
       performance
         .getEntriesByType("resource")
-        .filter((e) => /\/web\/app\.js$|\/meshes(\?placements=true)?$/.test(e.name))
+        .filter((e) => /\/web\/app\.js$|\/meshes(\?placements=true|\?layout=PMB3)?$/.test(e.name))
         .map((e) => [e.name.endsWith("app.js") ? "script_ms" : "bundle_ms", Math.round(e.responseEnd)]),
     ),
   );
@@ -493,9 +493,9 @@ try {
   }
 
   if (SAVE_BUNDLE) {
-    const placed = await fetch(`${proxy.base}/v1/sessions/${session.session}/meshes?placements=true`, { headers: auth });
+    const placed = await fetch(`${proxy.base}/v1/sessions/${session.session}/meshes?layout=PMB3`, { headers: auth });
     writeFileSync(SAVE_BUNDLE, Buffer.from(await placed.arrayBuffer()));
-    log(`mesh bundle with placements: ${SAVE_BUNDLE}`);
+    log(`mesh bundle (PMB3): ${SAVE_BUNDLE}`);
   }
 
   // The board taken out through the CLI, as a user does: wall time of each `penmesh export`.

@@ -16,6 +16,11 @@
 //     and whether the stored stroke's raw samples are exactly one source's.
 //   history: 20,000 moves of one stroke, then 16 readers following its placement history page
 //     by page for 10 s; their statuses, RSS at most, the canary meanwhile.
+//   bundle: a stroke with a 1 MiB mesh (PUT …/mesh) and 100 duplicates of it; for each layout
+//     the proxy serves of PMB2 (what pages asked before) and PMB3 (what they ask now), on a proxy
+//     of its own: one request's body size and time, then 4 requests at once (gzip accepted, as
+//     browsers do: the bytes sent), RSS before and at most. The mesh's positions are scattered,
+//     so gzip shrinks it about as little as a real mesh.
 //   watchers: a 20,000-sample zigzag (every sample retained) and 8 JSON watchers reading, then
 //     200 duplicates of it asked by one client as fast as it can (4 at a time; a 429 or 503
 //     tries again after its Retry-After); the time to make them, the refusals, and per watcher
@@ -32,6 +37,8 @@ import { join, resolve, dirname } from "node:path";
 import { fileURLToPath } from "node:url";
 import { randomUUID, randomBytes } from "node:crypto";
 import net from "node:net";
+import http from "node:http";
+import { plainGlb } from "./plain-glb.mjs";
 
 const args = process.argv.slice(2);
 const option = (name, fallback) => {
@@ -386,6 +393,62 @@ async function history() {
   return result;
 }
 
+/// The mesh bundle of a stroke with a 1 MiB mesh and 100 duplicates, in `query`'s layout.
+async function bundleOf(query) {
+  const proxy = await startProxy();
+  const { session, token } = await newSession(proxy);
+  const p = await join_(proxy, session, token);
+  const source = await drawLong(p, 200);
+  const mesh = plainGlb(87381 - (87381 % 3), true); // 1 MiB, which gzip shrinks little
+  const put = await fetch(`${proxy.base}/v1/strokes/${source}/mesh`, { method: "PUT", headers: drawer(p, { "content-type": "model/gltf-binary" }), body: mesh });
+  if (!put.ok) throw new Error(`PUT mesh: ${put.status} ${await put.text()}`);
+  for (let k = 1; k <= 100; k++) {
+    const [status] = await duplicate(proxy, p, source, { placement: at(50 * k, 0) });
+    if (status !== 201) throw new Error(`duplicate ${k}: ${status}`);
+  }
+  const url = `${proxy.base}/v1/sessions/${session}/meshes${query}`;
+  // The body as sent (gzipped or not: node:http leaves it as it came).
+  const get = (gzip) =>
+    new Promise((ok, fail) => {
+      const headers = { authorization: `Bearer ${token}`, "accept-encoding": gzip ? "gzip" : "identity" };
+      http.get(url, { headers }, (res) => {
+        let bytes = 0;
+        let first = Buffer.alloc(0);
+        res.on("data", (d) => ((bytes += d.length), first.length < 4 && (first = Buffer.concat([first, d]))));
+        res.on("end", () => ok({ status: res.statusCode, bytes, layout: gzip ? "gzip" : first.subarray(0, 4).toString() }));
+      }).on("error", fail);
+    });
+  const rssBefore = Math.round(rssMb(proxy.pid));
+  let peak = rssPeak(proxy.pid);
+  const t = performance.now();
+  const one = await get(false);
+  const oneMs = Math.round(performance.now() - t);
+  const oneRss = peak();
+  peak = rssPeak(proxy.pid);
+  const t4 = performance.now();
+  const four = await Promise.all([0, 1, 2, 3].map(() => get(true)));
+  const fourMs = Math.round(performance.now() - t4);
+  const result = {
+    query,
+    mesh_bytes: mesh.length,
+    duplicates: 100,
+    layout: one.layout,
+    body_bytes: one.bytes,
+    one_ms: oneMs,
+    rss_mb_before: rssBefore,
+    rss_mb_most_one: oneRss,
+    four_at_once_gzip: { statuses: four.map((r) => r.status), gzip_bytes: four[0].bytes, ms: fourMs, rss_mb_most: peak() },
+    rss_mb_after: Math.round(rssMb(proxy.pid)),
+  };
+  p.ws.close();
+  proxy.stop();
+  return result;
+}
+
+async function bundle() {
+  return { part: "bundle", pmb2: await bundleOf("?placements=true"), pmb3: await bundleOf("?layout=PMB3") };
+}
+
 /// A JSON watcher of the session: when it held each stroke done, its `lagged` errors, and
 /// whether the proxy dropped it.
 async function watcher(proxy, session, token) {
@@ -460,7 +523,7 @@ async function watchers() {
   return result;
 }
 
-const all = { "wrong-token": wrongToken, prints, duplicates, scenes, race, history, watchers };
+const all = { "wrong-token": wrongToken, prints, duplicates, scenes, race, history, bundle, watchers };
 for (const part of parts.length ? parts : Object.keys(all)) {
   console.log(JSON.stringify(await all[part]()));
 }

@@ -20,6 +20,7 @@ import { tmpdir } from "node:os";
 import { join, resolve, dirname } from "node:path";
 import { fileURLToPath } from "node:url";
 import { randomUUID, randomBytes } from "node:crypto";
+import { plainGlb as glb } from "./plain-glb.mjs";
 
 const args = process.argv.slice(2);
 const option = (name, fallback) => {
@@ -30,37 +31,6 @@ const part = args[0] && !args[0].startsWith("--") ? args[0] : "both";
 const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
 const BIN = resolve(option("--bin", join(root, "target/release/penmesh-proxy")));
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-
-/// A GLB of `n` vertices (a multiple of 3) as an unindexed triangle list of float positions:
-/// 12 bytes a vertex and some 300 bytes of JSON.
-function glb(n) {
-  const bin = Buffer.alloc(12 * n);
-  const json = JSON.stringify({
-    asset: { version: "2.0" },
-    buffers: [{ byteLength: bin.length }],
-    bufferViews: [{ buffer: 0, byteOffset: 0, byteLength: bin.length }],
-    accessors: [
-      { bufferView: 0, componentType: 5126, count: n, type: "VEC3", min: [0, 0, 0], max: [0, 0, 0] },
-    ],
-    meshes: [{ primitives: [{ attributes: { POSITION: 0 } }] }],
-    nodes: [{ mesh: 0 }],
-    scenes: [{ nodes: [0] }],
-    scene: 0,
-  });
-  const padded = Buffer.from(json + " ".repeat((4 - (json.length % 4)) % 4));
-  const total = 12 + 8 + padded.length + 8 + bin.length;
-  const head = Buffer.alloc(12);
-  head.write("glTF", 0);
-  head.writeUInt32LE(2, 4);
-  head.writeUInt32LE(total, 8);
-  const chunk = (data, type) => {
-    const h = Buffer.alloc(8);
-    h.writeUInt32LE(data.length, 0);
-    h.writeUInt32LE(type, 4);
-    return Buffer.concat([h, data]);
-  };
-  return Buffer.concat([head, chunk(padded, 0x4e4f534a), chunk(bin, 0x004e4942)]);
-}
 
 async function startProxy() {
   const work = mkdtempSync(join(tmpdir(), "penmesh-token-holder-"));

@@ -82,6 +82,9 @@ PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/tes
 # one, live and after a reload on a second page, undo and redo, an open stroke's refusal in
 # words, and the STL one manifold part with the hole cut out.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/solids.mjs
+# The mesh bundle the page opens a session with (PMB3): each mesh once, a stroke's duplicates
+# sharing it, every stroke at its placement and as its solid from the bundle alone.
+PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/bundle.mjs
 # The work plane at the model (the Plane tool, Front through the selection, a typed offset,
 # [ and ] by the camera), the eraser on any plane, arrow nudges, the people list's colours.
 PENMESH_BIN="${CARGO_TARGET_DIR:-$PWD/target}/debug/penmesh" node client/web/test/workplane.mjs

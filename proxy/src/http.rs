@@ -467,8 +467,10 @@ pub async fn raw(
 /// What only a stroke's drawer may do with its mesh, as the refusals say it.
 pub(crate) const STORE_MESH: &str = "store or build its mesh";
 
-/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`), replacing any earlier one; only
-/// the stroke's drawer may (its participant key in `x-penmesh-key`). Vertex and triangle counts
+/// Stores the stroke's mesh (a GLB body, `model/gltf-binary`, a mesh of the stroke's solid),
+/// replacing any earlier one; only the stroke's drawer may (its participant key in
+/// `x-penmesh-key`). A duplicate gets a mesh of its own; duplicates of the stroke that share
+/// its mesh and are another solid keep the one they showed. Vertex and triangle counts
 /// are read from the GLB's accessors. The uploader stored is the drawer's participant id. The
 /// GLB may require `KHR_mesh_quantization` and `EXT_meshopt_compression` (what penmesh writes)
 /// and no other extension; a compressed view must decode to what it claims.
@@ -513,14 +515,19 @@ pub async fn put_mesh(
     }
     let counts = crate::glb::inspect(&body, limit)
         .map_err(|e| AppError::BadRequest(format!("not a valid GLB: {e}")))?;
-    store_mesh(&state, &row, body.to_vec(), counts, Some(participant.to_string())).await.map(Json)
+    // An upload is taken to be of the stroke's solid when it was asked.
+    let (solid, glb) = (row.solid, body.to_vec());
+    store_mesh(&state, &row, solid, glb, counts, Some(participant.to_string())).await.map(Json)
 }
 
-/// Stores a done stroke's checked GLB and tells the session's peers (`PeerMesh`): the one path
-/// of an uploaded mesh and of one the proxy built (`crate::mesh_build`).
+/// Stores a done stroke's checked GLB, a mesh of `solid`, and tells the session's peers
+/// (`PeerMesh`): the one path of an uploaded mesh and of one the proxy built
+/// (`crate::mesh_build`). The duplicates that shared the stroke's mesh and are another solid
+/// keep the one they showed (`store/writer/sharing.rs`).
 pub(crate) async fn store_mesh(
     state: &AppState,
     row: &StrokeRow,
+    solid: penmesh::Solid,
     glb: Vec<u8>,
     counts: crate::glb::MeshCounts,
     uploader: Option<String>,
@@ -544,13 +551,16 @@ pub(crate) async fn store_mesh(
             created_at: mesh.created_at,
         },
     );
-    let quota = state.config.max_session_mesh_bytes;
-    let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, quota };
+    let (quota, mesh_at) = (state.config.max_session_mesh_bytes, mesh.created_at);
+    let op = WriteOp::PutMesh { stroke: row.id, session: row.session_id, mesh, solid, quota };
     state.writer.write_with(vec![op], vec![event]).await.map_err(|err| match err {
         WriteError::Quota(why) => AppError::QuotaExceeded(why),
         err => AppError::Internal(err.into()),
     })?;
     metrics::counter!("penmesh_meshes_total").increment(1);
+    if let Err(err) = tell_sharers(state, row, mesh_at).await {
+        tracing::warn!(stroke = %row.id, error = %err, "telling a stored mesh's sharers");
+    }
     Ok(MeshInfo {
         stroke: row.id,
         bytes,
@@ -558,6 +568,25 @@ pub(crate) async fn store_mesh(
         triangles: counts.triangles,
         uploader,
     })
+}
+
+/// Tells the session that the duplicates still sharing `row`'s mesh row (those of its solid)
+/// show its new mesh too, stored at `created_at`: a `peer_mesh` each, so that a page fetches
+/// it. A page fetches a stroke's current mesh, so one told never shows a wrong one; the
+/// stored mesh does not depend on it (a failure is only logged).
+async fn tell_sharers(state: &AppState, row: &StrokeRow, created_at: i64) -> anyhow::Result<()> {
+    let sharers = state.store.mesh_sharers(row.id).await?;
+    if sharers.is_empty() {
+        return Ok(());
+    }
+    let events = sharers
+        .into_iter()
+        .map(|(stroke, participant)| {
+            let kind = EventKind::Mesh { participant, stroke, created_at };
+            SessionEvent::new(row.session_id, kind)
+        })
+        .collect();
+    Ok(state.writer.write_with(Vec::new(), events).await?)
 }
 
 /// The stroke's mesh as `model/gltf-binary`, as stored: from penmesh, quantised and compressed

@@ -378,7 +378,7 @@ pub async fn import_scene(
         checked.iter().rev().map(|(stroke, c)| (c.read.extras.stroke, *stroke)).collect();
     for (stroke, c) in &checked {
         if let Some(&source) = c.read.extras.duplicate_of.and_then(|old| new_ids.get(&old)) {
-            ops.push(WriteOp::MarkDuplicate { stroke: *stroke, source, mesh_of: *stroke });
+            ops.push(WriteOp::MarkDuplicate { stroke: *stroke, source, shares: None });
         }
     }
     match state.writer.write_with(ops, events).await {
@@ -440,7 +440,7 @@ async fn store_import_mesh(
             .stroke(stroke)
             .await?
             .ok_or_else(|| anyhow::anyhow!("imported stroke {stroke} is not stored"))?;
-        store_mesh(state, &row, glb, counts, Some(PROXY_UPLOADER.into())).await
+        store_mesh(state, &row, row.solid, glb, counts, Some(PROXY_UPLOADER.into())).await
     };
     if let Err(err) = stored.await {
         tracing::warn!(%stroke, error = %err, "an imported stroke's mesh was not stored");

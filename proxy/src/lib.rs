@@ -4,6 +4,8 @@
 //!
 //! Entry points: [`Config`] (settings), [`Application`] (bind, run, shut down) and [`router`].
 
+mod bundle_body;
+mod change_history;
 mod cluster;
 mod config;
 mod events;
@@ -33,12 +35,13 @@ mod ws;
 
 // The surface the binaries, the client's in-process demo and the end-to-end tests use; the
 // rest of the crate is private to it.
+pub use crate::change_history::{MAX_HISTORY_PAGE, MAX_HISTORY_READS};
 pub use crate::cluster::{LISTENER_APPLICATION, LOCKS_APPLICATION, REAP_INTERVAL};
 pub use crate::config::{Config, SqliteSync};
 pub use crate::http::READY_DB_DEADLINE;
 pub use crate::identity::participant_id;
 pub use crate::mesh_build::PROXY_UPLOADER;
-pub use crate::placement::{MAX_DUPLICATES, MAX_PLACEMENT_READS, MAX_PLACEMENTS_PAGE};
+pub use crate::placement::MAX_DUPLICATES;
 pub use crate::scene::MAX_SCENE_SAMPLES;
 pub use crate::startup::{Application, router};
 pub use crate::state::AppState;

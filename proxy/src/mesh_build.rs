@@ -48,7 +48,7 @@ pub async fn build_mesh(
         }
     }
     let glb = built_glb(&state, &row, row.solid).await?;
-    store_built(&state, &row, glb).await.map(Json)
+    store_built(&state, &row, row.solid, glb).await.map(Json)
 }
 
 /// The GLB of `row`'s stroke as `solid`, from its stored samples: 409 when the stroke is not
@@ -97,13 +97,14 @@ pub(crate) async fn built_glb(
     .map_err(anyhow::Error::from)?
 }
 
-/// Stores and announces a GLB the proxy built for `row`'s stroke.
+/// Stores and announces a GLB the proxy built for `row`'s stroke as `solid`.
 pub(crate) async fn store_built(
     state: &AppState,
     row: &StrokeRow,
+    solid: Solid,
     glb: Vec<u8>,
 ) -> Result<MeshInfo, AppError> {
     let counts = crate::glb::inspect(&glb, state.config.max_body_bytes)
         .map_err(|e| anyhow::anyhow!("the proxy built an invalid GLB for {}: {e}", row.id))?;
-    store_mesh(state, row, glb, counts, Some(PROXY_UPLOADER.into())).await
+    store_mesh(state, row, solid, glb, counts, Some(PROXY_UPLOADER.into())).await
 }

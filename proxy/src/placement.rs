@@ -15,20 +15,21 @@ use std::time::Duration;
 
 use axum::Json;
 use axum::body::Body;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode};
 use penmesh::Placement;
 use penmesh::protocol::{
     DuplicateRequest, Duplicated, ErrorCode, ParticipantId, PlacementChange, PlacementHistory,
     StrokeId, StrokeStatus,
 };
-use sqlx::Row;
 use uuid::Uuid;
 
+use crate::change_history::{HistoryPage, PLACEMENTS, read_page};
 use crate::events::{EventKind, SessionEvent};
 use crate::http::{
     AppError, ErrorBody, SMALL_BODY_BYTES, authorized_stroke, owned_stroke, small_body,
 };
+use crate::query::Query;
 use crate::removal::Refused;
 use crate::state::AppState;
 use crate::store::{StrokeRow, WriteError, WriteOp, now_ms};
@@ -145,111 +146,55 @@ pub async fn put_placement(
     Ok(StatusCode::NO_CONTENT)
 }
 
-/// Most placements in one page of a stroke's placement history.
-pub const MAX_PLACEMENTS_PAGE: u64 = 1000;
-/// Pages of placement histories read at once on one replica: each is a millisecond or so of a
-/// request thread's CPU, and readers that loop must leave the others' work its cores; the
-/// next waits its turn (up to [`DUPLICATE_WAIT`]), then 503 `busy`.
-pub const MAX_PLACEMENT_READS: usize = 1;
-
-/// A page of a stroke's placement history.
-#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
-pub struct PlacementsPage {
-    /// The position in the history (0 is the stroke's begin) of the page's first placement
-    /// (default 0): the `next` of the page before.
-    from: Option<u64>,
-    /// Most placements in the page (default and most: 1000).
-    limit: Option<u64>,
-}
-
 /// Every placement the stroke had, oldest first (the last is its current one), a page at a
-/// time: each with who set it, when, and why (`begin`, `set`, `duplicate`). A stroke begun
-/// without one starts at the identity, listed with its drawer and its begin time. `next`, when
-/// present, is the `from` of the next page.
+/// time (`crate::change_history`): each with who set it, when, and why (`begin`, `set`,
+/// `duplicate`). A stroke begun without one starts at the identity, listed with its drawer and
+/// its begin time. `next`, when present, is the `from` of the next page.
 #[utoipa::path(get, path = "/v1/strokes/{id}/placements", tag = "strokes",
-    params(("id" = Uuid, Path), PlacementsPage),
+    params(("id" = Uuid, Path), HistoryPage),
     security(("bearer" = [])),
     responses((status = 200, body = PlacementHistory),
-        (status = 400, description = "a limit of 0", body = ErrorBody),
+        (status = 400, description = "a limit of 0, or a from or limit that is not a number", body = ErrorBody),
         (status = 401, body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
         (status = 503, description = "busy: as many histories as allowed are being read", body = ErrorBody)))]
 pub async fn placements(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    Query(page): Query<PlacementsPage>,
+    Query(page): Query<HistoryPage>,
     headers: HeaderMap,
 ) -> Result<Json<PlacementHistory>, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let limit = match page.limit {
-        Some(0) => return Err(AppError::BadRequest("limit=0: a page holds at least one".into())),
-        limit => limit.unwrap_or(MAX_PLACEMENTS_PAGE).min(MAX_PLACEMENTS_PAGE),
-    };
-    let from = page.from.unwrap_or(0);
-    let wait = DUPLICATE_WAIT.min(Duration::from_secs(state.config.request_timeout_secs) / 2);
-    let _permit = state.placement_read_permit(wait).await.ok_or_else(|| {
-        AppError::Busy(format!(
-            "{MAX_PLACEMENT_READS} placement histories are being read, the limit, and more wait \
-             their turn; try again shortly"
-        ))
-    })?;
-    let pool = state.store.pool();
-    // A stroke begun without a placement has no row for its begin: the identity, implied.
-    let first: Option<String> = sqlx::query_scalar(
-        "SELECT cause FROM stroke_placements WHERE stroke_id = $1 ORDER BY id LIMIT 1",
-    )
-    .bind(row.id.to_string())
-    .fetch_optional(pool)
-    .await
-    .map_err(anyhow::Error::from)?;
-    let implied = first.as_deref().is_none_or(|cause| cause == "set");
-    let mut placements = Vec::with_capacity(limit as usize);
-    if implied && from == 0 {
-        placements.push(PlacementChange {
-            placement: Placement::IDENTITY,
-            by: row.participant,
-            at: row.created_at,
-            cause: "begin".into(),
-        });
-    }
-    let wanted = limit - placements.len() as u64;
-    // One more than the page, to tell whether the history goes on: a bounded read.
-    let rows = sqlx::query(
-        "SELECT matrix, set_by, set_at, cause FROM stroke_placements WHERE stroke_id = $1 \
-         ORDER BY id LIMIT $2 OFFSET $3",
-    )
-    .bind(row.id.to_string())
-    .bind(i64::try_from(wanted + 1).unwrap_or(i64::MAX))
-    .bind(i64::try_from(from.saturating_sub(implied as u64)).unwrap_or(i64::MAX))
-    .fetch_all(pool)
-    .await
-    .map_err(anyhow::Error::from)?;
-    let more = rows.len() as u64 > wanted;
-    for r in rows.into_iter().take(wanted as usize) {
-        let matrix: Vec<u8> = r.try_get("matrix").map_err(anyhow::Error::from)?;
-        let by: String = r.try_get("set_by").map_err(anyhow::Error::from)?;
-        placements.push(PlacementChange {
-            placement: Placement::from_bytes(&matrix).map_err(anyhow::Error::from)?,
-            by: Uuid::parse_str(&by).map_err(anyhow::Error::from)?,
-            at: r.try_get("set_at").map_err(anyhow::Error::from)?,
-            cause: r.try_get("cause").map_err(anyhow::Error::from)?,
-        });
-    }
-    let next = more.then_some(from + limit);
-    Ok(Json(PlacementHistory { stroke: row.id, placements, next }))
+    let page = read_page(&state, &row, &PLACEMENTS, &page).await?;
+    let begin = page.begin.then(|| PlacementChange {
+        placement: Placement::IDENTITY,
+        by: row.participant,
+        at: row.created_at,
+        cause: "begin".into(),
+    });
+    let stored = page.changes.into_iter().map(|c| {
+        Ok(PlacementChange {
+            placement: Placement::from_bytes(&c.stored)?,
+            by: c.by,
+            at: c.at,
+            cause: c.cause,
+        })
+    });
+    let placements = begin.into_iter().map(Ok).chain(stored).collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(Json(PlacementHistory { stroke: row.id, placements, next: page.next }))
 }
 
 /// Duplicates made at once on one replica (the next is answered 503 `busy`): each copies up
 /// to a whole stroke's samples in the database through the writer.
 pub const MAX_DUPLICATES: usize = 2;
-/// How long a duplicate (or a page of a placement history) waits for its turn before 503
-/// `busy`, at most (half the request timeout at most).
+/// How long a duplicate waits for its turn before 503 `busy`, at most (half the request
+/// timeout at most).
 const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
 
 /// Duplicates a finished stroke: a new stroke (its own id; the participant of the
 /// `x-penmesh-key` is its drawer; the source recorded as `duplicate_of`) with the same pen data
-/// (raw and simplified samples, brush, parameters), at a new placement. Its mesh is the
-/// source's, shared, never copied. The session sees it as any new stroke (its begin, samples,
+/// (raw and simplified samples, brush, parameters, solid), at a new placement. Its mesh is
+/// the source's, shared, never copied, and stays what it is when the source's changes. The session sees it as any new stroke (its begin, samples,
 /// end, mesh and `peer_placement`); a version-4 client sees it in its own plane, on top of its
 /// source. Anyone in the session may duplicate any stroke it sees. Of two requests naming the
 /// same new id one is made; the same request again (same id, source and drawer) is answered
@@ -264,7 +209,7 @@ const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
         (status = 401, body = ErrorBody),
         (status = 403, description = "no key", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
-        (status = 409, description = "the source is still being drawn or taken back, or the new id is taken", body = ErrorBody),
+        (status = 409, description = "the source is still being drawn or taken back, its solid changed while it was being duplicated, or the new id is taken", body = ErrorBody),
         (status = 413, description = "a body over 16 KiB, or the session's samples would pass its quota (`quota_exceeded`)", body = ErrorBody),
         (status = 429, description = "past the session's rate of duplicated samples told to its watchers (`--duplicate-samples-per-second`), with `Retry-After`", body = ErrorBody),
         (status = 503, description = "busy: as many duplicates as allowed are being made", body = ErrorBody)))]
@@ -310,7 +255,6 @@ pub async fn duplicate(
     let simplified = state.store.simplified(source.id).await?.ok_or_else(|| {
         anyhow::anyhow!("stroke {} is done but has no simplified samples", source.id)
     })?;
-    let mesh_of = mesh_owner(&state, source.id).await?;
     let mesh_at = state.store.mesh(source.id).await?.map(|m| m.created_at);
     let session = source.session_id;
     let n_retained = simplified.samples.len() as u64;
@@ -328,7 +272,7 @@ pub async fn duplicate(
             device: source.device.clone(),
         },
         WriteOp::CopySamples { stroke, source: source.id },
-        WriteOp::MarkDuplicate { stroke, source: source.id, mesh_of },
+        WriteOp::MarkDuplicate { stroke, source: source.id, shares: Some(source.solid) },
         place,
     ];
     let event = |kind| SessionEvent::new(session, kind);
@@ -384,18 +328,4 @@ fn made_before(
         ));
     }
     Err(AppError::Conflict(format!("stroke id {} is taken; choose a new random id", existing.id)))
-}
-
-/// The stroke whose mesh row `stroke` shows: its own, or its source's for a duplicate.
-async fn mesh_owner(state: &AppState, stroke: Uuid) -> Result<Uuid, AppError> {
-    let of: Option<Option<String>> =
-        sqlx::query_scalar("SELECT mesh_of FROM strokes WHERE id = $1")
-            .bind(stroke.to_string())
-            .fetch_optional(state.store.pool())
-            .await
-            .map_err(anyhow::Error::from)?;
-    match of.flatten() {
-        Some(id) => Ok(Uuid::parse_str(&id).map_err(anyhow::Error::from)?),
-        None => Ok(stroke),
-    }
 }

@@ -22,12 +22,12 @@ use penmesh::Solid;
 use penmesh::protocol::{
     ErrorCode, ParticipantId, SolidChange, SolidHistory, StrokeId, StrokeStatus,
 };
-use sqlx::Row;
-use uuid::Uuid;
 
+use crate::change_history::{HistoryPage, SOLIDS, read_page};
 use crate::events::{EventKind, SessionEvent};
 use crate::http::{AppError, ErrorBody, MeshInfo, authorized_stroke, owned_stroke};
 use crate::mesh_build::{built_glb, store_built};
+use crate::query::Query;
 use crate::removal::Refused;
 use crate::state::AppState;
 use crate::store::{StrokeRow, WriteError, WriteOp, now_ms};
@@ -148,7 +148,7 @@ pub(crate) async fn store_solid_mesh(
 ) -> Result<MeshInfo, AppError> {
     let mut rebuilds = 0;
     loop {
-        let stored = store_built(state, row, glb).await?;
+        let stored = store_built(state, row, solid, glb).await?;
         let current = state.store.stroke(row.id).await?.map(|r| r.solid);
         match current {
             Some(current) if current != solid && rebuilds < MAX_REBUILDS => {
@@ -161,47 +161,35 @@ pub(crate) async fn store_solid_mesh(
     }
 }
 
-/// Every solid the stroke had, oldest first (the last is its current one): each with who set
-/// it, when, and why. A stroke begun without one starts as the rod, listed with its drawer and
-/// its begin time.
+/// Every solid the stroke had, oldest first (the last is its current one), a page at a time
+/// (`crate::change_history`): each with who set it, when, and why (`begin`, `set`,
+/// `duplicate`, `import`). A stroke begun without one starts as the rod, listed with its
+/// drawer and its begin time. `next`, when present, is the `from` of the next page.
 #[utoipa::path(get, path = "/v1/strokes/{id}/solids", tag = "strokes",
-    params(("id" = Uuid, Path)),
+    params(("id" = Uuid, Path), HistoryPage),
     security(("bearer" = [])),
     responses((status = 200, body = SolidHistory),
+        (status = 400, description = "a limit of 0, or a from or limit that is not a number", body = ErrorBody),
         (status = 401, body = ErrorBody),
-        (status = 404, description = "no such stroke in this session", body = ErrorBody)))]
+        (status = 404, description = "no such stroke in this session", body = ErrorBody),
+        (status = 503, description = "busy: as many histories as allowed are being read", body = ErrorBody)))]
 pub async fn solids(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    Query(page): Query<HistoryPage>,
     headers: HeaderMap,
 ) -> Result<Json<SolidHistory>, AppError> {
     let row = authorized_stroke(&state, &headers, &id).await?;
-    let rows = sqlx::query(
-        "SELECT solid, set_by, set_at, cause FROM stroke_solids WHERE stroke_id = $1 ORDER BY id",
-    )
-    .bind(row.id.to_string())
-    .fetch_all(state.store.pool())
-    .await
-    .map_err(anyhow::Error::from)?;
-    let mut solids = Vec::with_capacity(rows.len() + 1);
-    for r in rows {
-        let solid: Vec<u8> = r.try_get("solid").map_err(anyhow::Error::from)?;
-        let by: String = r.try_get("set_by").map_err(anyhow::Error::from)?;
-        solids.push(SolidChange {
-            solid: Solid::from_bytes(&solid).map_err(anyhow::Error::from)?,
-            by: Uuid::parse_str(&by).map_err(anyhow::Error::from)?,
-            at: r.try_get("set_at").map_err(anyhow::Error::from)?,
-            cause: r.try_get("cause").map_err(anyhow::Error::from)?,
-        });
-    }
-    if solids.first().is_none_or(|s| s.cause == "set") {
-        let begin = SolidChange {
-            solid: Solid::ROD,
-            by: row.participant,
-            at: row.created_at,
-            cause: "begin".into(),
-        };
-        solids.insert(0, begin);
-    }
-    Ok(Json(SolidHistory { stroke: row.id, solids }))
+    let page = read_page(&state, &row, &SOLIDS, &page).await?;
+    let begin = page.begin.then(|| SolidChange {
+        solid: Solid::ROD,
+        by: row.participant,
+        at: row.created_at,
+        cause: "begin".into(),
+    });
+    let stored = page.changes.into_iter().map(|c| {
+        Ok(SolidChange { solid: Solid::from_bytes(&c.stored)?, by: c.by, at: c.at, cause: c.cause })
+    });
+    let solids = begin.into_iter().map(Ok).chain(stored).collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(Json(SolidHistory { stroke: row.id, solids, next: page.next }))
 }

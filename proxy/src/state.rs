@@ -68,9 +68,9 @@ pub struct Inner {
     pub exports_working: Arc<std::sync::atomic::AtomicUsize>,
     /// One permit per duplicate being made (`crate::placement::MAX_DUPLICATES`).
     duplicates: Arc<tokio::sync::Semaphore>,
-    /// One permit per page of a placement history being read
-    /// (`crate::placement::MAX_PLACEMENT_READS`).
-    placement_reads: Arc<tokio::sync::Semaphore>,
+    /// One permit per page of a stroke's history (placements, solids) being read
+    /// (`crate::change_history::MAX_HISTORY_READS`).
+    history_reads: Arc<tokio::sync::Semaphore>,
     next_connection: AtomicU64,
 }
 
@@ -122,8 +122,8 @@ impl AppState {
                 scenes: Arc::new(tokio::sync::Semaphore::new(crate::export::MAX_SCENES)),
                 exports_working: Arc::default(),
                 duplicates: Arc::new(tokio::sync::Semaphore::new(crate::placement::MAX_DUPLICATES)),
-                placement_reads: Arc::new(tokio::sync::Semaphore::new(
-                    crate::placement::MAX_PLACEMENT_READS,
+                history_reads: Arc::new(tokio::sync::Semaphore::new(
+                    crate::change_history::MAX_HISTORY_READS,
                 )),
                 session_limiter,
                 rates,
@@ -172,13 +172,13 @@ impl AppState {
         tokio::time::timeout(wait, permit).await.ok()?.ok()
     }
 
-    /// The permit to read a page of a placement history, waiting up to `wait` while
-    /// [`crate::placement::MAX_PLACEMENT_READS`] are being read (`None` then).
-    pub async fn placement_read_permit(
+    /// The permit to read a page of a stroke's history (placements, solids), waiting up to
+    /// `wait` while [`crate::change_history::MAX_HISTORY_READS`] are being read (`None` then).
+    pub async fn history_read_permit(
         &self,
         wait: Duration,
     ) -> Option<tokio::sync::OwnedSemaphorePermit> {
-        let permit = self.placement_reads.clone().acquire_owned();
+        let permit = self.history_reads.clone().acquire_owned();
         tokio::time::timeout(wait, permit).await.ok()?.ok()
     }
 

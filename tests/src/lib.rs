@@ -698,3 +698,20 @@ pub fn minimal_glb(vertices: u64, indices: u64) -> Vec<u8> {
     };
     penmesh::stroke_glb(&mesh, &meta, &penmesh::GlbOptions::default())
 }
+
+/// A GLB of `vertices` positions and normals, not compressed: about 24 bytes a vertex (a mesh
+/// of a chosen size).
+pub fn plain_glb(vertices: usize) -> Vec<u8> {
+    let mesh = penmesh::StrokeMesh {
+        positions: (0..vertices).map(|i| [i as f32, 1.0, 2.0]).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; vertices],
+        indices: vec![0, 1, 2],
+    };
+    let meta = penmesh::GlbMeta {
+        stroke: uuid::Uuid::nil(),
+        author: "penmesh-e2e".into(),
+        brush: penmesh::Brush::default(),
+    };
+    let options = penmesh::GlbOptions::default().encoding(penmesh::GlbEncoding::Plain);
+    penmesh::stroke_glb(&mesh, &meta, &options)
+}

@@ -52,11 +52,12 @@ export class Api {
     return (await this.request(`/v1/strokes/${stroke}/mesh`)).arrayBuffer();
   }
 
-  /// Every stored mesh of the session in one request, with each stroke's placement (PMB2):
-  /// `[{stroke, participant, placement, glb}]`, `glb` an ArrayBuffer. The browser's cache keeps
-  /// the body and revalidates it with its ETag.
+  /// Every stored mesh of the session in one request (PMB3: each mesh once, every stroke with
+  /// its placement and solid): `[{stroke, participant, placement, solid, glb}]`, `glb` an
+  /// ArrayBuffer, the same one for the strokes that share a mesh (a duplicate and its source).
+  /// The browser's cache keeps the body and revalidates it with its ETag.
   async meshBundle(session) {
-    return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes?placements=true`)).arrayBuffer());
+    return decodeMeshBundle(await (await this.request(`/v1/sessions/${session}/meshes?layout=PMB3`)).arrayBuffer());
   }
 
   /// A stroke's current placement (the last of `GET /v1/strokes/{id}/placements`, read a page
@@ -99,36 +100,89 @@ export class Api {
   }
 }
 
-/// The mesh bundle of GET /v1/sessions/{session}/meshes (shared/src/protocol/mesh_bundle.rs):
-/// "PMB1", a u32 count, then per mesh the stroke and participant ids (16 bytes each), a u32
-/// length and the GLB; u32s little-endian. "PMB2" (`?placements=true`) has the stroke's
-/// placement after the two ids: 16 f64 little-endian (null in a PMB1 entry: the identity).
+/// The mesh bundle of GET /v1/sessions/{session}/meshes (shared/src/protocol/mesh_bundle.rs),
+/// in any of its layouts, as `[{stroke, participant, placement, solid, glb}]`; u32s and f64s
+/// little-endian. "PMB1": a u32 count, then per mesh the stroke and participant ids (16 bytes
+/// each), a u32 length and the GLB. "PMB2" (`?placements=true`) has the stroke's placement after
+/// the two ids: 16 f64 (null in a PMB1 entry: the identity). "PMB3" (`?layout=PMB3`): a u32
+/// count of meshes and one of strokes, each mesh once (a u32 length and the GLB), then per
+/// stroke its two ids, placement, solid (a kind byte, 0 line, 1 filled, 2 hole, and the depth, an
+/// f64, NaN for none) and the u32 index of its mesh; entries sharing a mesh share its `glb`.
+/// `solid` is null in PMB1 and PMB2 (not said). Bytes that are not a bundle throw an Error
+/// naming where.
 export function decodeMeshBundle(buffer) {
-  const view = new DataView(buffer);
   const bytes = new Uint8Array(buffer);
-  const fail = (why) => {
-    throw new Error(`not a mesh bundle: ${why}`);
-  };
   const magic = buffer.byteLength >= 8 ? String.fromCharCode(...bytes.subarray(0, 4)) : "";
-  if (magic !== "PMB1" && magic !== "PMB2") fail('it does not start with "PMB1" or "PMB2"');
+  if (magic === "PMB3") return decodeMeshTable(buffer);
+  if (magic !== "PMB1" && magic !== "PMB2") bundleError('it does not start with "PMB1", "PMB2" or "PMB3"');
+  const view = new DataView(buffer);
   const placed = magic === "PMB2" ? 128 : 0;
   const count = view.getUint32(4, true);
   const meshes = [];
   let at = 8;
   for (let i = 0; i < count; i++) {
-    if (at + 36 + placed > buffer.byteLength) fail(`it ends inside mesh ${i}`);
+    if (at + 36 + placed > buffer.byteLength) bundleError(`it ends inside mesh ${i}`);
     const stroke = uuid(bytes, at);
     const participant = uuid(bytes, at + 16);
-    // DataView reads the f64s where they are (they are not 8-byte aligned in the body).
-    const placement = placed ? Array.from({ length: 16 }, (_, k) => view.getFloat64(at + 32 + 8 * k, true)) : null;
+    const placement = placed ? placementAt(view, at + 32) : null;
     const length = view.getUint32(at + 32 + placed, true);
     at += 36 + placed;
-    if (at + length > buffer.byteLength) fail(`it ends inside mesh ${i}`);
-    meshes.push({ stroke, participant, placement, glb: buffer.slice(at, at + length) });
+    if (at + length > buffer.byteLength) bundleError(`it ends inside mesh ${i}`);
+    meshes.push({ stroke, participant, placement, solid: null, glb: buffer.slice(at, at + length) });
     at += length;
   }
-  if (at !== buffer.byteLength) fail(`${buffer.byteLength - at} bytes follow its ${count} meshes`);
+  if (at !== buffer.byteLength) bundleError(`${buffer.byteLength - at} bytes follow its ${count} meshes`);
   return meshes;
+}
+
+const SOLID_KINDS = ["line", "filled", "hole"];
+const BUNDLED_STROKE_BYTES = 16 + 16 + 128 + 9 + 4;
+
+/// The PMB3 layout: the mesh table, then the strokes naming its meshes.
+function decodeMeshTable(buffer) {
+  const view = new DataView(buffer);
+  const bytes = new Uint8Array(buffer);
+  if (buffer.byteLength < 12) bundleError(`it ends inside its head (${buffer.byteLength} bytes)`);
+  const nMeshes = view.getUint32(4, true);
+  const nStrokes = view.getUint32(8, true);
+  const meshes = [];
+  let at = 12;
+  for (let i = 0; i < nMeshes; i++) {
+    if (at + 4 > buffer.byteLength) bundleError(`it ends inside mesh ${i}`);
+    const length = view.getUint32(at, true);
+    at += 4;
+    if (at + length > buffer.byteLength) bundleError(`it ends inside mesh ${i}`);
+    meshes.push(buffer.slice(at, at + length));
+    at += length;
+  }
+  const strokes = [];
+  for (let i = 0; i < nStrokes; i++) {
+    if (at + BUNDLED_STROKE_BYTES > buffer.byteLength) bundleError(`it ends inside stroke ${i}`);
+    const kind = SOLID_KINDS[bytes[at + 160]];
+    if (kind === undefined) bundleError(`stroke ${i}'s solid is of kind ${bytes[at + 160]}: 0 line, 1 filled or 2 hole`);
+    const depth = view.getFloat64(at + 161, true);
+    const mesh = view.getUint32(at + 169, true);
+    if (mesh >= nMeshes) bundleError(`stroke ${i} shows mesh ${mesh}, but it has ${nMeshes}`);
+    strokes.push({
+      stroke: uuid(bytes, at),
+      participant: uuid(bytes, at + 16),
+      placement: placementAt(view, at + 32),
+      solid: { kind, depth: Number.isNaN(depth) ? null : depth },
+      glb: meshes[mesh],
+    });
+    at += BUNDLED_STROKE_BYTES;
+  }
+  if (at !== buffer.byteLength) bundleError(`${buffer.byteLength - at} bytes follow its ${nStrokes} strokes`);
+  return strokes;
+}
+
+/// A placement's 16 f64s at `at`, read where they are (they are not 8-byte aligned in the body).
+function placementAt(view, at) {
+  return Array.from({ length: 16 }, (_, k) => view.getFloat64(at + 8 * k, true));
+}
+
+function bundleError(why) {
+  throw new Error(`not a mesh bundle: ${why}`);
 }
 
 function uuid(bytes, at) {

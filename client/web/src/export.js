@@ -4,6 +4,7 @@
 // with a bar of each stage's steps while the proxy makes the file (its progress lines); and a GLB penmesh exported brought back, chosen in the menu or dropped on the
 // page (POST /v1/sessions/{id}/import with this tab's participant key: its strokes come back as
 // this tab's, and arrive live as any new stroke). Builds its own menu; needs only a button.
+import { DEFAULT_PRINT_MM } from "./scene.js";
 
 const FORMATS = [
   ["glb", "GLB scene", "every stroke as a node with its pen data: Blender, three.js, back into penmesh"],
@@ -13,14 +14,15 @@ const FORMATS = [
 
 /// Wires the Export menu to `button`. `token` opens the session, `key()` is this tab's
 /// participant key, `name()` its display name; `notice` and `fail` report to the person;
-/// `imported(ids)` is told the strokes an import made (the history makes them one undo step).
+/// `imported(ids)` is told the strokes an import made (the history makes them one undo step);
+/// `printSize(mm)` the print's longest side whenever it is changed (the page's mm follow it).
 /// Returns `{ exportModel(format, sizeMm), importFile(file) }` for the tests and the curious.
-export function attachExport({ button, session, token, key, name, notice, fail, imported = () => {} }) {
+export function attachExport({ button, session, token, key, name, notice, fail, imported = () => {}, printSize = () => {} }) {
   const dialog = document.createElement("dialog");
   dialog.id = "export-menu";
   dialog.innerHTML = `
     <form method="dialog">
-      <p><label>longest side <input id="export-size" type="number" min="1" max="10000" step="1" value="100"> mm</label></p>
+      <p><label>longest side <input id="export-size" type="number" min="1" max="10000" step="1" value="${DEFAULT_PRINT_MM}"> mm</label></p>
       <div class="actions" id="export-formats"></div>
       <p><progress id="export-progress" hidden></progress> <span id="export-status" role="status"></span></p>
       <p><label>Import a penmesh GLB <input id="import-file" type="file" accept=".glb,model/gltf-binary"></label></p>
@@ -28,6 +30,8 @@ export function attachExport({ button, session, token, key, name, notice, fail, 
     </form>`;
   document.body.append(dialog);
   const $ = (id) => dialog.querySelector(`#${id}`);
+  const sizeMm = () => Number($("export-size").value) || DEFAULT_PRINT_MM;
+  $("export-size").oninput = () => printSize(sizeMm());
   const progress = $("export-progress");
   const status = $("export-status");
   let busy = false;
@@ -90,8 +94,7 @@ export function attachExport({ button, session, token, key, name, notice, fail, 
     if (busy) return;
     busy = true;
     try {
-      const size = Number($("export-size").value) || 100;
-      const blob = await exportModel(format, size);
+      const blob = await exportModel(format, sizeMm());
       const a = document.createElement("a");
       a.href = URL.createObjectURL(blob);
       a.download = `penmesh-${session}.${format}`;

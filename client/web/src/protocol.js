@@ -10,7 +10,10 @@
 // too for it to receive moves in binary. Text frames are read all the same (the proxy's JSON
 // error before a Hello, a page switched to JSON with `encoding`): both kinds go to `receive`.
 // Protocol 5: a stroke begins on the work plane (`stroke_begin.placement`, kept with the stroke
-// for a resume) and `set_placement` places a finished one; `peer_placement` comes to `on`.
+// for a resume) and `set_placement` places a finished one; `peer_placement` comes to `on`, but
+// not the answer to a move of ours while a later move of that stroke is still unanswered: the
+// page already shows the later one, and the earlier answer would take the stroke back to where
+// it was until the next answer came (a move typed then would start from there).
 // Protocol 6: a stroke may begin as a solid (`stroke_begin.solid`, kept likewise); `peer_solid`
 // comes to `on`.
 //
@@ -71,6 +74,9 @@ export class Connection {
     // Our strokes an old connection still holds: stroke -> the timer of the next try to take it
     // over here, or null while a try (a StrokeBegin) awaits its answer.
     this.takeOvers = new Map();
+    // Our set_placement requests the proxy has not answered yet, per stroke (stroke -> count):
+    // each is answered by a peer_placement of it, or refused by an error naming it.
+    this.moving = new Map();
     this.wsBytes = 0; // payload bytes received (docs/performance.md)
     // How the page sends: "binary" (codec.js) or "json"; the proxy answers in the same form.
     this.encoding = "binary";
@@ -134,6 +140,7 @@ export class Connection {
       this.retry = 500;
       for (const timer of this.takeOvers.values()) clearTimeout(timer);
       this.takeOvers.clear(); // the Hello resumes them all
+      this.moving.clear(); // the old connection's answers never come; the history tells
       this.unfinished = this.loadPending();
       this.send({
         hello: {
@@ -251,6 +258,11 @@ export class Connection {
           if (!this.takeOvers.has(m.stroke)) this.retakeLater(m.stroke);
           return;
         }
+        if (m.stroke) this.moveAnswered(m.stroke); // a move refused is answered too
+        break;
+      case "peer_placement":
+        // The answer to a move of ours that a later one has overtaken on this page: not shown.
+        if (this.moveAnswered(m.stroke) > 0) return;
         break;
       case "peer_strokes":
         // A history's strokes, several to a message: each as its own events would say it
@@ -361,7 +373,17 @@ export class Connection {
   /// Asks the proxy to place our finished stroke at `placement` (16 numbers); it answers with
   /// `peer_placement` (to every page), or an error. Returns whether the request went out.
   setPlacement(stroke, placement) {
-    return this.send({ set_placement: { stroke, placement: { matrix: placement } } });
+    const sent = this.send({ set_placement: { stroke, placement: { matrix: placement } } });
+    if (sent) this.moving.set(stroke, (this.moving.get(stroke) || 0) + 1);
+    return sent;
+  }
+
+  /// The oldest of our moves of `stroke` not yet answered has been: how many are left.
+  moveAnswered(stroke) {
+    const left = (this.moving.get(stroke) || 0) - 1;
+    if (left > 0) this.moving.set(stroke, left);
+    else this.moving.delete(stroke);
+    return Math.max(left, 0);
   }
 
   /// The ACUTS parameters of a stroke drawn with `brush`: the proxy's, with a pressure

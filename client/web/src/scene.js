@@ -85,6 +85,8 @@ void main() {
 
 /// Whether a stroke's solid (`{kind, depth}` or null: the rod) is a hole.
 export const isHole = (solid) => Boolean(solid && solid.kind === "hole");
+/// Whether two solids (`{kind, depth}`; null: the rod) are the same.
+export const sameSolid = (a, b) => (a?.kind ?? "line") === (b?.kind ?? "line") && (a?.depth ?? null) === (b?.depth ?? null);
 
 /// Whether a WebGL context is drawn on the CPU (SwiftShader, llvmpipe).
 function softwareWebGL(gl) {
@@ -128,12 +130,14 @@ export class SceneView {
     // stroke -> {participant, colour, brush, done, removed, points: [Vector3], pressures,
     // line: its live ribbon, mesh: its range in its group's merged meshes (batch.js),
     // placement: 16 numbers or null (the board), lifted: its own object while selected,
-    // solid: {kind, depth} or null (the rod), meshStale: its solid changed, its mesh not yet}
+    // solid: {kind, depth} or null (the rod), meshStale: its solid changed, its mesh not yet,
+    // box: its mesh's box at its placement, kept until either changes (placedBox)}
     this.strokes = new Map();
     this.meshCount = 0;
     this.removedCount = 0; // strokes taken back
     this.hiddenMeshCount = 0; // meshes of strokes taken back
     this.workPlacement = null; // the plane the pen draws on (null: the board)
+    this.printMm = DEFAULT_PRINT_MM; // the print's longest side (the Export menu's, export.js)
     this.material = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: { minHalfWidth: { value: 0 } } });
     // A live ribbon is one face: seen from either side.
     this.ribbonMaterial = new THREE.ShaderMaterial({ vertexShader: VERTEX_SHADER, fragmentShader: FRAGMENT_SHADER, uniforms: this.material.uniforms, side: THREE.DoubleSide });
@@ -191,13 +195,40 @@ export class SceneView {
     return box;
   }
 
-  /// The print's millimetres per unit of the session: the print's longest side is
-  /// DEFAULT_PRINT_MM (the Export menu's default) over the drawing's (its points: the print
-  /// adds the strokes' radii, so this is within a stroke's width).
+  /// The box of what the print is made of, in session coordinates: the meshes of the strokes
+  /// shown at their placements (a hole only takes away), and the retained points of those
+  /// without a mesh yet.
+  modelBox() {
+    const box = new THREE.Box3();
+    const v = new THREE.Vector3();
+    for (const s of this.strokes.values()) {
+      if (s.removed || isHole(s.solid)) continue;
+      if (s.mesh) box.union(this.placedBox(s));
+      else for (const p of s.points) box.expandByPoint(v.copy(p).applyMatrix4(matrixOf(s.placement)));
+    }
+    return box;
+  }
+
+  /// Stroke `s`'s mesh's box at its placement (session space), worked out again only after
+  /// its mesh or its placement changed.
+  placedBox(s) {
+    if (!s.box) {
+      const m = matrixOf(s.placement);
+      const v = new THREE.Vector3();
+      const { positions } = s.mesh.flat;
+      s.box = new THREE.Box3();
+      for (let i = 0; i < positions.length; i += 3) s.box.expandByPoint(v.fromArray(positions, i).applyMatrix4(m));
+    }
+    return s.box;
+  }
+
+  /// The print's millimetres per unit of the session, as the Export menu makes it: the print
+  /// is scaled so that its longest side is `printMm` (docs/print.md), and its solids are the
+  /// meshes' (within the thickness floor the print gives a stroke thinner than it).
   mmPerUnit() {
-    const size = this.drawingBox().getSize(new THREE.Vector3());
+    const size = this.modelBox().getSize(new THREE.Vector3());
     const longest = Math.max(size.x, size.y, size.z);
-    return longest > 0 ? DEFAULT_PRINT_MM / longest : 0;
+    return longest > 0 ? this.printMm / longest : 0;
   }
 
   /// Fits the view from above to what is drawn (with a margin), never closer than one to one.
@@ -222,7 +253,7 @@ export class SceneView {
   stroke(id, participant, brush) {
     let s = this.strokes.get(id);
     if (!s) {
-      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null, placement: null, lifted: null, solid: null, meshStale: false };
+      s = { participant, colour: strokeColour(participant, brush), brush: brush || null, done: false, removed: false, points: [], pressures: [], line: null, mesh: null, placement: null, lifted: null, solid: null, meshStale: false, box: null };
       this.strokes.set(id, s);
     } else if (brush) {
       s.colour = strokeColour(participant, brush);
@@ -261,6 +292,7 @@ export class SceneView {
     const same = samePlacement(s.placement, placement);
     s.placement = placement;
     if (same) return;
+    s.box = null;
     const m = matrixOf(placement);
     if (s.line) s.line.matrix.copy(m);
     if (s.lifted) s.lifted.matrix.copy(m);
@@ -273,9 +305,9 @@ export class SceneView {
   /// (the proxy builds it after the solid is set), so it is marked stale when it changed.
   setSolid(id, participant, solid) {
     const s = this.stroke(id, participant);
-    const before = s.solid || { kind: "line", depth: null };
+    const same = sameSolid(s.solid, solid);
     s.solid = solid.kind === "line" && solid.depth === null ? null : solid;
-    if (before.kind === solid.kind && before.depth === solid.depth) return;
+    if (same) return;
     if (s.mesh) s.meshStale = true;
     if (s.lifted) s.lifted.material = isHole(s.solid) ? this.holeMaterial : this.material;
     else if (s.mesh) s.mesh = this.groups.place(s.mesh, s.participant, s.colour, s.placement, isHole(s.solid));
@@ -286,13 +318,9 @@ export class SceneView {
   /// `{min: [x, y, z], max: [x, y, z]}` (the browser tests compare pages by them).
   boxes() {
     const boxes = {};
-    const v = new THREE.Vector3();
     for (const [id, s] of this.strokes) {
       if (!s.mesh || s.removed) continue;
-      const m = matrixOf(s.placement);
-      const box = new THREE.Box3();
-      const { positions } = s.mesh.flat;
-      for (let i = 0; i < positions.length; i += 3) box.expandByPoint(v.fromArray(positions, i).applyMatrix4(m));
+      const box = this.placedBox(s);
       boxes[id] = { min: box.min.toArray(), max: box.max.toArray() };
     }
     return boxes;
@@ -409,6 +437,7 @@ export class SceneView {
     const s = this.stroke(id, participant);
     if (s.mesh) return false;
     s.mesh = this.groups.add(flat, participant, s.colour, s.placement, isHole(s.solid));
+    s.box = null;
     if (s.removed) {
       s.mesh.group.setHidden(s.mesh, true);
       this.hiddenMeshCount += 1;
@@ -434,6 +463,7 @@ export class SceneView {
     const hidden = s.mesh.hidden;
     this.groups.drop(s.mesh);
     s.mesh = this.groups.add(flat, s.participant, s.colour, s.placement, isHole(s.solid));
+    s.box = null;
     s.mesh.group.setHidden(s.mesh, hidden);
     if (lifted) this.liftOut(id);
     this.requestRender();

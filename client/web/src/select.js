@@ -178,6 +178,9 @@ export class Selection {
   rayHit(x, y) {
     const ray = new THREE.Raycaster();
     ray.setFromCamera(new THREE.Vector2((x / this.view.rig.width) * 2 - 1, -(y / this.view.rig.height) * 2 + 1), this.view.camera);
+    // Where each object is now: three.js works out world matrices when it renders, and a group
+    // made for a stroke just moved (batch.js) has none until the next frame.
+    this.view.scene.updateMatrixWorld();
     const meshes = [];
     for (const mesh of this.view.groups.objects) {
       mesh.geometry.boundingSphere = null; // it grew since: worked out again

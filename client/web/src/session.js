@@ -13,7 +13,7 @@ import { Ink } from "./ink.js";
 import { attachInput } from "./input.js";
 import { attachModelBar } from "./modelbar.js";
 import { Connection } from "./protocol.js";
-import { PALETTE, SceneView, colourOf, strokeColour } from "./scene.js";
+import { PALETTE, SceneView, colourOf, sameSolid, strokeColour } from "./scene.js";
 import { colourApart, saveBrush, savedBrush, savedName } from "./settings.js";
 import { Selection } from "./select.js";
 import { SelectionPanel } from "./selpanel.js";
@@ -44,6 +44,7 @@ export function startSession(session, token) {
   // Meshes announced (PeerMesh) before the session's mesh bundle came: stroke -> participant.
   // Those the bundle did not hold are fetched on their own then.
   let announced = new Map();
+  const solidSaid = new Set(); // strokes whose solid the connection has said (newer than the bundle's)
   let fitted = false; // the view is fitted to the drawing once, when the history is in
   let refused = false;
 
@@ -99,7 +100,21 @@ export function startSession(session, token) {
   editor.selectionPanel = new SelectionPanel(editor, editor.selection);
   editor.selectionPanel.addRow(addSolidRow(editor.selectionPanel, { api, key: () => conn.participantKey() }));
   attachDrawSolid(editor, $("draw-solid"));
-  attachExport({ button: $("download"), session, token, key: () => conn.participantKey(), name: () => controls.name, notice: (t) => editor.notice(t), fail, imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)) });
+  attachExport({
+    button: $("download"),
+    session,
+    token,
+    key: () => conn.participantKey(),
+    name: () => controls.name,
+    notice: (t) => editor.notice(t),
+    fail,
+    imported: (ids) => takeBack.push(takeBack.strokesCommand(ids, false)),
+    // The print's size scales every mm the page shows (the selection's panel, the gizmo's).
+    printSize: (mm) => {
+      view.printMm = mm;
+      editor.selection.changed();
+    },
+  });
 
   // For the browser tests and the curious.
   window.penmesh = {
@@ -214,17 +229,28 @@ export function startSession(session, token) {
     ink.remove(id);
   }
 
-  // Every mesh stored so far in one request (GET /v1/sessions/{id}/meshes), started with the
-  // page; the connection's PeerMesh events bring the ones stored later.
+  // Every mesh stored so far in one request (GET /v1/sessions/{id}/meshes, PMB3), started with
+  // the page; the connection's PeerMesh events bring the ones stored later. A mesh several
+  // strokes show (a duplicate's is its source's) comes once and is read once.
   async function loadBundle() {
     try {
-      const meshes = await bundleRequest;
+      const strokes = await bundleRequest;
+      const parsed = new Map(); // a mesh's bytes -> its parse
       await Promise.all(
-        meshes.map(async (m) => {
-          const flat = await view.parse(m.glb);
-          // The bundle's placement, unless the connection said a newer one already.
-          if (m.placement && !view.stroke(m.stroke, m.participant).placement) view.setPlacement(m.stroke, m.placement);
-          if (view.addMesh(m.stroke, m.participant, flat)) meshShown(m.stroke);
+        strokes.map(async (m) => {
+          if (!parsed.has(m.glb)) parsed.set(m.glb, view.parse(m.glb));
+          const flat = await parsed.get(m.glb);
+          const s = view.stroke(m.stroke, m.participant);
+          // The bundle's placement and solid, unless the connection said newer ones already;
+          // the solid before the mesh shows, so that a hole is drawn as one from the start.
+          if (m.placement && !s.placement) view.setPlacement(m.stroke, m.placement);
+          // (No solid: a bundle of an older layout, from a replica not yet upgraded.)
+          if (m.solid && !solidSaid.has(m.stroke)) view.setSolid(m.stroke, m.participant, m.solid);
+          if (!view.addMesh(m.stroke, m.participant, flat)) return;
+          meshShown(m.stroke);
+          // Built as another solid than the one the connection said: its new mesh is fetched
+          // when announced.
+          if (m.solid && !sameSolid(s.solid, m.solid)) s.meshStale = true;
         }),
       );
     } catch (err) {
@@ -373,6 +399,7 @@ export function startSession(session, token) {
         break;
       case "peer_solid":
         // The mesh the proxy builds for it follows (peer_mesh), and replaces the one shown.
+        solidSaid.add(m.stroke);
         view.setSolid(m.stroke, m.participant, m.solid);
         if (editor.selection.ids.has(m.stroke)) editor.selection.refresh();
         break;

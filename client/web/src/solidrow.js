@@ -1,11 +1,12 @@
 // The selection panel's solid row (issue 51, docs/protocol.md "Solids"): what the selected
-// strokes become, Line / Filled / Hole, and the depth, in px and the print's mm as the panel
-// shows sizes. A change is sent over HTTP (`PUT /v1/strokes/{id}/solid`) for each of our
-// selected strokes and is one command of the page's one history: undo sets each stroke's solid
-// before it back, redo the one after. The proxy builds the new mesh before it stores the solid,
-// so a solid a stroke cannot be (an open stroke filled) is refused with its words, shown to the
-// person, and nothing changes; the stroke's new mesh comes with `peer_solid` and `peer_mesh`
-// (session.js, scene.js `setSolid`, `replaceMesh`).
+// strokes become, Line / Filled / Hole, and the depth, in px or in the print's mm (either typed;
+// the mm at the print's scale, scene.js `mmPerUnit`, as the Export menu makes it). A change is
+// sent over HTTP (`PUT /v1/strokes/{id}/solid`) for each of our selected strokes and is one
+// command of the page's one history: undo sets each stroke's solid before it back, redo the one
+// after. The proxy builds the new mesh before it stores the solid, so a solid a stroke cannot be
+// (an open stroke filled) is refused with its words, shown to the person, and nothing changes;
+// the stroke's new mesh comes with `peer_solid` and `peer_mesh` (session.js, scene.js
+// `setSolid`, `replaceMesh`).
 
 /// The depth (px) a stroke made Filled or Hole gets when it has none yet (the rod's).
 export const DEFAULT_DEPTH_PX = 24;
@@ -17,8 +18,6 @@ const KINDS = [
 ];
 
 const THE_ROD = { kind: "line", depth: null };
-
-const round = (v) => Math.round(v * 10) / 10;
 
 /// Adds the solid row to `panel` (selpanel.js); `api` sets solids, `key()` is this tab's
 /// participant key.
@@ -32,7 +31,7 @@ export function addSolidRow(panel, { api, key }) {
   // store the first's mesh last, so the mesh would not be the solid's.
   const inFlight = new Map(); // stroke -> Promise
   let depth;
-  let mm;
+  let depthMm;
 
   /// Sets each stroke of `solids` (id -> solid) to its solid; resolves to the ids set. A refusal
   /// is said in the proxy's words.
@@ -95,25 +94,36 @@ export function addSolidRow(panel, { api, key }) {
         group.append(b);
       }
       cells.append(group);
-      depth = p.numberField(cells, "solid-depth", (value) => {
-        if (value <= 0) return editor.notice("a depth is more than 0 px");
-        change((now) => ({ kind: now.kind, depth: value }));
-      });
+      const setDepth = (px) => {
+        if (!(px > 0 && Number.isFinite(px))) return editor.notice("a depth is more than 0");
+        change((now) => ({ kind: now.kind, depth: px }));
+      };
+      depth = p.numberField(cells, "solid-depth", setDepth);
       depth.input.title = "how deep (tall) the solid is, px of the drawing";
-      mm = document.createElement("span");
-      mm.className = "mm";
-      cells.append(mm);
+      cells.append(unit("px ·"));
+      // A depth in mm is the px that make it at the print's scale now.
+      depthMm = p.numberField(cells, "solid-depth-mm", (mm) => setDepth(mm / view.mmPerUnit()));
+      depthMm.input.title = "how deep (tall) the solid is, mm of the print (at the Export menu's size)";
+      cells.append(unit("mm"));
     },
     show(selection) {
       const solids = selection.list.map(solidOf);
       const first = solids[0] || THE_ROD;
       const alike = solids.every((s) => same(s, first));
       for (const [kind, b] of buttons) b.setAttribute("aria-pressed", String(alike && first.kind === kind));
-      depth.show(alike && first.depth !== null ? first.depth : "");
-      const k = view.mmPerUnit();
-      mm.textContent = alike && first.depth !== null ? `px · ${round(first.depth * k)} mm` : "px";
+      const known = alike && first.depth !== null;
+      depth.show(known ? first.depth : "");
+      depthMm.show(known ? first.depth * view.mmPerUnit() : "");
     },
   };
+}
+
+/// A unit beside a number field.
+function unit(text) {
+  const span = document.createElement("span");
+  span.className = "mm";
+  span.textContent = text;
+  return span;
 }
 
 function same(a, b) {

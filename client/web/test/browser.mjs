@@ -6,7 +6,7 @@
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, runPenmesh, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, runPenmesh, synced, until } from "./harness.mjs";
 
 // The page sends JSON (exact values); the native client's binary frames are on this grid.
 const POSITION_STEP = 1 / 16;
@@ -35,7 +35,7 @@ await browserTest(async ({ proxy, browser, children }) => {
     page.paths = []; // the HTTP paths it asked for
     page.on("request", (r) => page.paths.push(new URL(r.url()).pathname));
     await page.goto(pageUrl);
-    await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+    await synced(page);
     return page;
   }
 

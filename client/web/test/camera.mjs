@@ -14,21 +14,7 @@
 // Run by scripts/test.sh as `node client/web/test/camera.mjs`.
 import assert from "node:assert/strict";
 import { join } from "node:path";
-import { ARTIFACTS, browserTest, isBackground, log, newSession, pixelsAt, until } from "./harness.mjs";
-
-const VIEW = { width: 1000, height: 700 };
-
-async function polyline(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
-}
+import { ARTIFACTS, VIEW, browserTest, isBackground, log, newSession, openPage, pixelsAt, polyline, sessionUrl, until } from "./harness.mjs";
 
 async function drag(page, [x0, y0], [x1, y1], steps = 12) {
   await page.mouse.move(x0, y0);
@@ -56,12 +42,8 @@ const pressedView = (page) => page.evaluate(() => [...document.querySelectorAll(
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
   const s = await newSession(base);
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error("page error:", e.message));
-  await page.goto(`${base}/s/${s.session}#token=${s.token}`);
-  const cdp = await context.newCDPSession(page);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  const page = await openPage(browser, sessionUrl(base, s));
+  const cdp = page.cdp;
 
   // The model: an L on the board (its long arm along x), and a stroke up the Front plane.
   await polyline(cdp, [[300, 200], [300, 400], [600, 400]]);

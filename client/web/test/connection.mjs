@@ -104,5 +104,30 @@ assert.equal(heard.at(-1)[0], "error");
 assert.match(heard.at(-1)[1].message, /not sent: set_placement.placement.matrix\[5\]: NaN is not finite/);
 assert.equal(heard.at(-1)[1].stroke, stroke);
 
-console.log("PASS connection: binary and text frames in one receive, in order; a bad frame said and dropped; moves binary or JSON");
+// Moves answered late: three moves of one of our strokes, then the proxy's answers. Only the
+// answer to the latest one reaches the page (it already shows that one; an earlier answer would
+// take the stroke back until the next came); a refusal counts as an answer; a move of another
+// stroke, and a peer_placement no move of ours asked for (a copy's, another page's), are heard.
+const moved = "3c4d5e6f-7a8b-4c9d-8e0f-1a2b3c4d5e6f";
+const at = (x) => ({ matrix: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, x, 0, 0, 1] });
+const answer = (x, s = moved) => binary({ peer_placement: { participant: me, stroke: s, placement: at(x) } });
+heard.length = 0;
+for (const x of [10, 20, 30]) assert.ok(conn.setPlacement(moved, at(x).matrix));
+ws.onmessage(answer(10));
+ws.onmessage(answer(5, "4d5e6f7a-8b9c-4dae-9f01-2b3c4d5e6f7a")); // another stroke's: heard
+ws.onmessage(answer(20));
+assert.deepEqual(heard.map(([kind, m]) => [kind, m.placement.matrix[12]]), [["peer_placement", 5]], "the answers to overtaken moves are not heard");
+ws.onmessage(answer(30));
+assert.deepEqual(heard.at(-1), ["peer_placement", { participant: me, stroke: moved, placement: at(30) }], "the latest move's answer is heard");
+ws.onmessage(answer(40));
+assert.equal(heard.at(-1)[1].placement.matrix[12], 40, "a peer_placement no move asked for is heard");
+// Two moves, the second refused: its error (which overtakes the first's answer) answers it, so
+// the first's answer is heard, as the stroke is where the proxy has it.
+heard.length = 0;
+for (const x of [50, 60]) assert.ok(conn.setPlacement(moved, at(x).matrix));
+ws.onmessage(binary({ error: { code: "not_owner", message: "not yours", stroke: moved } }));
+ws.onmessage(answer(50));
+assert.deepEqual(heard.map(([kind]) => kind), ["error", "peer_placement"], "a refused move is answered by its error");
+
+console.log("PASS connection: binary and text frames in one receive, in order; a bad frame said and dropped; moves binary or JSON; the answers to overtaken moves left out");
 process.exit(0); // the connection's keepalive timer would keep Node running

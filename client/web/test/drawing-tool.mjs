@@ -7,7 +7,7 @@
 // with PENMESH_BIN set. Screenshots go to target/web-test/. Any failure exits non-zero.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, pixelsAt, synced, until } from "./harness.mjs";
 
 // A removal or a restore on one page is on the other's screen within this long.
 const ADA_COLOUR = 0x2266dd;
@@ -29,7 +29,7 @@ await browserTest(async ({ proxy, browser }) => {
     const page = await context.newPage();
     page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
     await page.goto(pageUrl);
-    await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+    await synced(page);
     page.cdp = await context.newCDPSession(page);
     return page;
   }

@@ -16,7 +16,7 @@ import Ajv2020 from "ajv/dist/2020.js";
 import validator from "gltf-validator";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
-import { ARTIFACTS, browserTest, drawStroke, log, newSession, root, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, log, newSession, root, storedStrokes, synced, until } from "./harness.mjs";
 
 // The layout of a stroke's pen data (docs/model-format.schema.json), checked on real exports.
 const Ajv = Ajv2020.default ?? Ajv2020;
@@ -30,7 +30,7 @@ await browserTest(async ({ proxy, browser }) => {
   const page = await context.newPage();
   page.on("pageerror", (e) => console.error("page error:", e.message));
   await page.goto(`${base}/s/${first.session}#token=${first.token}`);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  await synced(page);
   const cdp = await context.newCDPSession(page);
   await drawStroke(cdp, { x0: 200, y0: 250, dx: 5, dy: 1, n: 60 });
   await drawStroke(cdp, { x0: 300, y0: 450, dx: 4, dy: -2, n: 60 });
@@ -114,7 +114,7 @@ await browserTest(async ({ proxy, browser }) => {
   const second = await newSession(base);
   const other = await context.newPage();
   await other.goto(`${base}/s/${second.session}#token=${second.token}`);
-  await other.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  await synced(other);
   const drop = (bytes, name) =>
     other.evaluate(([b64, name]) => {
       const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));

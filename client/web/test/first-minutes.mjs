@@ -7,27 +7,42 @@
 // target/web-test/first-*.png. Exits 1 when any check fails, naming each.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, nextFrames, pixelsAt, resizeTo, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, drawStroke, isBackground, log, newSession, nextFrames, openPage as open, pixelsAt, resizeTo, sessionUrl, storedStrokes, synced, until } from "./harness.mjs";
 
-const DESKTOP = { width: 1000, height: 700 };
 const PHONE = { width: 390, height: 844 };
 
 const button = (page, name) => page.getByRole("button", { name, exact: false });
 const toolButton = (page, name) => page.locator("#bar button").filter({ hasText: name });
 
-/// Opens the session in a browser context of its own (another person); returns the page with
-/// its CDP session as `page.cdp`.
-async function openPage(browser, url, { viewport = DESKTOP, touch = false, brush = null, name = "page", permissions = [] } = {}) {
-  const context = await browser.newContext({ viewport, deviceScaleFactor: 1, hasTouch: touch, isMobile: touch, permissions });
-  if (brush) await context.addInitScript((b) => sessionStorage.setItem("penmesh:brush", JSON.stringify(b)), brush);
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  return page;
-}
+/// Opens the session as another person (harness.mjs `openPage`), not waiting for it: the checks
+/// wait for what each needs (a refused link never syncs).
+const openPage = (browser, url, options = {}) => open(browser, url, { wait: false, ...options });
 
-const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+/// Checks that `page`'s toolbar is one row: its visible controls (buttons, inputs, selects) in
+/// the window, none overlapping another, the status, the model bar or the people list. Returns
+/// their ids.
+async function toolbarFits(page, what) {
+  const { controls, others, width } = await page.evaluate(() => {
+    const box = (e) => {
+      const r = e.getBoundingClientRect();
+      return { id: e.id || e.textContent, x: r.x, y: r.y, width: r.width, height: r.height };
+    };
+    const shown = (e) => e.getClientRects().length > 0;
+    return {
+      controls: [...document.querySelectorAll("#bar button, #bar input, #bar select")].filter(shown).map(box),
+      others: ["status", "modelbar", "people"].map((id) => document.getElementById(id)).filter(shown).map(box),
+      width: innerWidth,
+    };
+  });
+  const overlap = (a, b) => a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
+  const top = Math.min(...controls.map((c) => c.y));
+  for (const [i, a] of controls.entries()) {
+    assert.ok(a.x >= 0 && a.x + a.width <= width, `${what}: #${a.id} is not inside the window: ${JSON.stringify(a)}`);
+    assert.ok(a.y < top + 24, `${what}: #${a.id} is on a second row: ${JSON.stringify(a)}`);
+    for (const b of [...controls.slice(i + 1), ...others]) assert.ok(!overlap(a, b), `${what}: #${a.id} overlaps #${b.id}: ${JSON.stringify([a, b])}`);
+  }
+  return controls.map((c) => c.id);
+}
 
 /// Non-transparent pixels of the ink canvas, in the rectangle (all of it when none is given).
 function inkPixels(page, rect = null) {
@@ -60,7 +75,7 @@ const checks = {
   //    E and Esc.
   async 1({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     for (const y of [200, 300, 400]) await line(page.cdp, 300, 500, y);
     await until("three meshes", () => page.evaluate(() => window.penmesh.shown === 3 && !window.penmesh.pending));
@@ -87,7 +102,7 @@ const checks = {
   //    resize. Checked by where the strokes are stored.
   async 2({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     // Nothing drawn yet: one page pixel is one unit, page (x, y) is stroke (x, y).
     await page.mouse.move(500, 350);
@@ -129,7 +144,7 @@ const checks = {
   //    meshes are in, the ink is empty.
   async 3({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`, { touch: true });
+    const page = await openPage(browser, sessionUrl(base, s), { touch: true });
     await synced(page);
     await pinch(page.cdp, [500, 350], 40, 160);
     // The touch events are handled when CDP answers: a stroke begun would be on the page now.
@@ -185,7 +200,7 @@ const checks = {
     await joiner.locator("#join-link").fill("not a link");
     await button(joiner, "Join").click();
     await until("the pasted text refused in words", () => joiner.getByText("not a session link").isVisible());
-    await joiner.locator("#join-link").fill(`${base}/s/${s.session}#token=${s.token}`);
+    await joiner.locator("#join-link").fill(sessionUrl(base, s));
     await button(joiner, "Join").click();
     await synced(joiner);
     await joiner.context().close();
@@ -214,12 +229,23 @@ const checks = {
     }
   },
 
-  // 5. A phone: one row of large buttons, nothing covering the name or the status, a pinch
+  // 5. The toolbar is one row whatever the width: at 1000 px every control, at 800 px the rest
+  //    behind ⋯, no two controls overlapping, none over the status, the model bar or the people.
+  //    A phone: one row of large buttons, nothing covering the name or the status, a pinch
   //    zooms and draws nothing.
   async 5({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`, { viewport: PHONE, touch: true });
+    const desktop = await openPage(browser, sessionUrl(base, s));
+    await synced(desktop);
+    const all = await toolbarFits(desktop, "at 1000 px");
+    for (const id of ["undo", "colour", "size", "name", "fit", "copy-link", "download", "new"]) assert.ok(all.includes(id), `at 1000 px the toolbar shows #${id}: ${all}`);
+    await desktop.screenshot({ path: join(ARTIFACTS, "first-5-desktop.png") });
+    await resizeTo(desktop, { width: 800, height: 700 });
+    const narrow = await toolbarFits(desktop, "at 800 px");
+    assert.ok(narrow.includes("toggle-more") && !narrow.includes("new"), `at 800 px the rest is behind ⋯: ${narrow}`);
+    const page = await openPage(browser, sessionUrl(base, s), { viewport: PHONE, touch: true });
     await synced(page);
+    await toolbarFits(page, "on a phone");
     const bar = await page.locator("#bar").boundingBox();
     assert.ok(bar.height <= 56, `the toolbar is ${bar.height} px high: more than one row`);
     for (const b of await page.locator("#bar button:visible").all()) {
@@ -228,12 +254,13 @@ const checks = {
     }
     await button(page, "more").click();
     const boxes = {};
-    for (const id of ["people", "name", "status"]) {
+    for (const id of ["people", "name", "status", "views"]) {
       assert.ok(await page.locator(`#${id}`).isVisible(), `#${id} is not shown`);
       boxes[id] = await page.locator(`#${id}`).boundingBox();
     }
     const overlap = (a, b) => a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height && b.y < a.y + a.height;
     assert.ok(!overlap(boxes.people, boxes.name) && !overlap(boxes.people, boxes.status), `the people list covers the name or the status: ${JSON.stringify(boxes)}`);
+    assert.ok(!overlap(boxes.views, boxes.status) && !overlap(boxes.views, boxes.people), `the views cover the status or the people list: ${JSON.stringify(boxes)}`);
     await page.screenshot({ path: join(ARTIFACTS, "first-5-phone-menu.png") });
     await button(page, "more").click();
     await pinch(page.cdp, [195, 500], 30, 120);
@@ -254,7 +281,7 @@ const checks = {
   //    line, not dashes. (The mesh's width against the ink: stroke-width.mjs.)
   async 6({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const ada = await openPage(browser, url, { brush: { size: 24, pressure_response: 0.5, min_radius: 0.25, color: 0x2266dd }, name: "Ada" });
     const bob = await openPage(browser, url, { name: "Bob" });
     await synced(ada);
@@ -300,7 +327,7 @@ const checks = {
   // 7. The name box selects its text, so typing replaces it; guests' colours stay apart.
   async 7({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const pages = [];
     for (let i = 0; i < 4; i++) {
       pages.push(await openPage(browser, url, { name: `guest ${i}` }));
@@ -330,7 +357,7 @@ const checks = {
   //    erasing another's stroke each say why nothing happened.
   async 8({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const ada = await openPage(browser, url, { name: "Ada" });
     await synced(ada);
     await ada.locator("#name").fill("Ada");
@@ -364,7 +391,7 @@ const checks = {
   //    three back, Redo erases them again.
   async eraser({ base, browser }) {
     const s = await newSession(base);
-    const page = await openPage(browser, `${base}/s/${s.session}#token=${s.token}`);
+    const page = await openPage(browser, sessionUrl(base, s));
     await synced(page);
     for (const y of [200, 300, 400]) await line(page.cdp, 300, 500, y);
     await until("three meshes", () => page.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
@@ -389,7 +416,7 @@ const checks = {
   // 9. Sharing: "Copy link" copies the session's link; "New session" asks first.
   async 9({ base, browser }) {
     const s = await newSession(base);
-    const url = `${base}/s/${s.session}#token=${s.token}`;
+    const url = sessionUrl(base, s);
     const page = await openPage(browser, url, { permissions: ["clipboard-read", "clipboard-write"] });
     await synced(page);
     await button(page, "Copy link").click();

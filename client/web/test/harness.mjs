@@ -109,6 +109,56 @@ export async function newSession(base) {
   return res.json();
 }
 
+/// The page's link to session `s` (what "Copy link" gives: the token in the fragment).
+export const sessionUrl = (base, { session, token }) => `${base}/s/${session}#token=${token}`;
+
+/// The window the desktop tests open (one unit of the board per CSS pixel at the first view).
+export const VIEW = { width: 1000, height: 700 };
+
+/// Waits until `page` is in its session (Welcome) and has its history (Synced).
+export const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+
+/// Opens `url` in a browser context of its own (another person, another participant) at
+/// `viewport` (touch: a phone's), its page errors printed under `name`, `brush` kept for it
+/// before it loads; `prepare(page)` runs before it loads (to route or record its WebSocket).
+/// Returns the page with its CDP session as `page.cdp`, once synced (unless `wait` is false).
+export async function openPage(browser, url, { name = "page", viewport = VIEW, touch = false, brush = null, permissions = [], prepare = null, wait = true } = {}) {
+  const context = await browser.newContext({ viewport, deviceScaleFactor: 1, hasTouch: touch, isMobile: touch, permissions, acceptDownloads: true });
+  if (brush) await context.addInitScript((b) => sessionStorage.setItem("penmesh:brush", JSON.stringify(b)), brush);
+  const page = await context.newPage();
+  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
+  page.cdp = await context.newCDPSession(page);
+  if (prepare) await prepare(page);
+  await page.goto(url);
+  if (wait) await synced(page);
+  return page;
+}
+
+/// A new session with two people in it, each on a page of their own (synced), Ada's in front:
+/// `{ s, url, ada, bob }`.
+export async function adaAndBob(browser, base) {
+  const s = await newSession(base);
+  const url = sessionUrl(base, s);
+  const ada = await openPage(browser, url, { name: "ada" });
+  const bob = await openPage(browser, url, { name: "bob" });
+  await ada.bringToFront();
+  return { s, url, ada, bob };
+}
+
+/// A pen stroke through the page points `corners` ([x, y]) at an even pressure, a sample every
+/// 6 px or so; the pen stays down when `lift` is false.
+export async function polyline(cdp, corners, lift = true) {
+  const ev = (type, [x, y]) =>
+    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
+  await ev("mousePressed", corners[0]);
+  for (let i = 1; i < corners.length; i++) {
+    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
+    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
+    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
+  }
+  if (lift) await ev("mouseReleased", corners[corners.length - 1]);
+}
+
 /// The strokes stored in a session (GET /v1/sessions/{id}/strokes): what a test checks storage by.
 export async function storedStrokes(base, { session, token }) {
   const res = await fetch(`${base}/v1/sessions/${session}/strokes`, { headers: { authorization: `Bearer ${token}` } });

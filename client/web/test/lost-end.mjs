@@ -12,7 +12,7 @@
 // Run by scripts/test.sh.
 import assert from "node:assert/strict";
 import { decodeClient, decodeServer } from "../src/codec.js";
-import { browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
+import { browserTest, drawStroke, log, newSession, storedStrokes, synced, until } from "./harness.mjs";
 
 await browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
@@ -65,7 +65,7 @@ await browserTest(async ({ proxy, browser }) => {
   const page = await context.newPage();
   page.on("pageerror", (e) => console.error("page error:", e.message));
   await page.goto(`${base}/s/${session}#token=${token}`);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  await synced(page);
   const cdp = await context.newCDPSession(page);
   const drawnOf = new Map(); // stroke id -> the samples drawn
   const waitAllDone = async (what, meshes) =>

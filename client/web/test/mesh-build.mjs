@@ -7,7 +7,7 @@
 //    stroke has none).
 // Run by scripts/test.sh.
 import assert from "node:assert/strict";
-import { browserTest, drawStroke, log, newSession, storedStrokes, until } from "./harness.mjs";
+import { browserTest, drawStroke, log, newSession, storedStrokes, synced, until } from "./harness.mjs";
 
 await browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
@@ -27,7 +27,7 @@ await browserTest(async ({ proxy, browser }) => {
   const page = await context.newPage();
   page.on("pageerror", (e) => console.error("page error:", e.message));
   await page.goto(`${base}/s/${session}#token=${token}`);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  await synced(page);
   const cdp = await context.newCDPSession(page);
 
   // --- 1. one failed build: tried again --------------------------------------------------

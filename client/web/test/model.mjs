@@ -9,37 +9,12 @@
 // Run by scripts/test.sh as `node client/web/test/model.mjs`.
 import { join } from "node:path";
 import assert from "node:assert/strict";
-import { ARTIFACTS, browserTest, drawStroke, log, newSession, nextFrames, selectForGizmo, storedStrokes, strokeMiddle, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, log, newSession, nextFrames, openPage, polyline, selectForGizmo, sessionUrl, storedStrokes, strokeMiddle, until } from "./harness.mjs";
 
-const VIEW = { width: 1000, height: 700 };
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
 const FRONT = [1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1];
 // Orbit: radians per CSS pixel dragged (camera.js ORBIT_PER_PX).
 const ORBIT_PER_PX = 0.006;
-
-async function openPage(browser, url, name) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-  return page;
-}
-
-/// A pen stroke through the page points `corners` ([x, y]), a sample every 6 px or so; the pen
-/// stays down when `lift` is false.
-async function polyline(cdp, corners, lift = true) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  if (lift) await ev("mouseReleased", corners[corners.length - 1]);
-}
 
 /// Pixels drawn on the ink canvas in the 9x9 around page point (`x`, `y`).
 const inkAround = (page, [x, y]) =>
@@ -105,9 +80,9 @@ async function drag(page, [x0, y0], [x1, y1], steps = 10) {
 browserTest(async ({ proxy, browser }) => {
   const base = proxy.base;
   const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
+  const url = sessionUrl(base, s);
+  const ada = await openPage(browser, url, { name: "ada" });
+  const bob = await openPage(browser, url, { name: "bob" });
   assert.equal(await ada.evaluate(() => Number(document.querySelector('meta[name="penmesh-protocol"]').content)), 6, "the page speaks protocol 6");
 
   // 1. The seat on the board.
@@ -277,7 +252,7 @@ browserTest(async ({ proxy, browser }) => {
   await agree(base, s, ada, bob, "a refused move");
 
   // 7. A late joiner: the mesh bundle with placements and the history's peer_placement.
-  const cid = await openPage(browser, url, "cid");
+  const cid = await openPage(browser, url, { name: "cid" });
   await until("Cid's meshes", async () => Object.keys(await boxes(cid)).length === Object.keys(await boxes(ada)).length);
   assertSameBoxes(await boxes(ada), await boxes(cid), "the late joiner");
   assertSamePlacements(await placements(cid), server, "the late joiner");

@@ -13,22 +13,17 @@
 // Run by scripts/test.sh as `node client/web/test/move-bytes.mjs`.
 import assert from "node:assert/strict";
 import { decodeClient, decodeServer } from "../src/codec.js";
-import { browserTest, drawStroke, log, newSession, selectForGizmo, storedStrokes, until } from "./harness.mjs";
+import { browserTest, drawStroke, log, newSession, openPage, selectForGizmo, sessionUrl, storedStrokes, until } from "./harness.mjs";
 
-const VIEW = { width: 1000, height: 700 };
 const GOAL = 200;
 const IDENTITY = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1];
 
 /// Bytes on the wire of a WebSocket message of `n` payload bytes (RFC 6455, section 5.2).
 const onWire = (n, fromClient) => n + 2 + (n < 126 ? 0 : n < 65536 ? 2 : 8) + (fromClient ? 4 : 0);
 
-/// Opens a page of the session with every WebSocket frame it sends and receives recorded:
-/// `page.frames`, each {dir, binary, bytes, message}.
-async function openPage(browser, url, name) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  page.cdp = await context.newCDPSession(page);
+/// Records every WebSocket frame `page` sends and receives from its start (harness.mjs `openPage`'s
+/// `prepare`): `page.frames`, each {dir, binary, bytes, message}.
+function recordFrames(page) {
   page.frames = [];
   const record = (dir) => (e) => {
     const { opcode, payloadData } = e.response;
@@ -40,10 +35,7 @@ async function openPage(browser, url, name) {
   };
   page.cdp.on("Network.webSocketFrameSent", record("sent"));
   page.cdp.on("Network.webSocketFrameReceived", record("received"));
-  await page.cdp.send("Network.enable");
-  await page.goto(url);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-  return page;
+  return page.cdp.send("Network.enable");
 }
 
 /// The frames of `kind` that `page` sent or received (`dir`) since `from` (an index of its frames).
@@ -85,9 +77,9 @@ const marksOf = (ada, bob) => ({ ada: ada.frames.length, bob: bob.frames.length 
 browserTest(async ({ proxy, browser }) => {
   const base = proxy.base;
   const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
+  const url = sessionUrl(base, s);
+  const ada = await openPage(browser, url, { name: "ada", prepare: recordFrames });
+  const bob = await openPage(browser, url, { name: "bob", prepare: recordFrames });
   for (const [name, page] of [["Ada", ada], ["Bob", bob]]) {
     const [hello] = framesOf(page, "sent", "hello");
     assert.ok(hello && hello.binary, `${name}'s hello is a binary frame`);

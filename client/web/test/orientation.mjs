@@ -17,22 +17,7 @@ import { inflateRawSync } from "node:zlib";
 import * as THREE from "three";
 import { GLTFLoader } from "three/examples/jsm/loaders/GLTFLoader.js";
 import { MeshoptDecoder } from "three/examples/jsm/libs/meshopt_decoder.module.js";
-import { ARTIFACTS, browserTest, log, newSession, until } from "./harness.mjs";
-
-const VIEW = { width: 1000, height: 700 };
-
-/// A pen stroke through page points `corners`, a sample every 6 px or so.
-async function polyline(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
-}
+import { ARTIFACTS, browserTest, log, newSession, openPage, polyline, sessionUrl, until } from "./harness.mjs";
 
 async function exported(base, s, format) {
   const res = await fetch(`${base}/v1/sessions/${s.session}/export?format=${format}`, { headers: { authorization: `Bearer ${s.token}` } });
@@ -115,12 +100,8 @@ function volume(points) {
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
   const s = await newSession(base);
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error("page error:", e.message));
-  await page.goto(`${base}/s/${s.session}#token=${s.token}`);
-  const cdp = await context.newCDPSession(page);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  const page = await openPage(browser, sessionUrl(base, s));
+  const cdp = page.cdp;
 
   // An F on the board, as the page shows it from above: the stem, the top arm, the middle arm.
   await polyline(cdp, [[300, 150], [300, 450]]);

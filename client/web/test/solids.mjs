@@ -9,15 +9,17 @@
 // 4. Bob reloads: the plate and the hole are as before.
 // 5. An open stroke made Filled is refused in the proxy's words, shown to Ada; nothing changes
 //    (the proxy's solid, and the history: the next undo takes the open stroke back).
-// 6. The STL through the Export menu: PrusaSlicer reads one manifold part with the hole cut out.
+// 6. The STL through the Export menu: PrusaSlicer reads one manifold part with the hole cut out,
+//    as thick as the panel said in mm.
+// 7. A depth typed in mm (issue 51): the print that the Export menu makes is that thick; at
+//    another size in the Export menu, the panel's mm follow it, and so does the print.
 // Screenshots: target/web-test/solids-*.png. Run by scripts/test.sh as
 // `node client/web/test/solids.mjs`.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { join } from "node:path";
-import { ARTIFACTS, browserTest, isBackground, log, newSession, pixelsAt, storedStrokes, until } from "./harness.mjs";
+import { ARTIFACTS, adaAndBob, browserTest, isBackground, log, pixelsAt, polyline, storedStrokes, synced, until } from "./harness.mjs";
 
-const VIEW = { width: 1000, height: 700 };
 // The plate, in page pixels (one unit of the board each at the page's first view).
 const [X0, X1, Y0, Y1] = [300, 500, 250, 450];
 // The hole: a small square inside the plate.
@@ -26,31 +28,11 @@ const HOLE_MIDDLE = [(H0 + H1) / 2, (K0 + K1) / 2];
 const PLATE_INSIDE = [340, 290]; // inside the plate, away from its ink and the hole
 const PLATE_DEPTH = 20; // px: the hole's default depth (24) goes through it
 const ROD = { kind: "line", depth: null };
-
-async function openPage(browser, url, name) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1, acceptDownloads: true });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  await synced(page);
-  return page;
-}
-
-const synced = (page) => page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-
-/// A pen stroke through the `corners`, at an even pressure.
-async function pen(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
-}
+// A depth typed in the print's mm, and half the Export menu's default size.
+const TYPED_MM = 6;
+const HALF_MM = 50;
+// How far the print's thickness may be from the panel's mm: the panel rounds to 0.1 mm.
+const MM_TOLERANCE = 0.06;
 
 const square = (x0, x1, y0, y1) => [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]];
 
@@ -99,14 +81,10 @@ async function showsPlate(page, filled, file, what) {
 
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
-  const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
-  await ada.bringToFront();
+  const { s, ada, bob } = await adaAndBob(browser, base);
 
   // --- 1. a closed square, Filled, its depth typed -----------------------------------------
-  await pen(ada.cdp, square(X0, X1, Y0, Y1));
+  await polyline(ada.cdp, square(X0, X1, Y0, Y1));
   await until("the square's mesh on both pages", async () => (await ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending)) && (await bob.evaluate(() => window.penmesh.meshes === 1)));
   const [plate] = Object.keys(await solids(base, s));
   await stored(base, s, { [plate]: ROD }, "a stroke is the rod");
@@ -124,11 +102,11 @@ browserTest(async ({ proxy, browser }) => {
   await ada.press("#selection-solid-depth", "Enter");
   const filled = { kind: "filled", depth: PLATE_DEPTH };
   await stored(base, s, { [plate]: filled }, "the depth typed");
-  const mm = await ada.textContent("#selection-solid .mm");
-  assert.match(mm, /px · [\d.]+ mm/, `the depth in px and the print's mm: ${mm}`);
+  const mm = Number(await ada.inputValue("#selection-solid-depth-mm"));
+  assert.ok(mm > 0, `the depth in the print's mm: ${mm}`);
   await showsPlate(bob, true, "solids-1-bob-filled.png", "Filled, live on Bob's page");
   await showsPlate(ada, true, "solids-1-ada-filled.png", "Filled on Ada's page");
-  log(`the square filled ${PLATE_DEPTH} px deep (${mm}); Bob's page shows the plate`);
+  log(`the square filled ${PLATE_DEPTH} px deep (${mm} mm of the print); Bob's page shows the plate`);
 
   // --- 2. undo and redo of the solid, two steps each --------------------------------------------
   await ada.keyboard.press("Control+z");
@@ -150,7 +128,7 @@ browserTest(async ({ proxy, browser }) => {
   await ada.click("#tool-draw");
   await ada.selectOption("#draw-solid", "hole");
   const plateSeen = await look(bob, "solids-3-before-hole.png");
-  await pen(ada.cdp, square(H0, H1, K0, K1));
+  await polyline(ada.cdp, square(H0, H1, K0, K1));
   const hole = await until("the hole stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate));
   const holeSolid = { kind: "hole", depth: 24 };
   await stored(base, s, { [plate]: filled, [hole]: holeSolid }, "the hole drawn as one");
@@ -176,7 +154,7 @@ browserTest(async ({ proxy, browser }) => {
 
   // --- 5. an open stroke made Filled is refused in words ---------------------------------------
   await ada.selectOption("#draw-solid", "line");
-  await pen(ada.cdp, [[600, 250], [750, 250], [750, 400]]);
+  await polyline(ada.cdp, [[600, 250], [750, 250], [750, 400]]);
   const open = await until("the open stroke stored", async () => Object.keys(await solids(base, s)).find((id) => id !== plate && id !== hole));
   await until("the open stroke's mesh", () => ada.evaluate(() => window.penmesh.meshes === 3 && !window.penmesh.pending));
   await ada.keyboard.press("v");
@@ -200,18 +178,51 @@ browserTest(async ({ proxy, browser }) => {
   // --- 6. the STL, through the Export menu ----------------------------------------------------
   await ada.keyboard.press("4");
   await ada.screenshot({ path: join(ARTIFACTS, "solids-6-3d.png") });
-  if (!(await ada.isVisible("#download"))) await ada.click("#toggle-more");
-  await ada.click("#download");
-  const [download] = await Promise.all([ada.waitForEvent("download"), ada.click("#export-stl")]);
-  const stlFile = join(ARTIFACTS, "solids.stl");
-  await download.saveAs(stlFile);
-  const info = execFileSync("prusa-slicer", ["--loglevel", "1", "--info", stlFile], { encoding: "utf8" });
+  const stl = await exportStl(ada, "solids.stl");
+  const box = stl.size_x * stl.size_y * stl.size_z;
+  // The hole (about 5 % of the plate's area, through it) is cut out: the plate's rounded
+  // corners alone lose well under 1 %.
+  assert.ok(stl.volume < 0.97 * box, `the hole is cut out of the plate: volume ${stl.volume} of a ${box.toFixed(0)} mm³ box`);
+  assert.ok(Math.abs(stl.size_z - mm) <= MM_TOLERANCE, `the print is ${stl.size_z} mm thick, the panel said ${mm} mm`);
+  log(`the STL: one manifold part, ${stl.volume.toFixed(0)} mm³ of a ${box.toFixed(0)} mm³ box (the hole cut out), ${stl.size_z} mm thick as the panel said`);
+
+  // --- 7. a depth typed in mm -------------------------------------------------------------------
+  await ada.keyboard.press("1");
+  await ada.keyboard.press("v");
+  await ada.mouse.click(...(await ada.evaluate(([x, y]) => window.penmesh.toPage(x, y, null), PLATE_INSIDE)));
+  await until("the plate selected", async () => JSON.stringify(await ada.evaluate(() => window.penmesh.selected)) === JSON.stringify([plate]));
+  await ada.fill("#selection-solid-depth-mm", String(TYPED_MM));
+  await ada.press("#selection-solid-depth-mm", "Enter");
+  const depth = await until("the depth typed in mm stored", async () => (await solids(base, s))[plate].depth !== PLATE_DEPTH && (await solids(base, s))[plate].depth);
+  await until("the panel shows the mm typed", async () => Number(await ada.inputValue("#selection-solid-depth-mm")) === TYPED_MM);
+  const typed = await exportStl(ada, "solids-typed-mm.stl");
+  assert.ok(Math.abs(typed.size_z - TYPED_MM) <= MM_TOLERANCE, `${TYPED_MM} mm typed (${depth.toFixed(2)} px): the print is ${typed.size_z} mm thick`);
+  // The Export menu at half the size: the panel's mm halve, and so does the print.
+  await openExportMenu(ada);
+  await ada.fill("#export-size", String(HALF_MM));
+  await until("the panel's mm at the Export menu's size", async () => Number(await ada.inputValue("#selection-solid-depth-mm")) === TYPED_MM / 2);
+  const half = await exportStl(ada, "solids-half.stl");
+  assert.ok(Math.abs(half.size_z - TYPED_MM / 2) <= MM_TOLERANCE, `at ${HALF_MM} mm the print is ${half.size_z} mm thick, the panel said ${TYPED_MM / 2}`);
+  log(`${TYPED_MM} mm typed: ${depth.toFixed(2)} px, a print ${typed.size_z} mm thick; at ${HALF_MM} mm the panel said ${TYPED_MM / 2} and the print is ${half.size_z}`);
+});
+
+/// Opens the Export menu (behind ⋯ in a narrow window).
+async function openExportMenu(page) {
+  if (await page.isVisible("#export-menu")) return;
+  if (!(await page.isVisible("#download"))) await page.click("#toggle-more");
+  await page.click("#download");
+}
+
+/// The STL print through the Export menu (at the size it shows), saved as `file`: PrusaSlicer's
+/// figures of it (size_x, size_y, size_z in mm, volume in mm³), checked one manifold part.
+async function exportStl(page, file) {
+  await openExportMenu(page);
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click("#export-stl")]);
+  const path = join(ARTIFACTS, file);
+  await download.saveAs(path);
+  const info = execFileSync("prusa-slicer", ["--loglevel", "1", "--info", path], { encoding: "utf8" });
   assert.match(info, /manifold = yes/, info);
   assert.match(info, /number_of_parts =\s+1\b/, info);
   const value = (name) => Number(new RegExp(`${name} = ([\\d.]+)`).exec(info)[1]);
-  const box = value("size_x") * value("size_y") * value("size_z");
-  // The hole (about 5 % of the plate's area, through it) is cut out: the plate's rounded
-  // corners alone lose well under 1 %.
-  assert.ok(value("volume") < 0.97 * box, `the hole is cut out of the plate: volume ${value("volume")} of a ${box.toFixed(0)} mm³ box`);
-  log(`the STL: one manifold part, ${value("volume").toFixed(0)} mm³ of a ${box.toFixed(0)} mm³ box (the hole cut out)`);
-});
+  return Object.fromEntries(["size_x", "size_y", "size_z", "volume"].map((k) => [k, value(k)]));
+}

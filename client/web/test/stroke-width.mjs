@@ -8,7 +8,7 @@
 import { join } from "node:path";
 import assert from "node:assert/strict";
 import { readGlb } from "../src/glb.js";
-import { ARTIFACTS, browserTest, log, newSession, nextFrames, until } from "./harness.mjs";
+import { ARTIFACTS, browserTest, log, newSession, nextFrames, synced, until } from "./harness.mjs";
 
 const SIZE = 24;
 const RESPONSE = 0.5;
@@ -64,7 +64,7 @@ await browserTest(async ({ proxy, browser }) => {
   const page = await context.newPage();
   page.on("pageerror", (e) => console.error("page error:", e.message));
   await page.goto(`${base}/s/${session}#token=${token}`);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
+  await synced(page);
   const cdp = await context.newCDPSession(page);
   const auth = { authorization: `Bearer ${token}` };
 

@@ -11,31 +11,7 @@
 // Run by scripts/test.sh as `node client/web/test/workplane.mjs`.
 import assert from "node:assert/strict";
 import { join } from "node:path";
-import { ARTIFACTS, browserTest, log, newSession, storedStrokes, until } from "./harness.mjs";
-
-const VIEW = { width: 1000, height: 700 };
-
-async function openPage(browser, url, name) {
-  const context = await browser.newContext({ viewport: VIEW, deviceScaleFactor: 1 });
-  const page = await context.newPage();
-  page.on("pageerror", (e) => console.error(`[${name}] page error:`, e.message));
-  await page.goto(url);
-  page.cdp = await context.newCDPSession(page);
-  await page.waitForFunction(() => window.penmesh && window.penmesh.me && window.penmesh.synced);
-  return page;
-}
-
-async function pen(cdp, corners) {
-  const ev = (type, [x, y]) =>
-    cdp.send("Input.dispatchMouseEvent", { type, x, y, force: type === "mouseReleased" ? 0 : 0.5, button: "left", buttons: type === "mouseReleased" ? 0 : 1, clickCount: 1, pointerType: "pen" });
-  await ev("mousePressed", corners[0]);
-  for (let i = 1; i < corners.length; i++) {
-    const [[x0, y0], [x1, y1]] = [corners[i - 1], corners[i]];
-    const n = Math.max(1, Math.round(Math.hypot(x1 - x0, y1 - y0) / 6));
-    for (let k = 1; k <= n; k++) await ev("mouseMoved", [x0 + ((x1 - x0) * k) / n, y0 + ((y1 - y0) * k) / n]);
-  }
-  await ev("mouseReleased", corners[corners.length - 1]);
-}
+import { ARTIFACTS, adaAndBob, browserTest, log, polyline, storedStrokes, until } from "./harness.mjs";
 
 const plane = (page) => page.evaluate(() => window.penmesh.workPlane);
 const stored = async (base, s) => Object.fromEntries((await storedStrokes(base, s)).map((x) => [x.id, x.placement.matrix]));
@@ -43,12 +19,8 @@ const myDot = (page) => page.evaluate(() => [...document.querySelectorAll("#peop
 
 browserTest(async ({ proxy, browser }) => {
   const { base } = proxy;
-  const s = await newSession(base);
-  const url = `${base}/s/${s.session}#token=${s.token}`;
-  const ada = await openPage(browser, url, "ada");
-  const bob = await openPage(browser, url, "bob");
-  await ada.bringToFront();
-  await pen(ada.cdp, [[300, 250], [500, 250], [500, 450], [300, 450], [300, 255]]);
+  const { s, ada, bob } = await adaAndBob(browser, base);
+  await polyline(ada.cdp, [[300, 250], [500, 250], [500, 450], [300, 450], [300, 255]]);
   await until("the square", () => ada.evaluate(() => window.penmesh.meshes === 1 && !window.penmesh.pending));
   const [square] = Object.keys(await stored(base, s));
 
@@ -85,7 +57,7 @@ browserTest(async ({ proxy, browser }) => {
   const drawnOn = (await plane(ada)).placement;
   // A stroke up the plane, seen from the front.
   const up = await ada.evaluate((m) => [[0, 20], [0, 180]].map(([x, y]) => window.penmesh.toPage(x, y, m)), drawnOn);
-  await pen(ada.cdp, up);
+  await polyline(ada.cdp, up);
   await until("the standing stroke", () => ada.evaluate(() => window.penmesh.meshes === 2 && !window.penmesh.pending));
   const standing = Object.keys(await stored(base, s)).find((id) => id !== square);
   assert.deepEqual((await stored(base, s))[standing], drawnOn, "the stroke carries the work plane's placement");
@@ -141,7 +113,7 @@ browserTest(async ({ proxy, browser }) => {
 
   // 6. Bob draws; Ada copies his stroke: her dot keeps her colour.
   await bob.bringToFront();
-  await pen(bob.cdp, [[600, 150], [800, 150]]);
+  await polyline(bob.cdp, [[600, 150], [800, 150]]);
   await until("Bob's stroke on Ada's page", () => ada.evaluate(() => window.penmesh.meshes === 3));
   await ada.bringToFront();
   const before = await myDot(ada);

@@ -3,8 +3,8 @@
 
 use std::collections::HashMap;
 
-use penmesh::Placement;
 use penmesh::protocol::{ParticipantId, StrokeId};
+use penmesh::{Placement, Solid};
 use sqlx::Row;
 use uuid::Uuid;
 
@@ -20,6 +20,8 @@ pub struct BundleEntry {
     pub mesh_stroke: StrokeId,
     /// The stroke's current placement.
     pub placement: Placement,
+    /// The stroke's current solid (the rod when it has none stored).
+    pub solid: Solid,
     /// The GLB's size in bytes.
     pub bytes: u64,
     /// When the mesh was stored (ms): a replacement has a later one.
@@ -40,7 +42,9 @@ impl Store {
             "SELECT s.id AS stroke_id, s.participant, s.created_at AS begun, \
              m.stroke_id AS mesh_stroke, CAST(length(m.glb) AS BIGINT) AS bytes, m.created_at, \
              m.vertices, m.triangles, (SELECT p.matrix FROM stroke_placements p \
-             WHERE p.stroke_id = s.id ORDER BY p.id DESC LIMIT 1) AS matrix \
+             WHERE p.stroke_id = s.id ORDER BY p.id DESC LIMIT 1) AS matrix, \
+             (SELECT q.solid FROM stroke_solids q WHERE q.stroke_id = s.id \
+             ORDER BY q.id DESC LIMIT 1) AS solid \
              FROM strokes s JOIN meshes m ON m.stroke_id = COALESCE(s.mesh_of, s.id) \
              WHERE s.session_id = $1 AND s.removed_at IS NULL",
         )
@@ -55,11 +59,16 @@ impl Store {
                     Some(bytes) => Placement::from_bytes(&bytes)?,
                     None => Placement::IDENTITY,
                 };
+                let solid = match row.try_get::<Option<Vec<u8>>, _>("solid")? {
+                    Some(bytes) => Solid::from_bytes(&bytes)?,
+                    None => Solid::ROD,
+                };
                 let entry = BundleEntry {
                     stroke: parse_uuid(&row.try_get::<String, _>("stroke_id")?)?,
                     participant: parse_uuid(&row.try_get::<String, _>("participant")?)?,
                     mesh_stroke: parse_uuid(&row.try_get::<String, _>("mesh_stroke")?)?,
                     placement,
+                    solid,
                     bytes: row.try_get::<i64, _>("bytes")? as u64,
                     created_at: row.try_get("created_at")?,
                     vertices: row.try_get("vertices")?,

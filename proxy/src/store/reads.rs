@@ -120,6 +120,24 @@ impl Store {
         Ok(bytes.map(|b| b as u64))
     }
 
+    /// The strokes not taken back that show `stroke`'s mesh row (its duplicates sharing it,
+    /// `mesh_of`), with their drawers.
+    pub async fn mesh_sharers(&self, stroke: Uuid) -> anyhow::Result<Vec<(Uuid, Uuid)>> {
+        let rows = sqlx::query(
+            "SELECT id, participant FROM strokes WHERE mesh_of = $1 AND removed_at IS NULL \
+             ORDER BY id",
+        )
+        .bind(stroke.to_string())
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter()
+            .map(|row| {
+                let id = super::parse_uuid(&row.try_get::<String, _>("id")?)?;
+                Ok((id, super::parse_uuid(&row.try_get::<String, _>("participant")?)?))
+            })
+            .collect()
+    }
+
     /// A stroke's mesh: a duplicate's is its source's (`mesh_of`), shared, never copied.
     pub async fn mesh(&self, stroke: Uuid) -> anyhow::Result<Option<MeshRow>> {
         let row = sqlx::query(

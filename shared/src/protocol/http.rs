@@ -107,6 +107,9 @@ pub struct SolidChange {
 pub struct SolidHistory {
     pub stroke: Uuid,
     pub solids: Vec<SolidChange>,
+    /// Where the next page begins (its `from`), when the history goes on past this page.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub next: Option<u64>,
 }
 
 /// The body of `POST /v1/strokes/{id}/duplicate`.

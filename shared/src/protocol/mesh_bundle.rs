@@ -27,12 +27,26 @@
 //! (copy them out first: they are not 8-byte aligned in the body), the stroke's node matrix
 //! (`Matrix4.fromArray`, with the mesh's winding flipped when its determinant is negative). The
 //! default stays `PMB1`, so a page that does not ask keeps working. A duplicate's mesh is its
-//! source's bytes, under the duplicate's stroke id and placement.
+//! source's bytes, under the duplicate's stroke id and placement: in `PMB1` and `PMB2` once per
+//! stroke that shows it.
+//!
+//! **With a mesh table** (protocol 6, `GET …/meshes?layout=PMB3`, [`table`]): each distinct
+//! mesh once, then every stroke with its placement, its solid and the index of its mesh, so a
+//! stroke and its duplicates cost one mesh. What the page asks for.
+
+mod table;
 
 use uuid::Uuid;
 
 use super::{ParticipantId, StrokeId};
-use crate::placement::Placement;
+use crate::placement::{Placement, PlacementError};
+use crate::solid::SolidError;
+
+pub use table::{
+    BUNDLED_STROKE_BYTES, BundledStroke, MESH_BUNDLE_TABLE_MAGIC, MeshTableBundle,
+    decode_mesh_table_bundle, encode_mesh_table_bundle, mesh_table_bundle_head,
+    push_bundled_stroke, push_table_mesh,
+};
 
 /// The first four bytes of a bundle with placements ([`encode_placed_mesh_bundle`]).
 pub const MESH_BUNDLE_PLACED_MAGIC: [u8; 4] = *b"PMB2";
@@ -61,7 +75,7 @@ pub fn encode_placed_mesh_bundle(meshes: &[PlacedMesh]) -> Vec<u8> {
 /// The meshes of a `PMB2` bundle.
 pub fn decode_placed_mesh_bundle(bytes: &[u8]) -> Result<Vec<PlacedMesh>, MeshBundleError> {
     if bytes.get(..4) != Some(&MESH_BUNDLE_PLACED_MAGIC[..]) {
-        return Err(MeshBundleError::Magic);
+        return Err(MeshBundleError::Magic("PMB2"));
     }
     let mut at = 4;
     let count =
@@ -72,7 +86,8 @@ pub fn decode_placed_mesh_bundle(bytes: &[u8]) -> Result<Vec<PlacedMesh>, MeshBu
         let stroke = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
         let participant = read_uuid(bytes, &mut at).ok_or(truncated.clone())?;
         let matrix = bytes.get(at..at + 128).ok_or(truncated.clone())?;
-        let placement = Placement::from_bytes(matrix).map_err(|_| truncated.clone())?;
+        let placement = Placement::from_bytes(matrix)
+            .map_err(|error| MeshBundleError::Placement { stroke: index, error })?;
         at += 128;
         let len = read_u32(bytes, &mut at).ok_or(truncated.clone())? as usize;
         let glb = bytes.get(at..at.saturating_add(len)).ok_or(truncated)?.to_vec();
@@ -98,14 +113,26 @@ pub struct BundledMesh {
     pub glb: Vec<u8>,
 }
 
-/// Why bytes are not a mesh bundle.
-#[derive(Debug, Clone, thiserror::Error, PartialEq, Eq)]
+/// Why bytes are not a mesh bundle. Each names where reading stopped.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum MeshBundleError {
-    #[error("not a mesh bundle: it does not start with \"PMB1\"")]
-    Magic,
+    /// The layout expected (its magic).
+    #[error("not a mesh bundle of layout {0}: it does not start with \"{0}\"")]
+    Magic(&'static str),
+    #[error("the mesh bundle ends inside its head (the magic and the counts): it has {at} bytes")]
+    Head { at: usize },
     #[error("the mesh bundle ends inside mesh {index} (or its header), at byte {at}")]
     Truncated { index: usize, at: usize },
-    #[error("the mesh bundle has {extra} bytes after its {count} meshes")]
+    #[error("the mesh bundle ends inside stroke {index}'s entry, at byte {at}")]
+    TruncatedStroke { index: usize, at: usize },
+    #[error("the mesh bundle's stroke {stroke} has a bad placement: {error}")]
+    Placement { stroke: usize, error: PlacementError },
+    #[error("the mesh bundle's stroke {stroke} has a bad solid: {error}")]
+    Solid { stroke: usize, error: SolidError },
+    #[error("the mesh bundle's stroke {stroke} shows mesh {mesh}, but the bundle has {meshes}")]
+    MeshIndex { stroke: usize, mesh: u32, meshes: usize },
+    /// `count`: the meshes (`PMB1`, `PMB2`) or strokes (`PMB3`) read before the extra bytes.
+    #[error("the mesh bundle has {extra} bytes after its last entry (of {count})")]
     Trailing { count: usize, extra: usize },
 }
 
@@ -164,7 +191,7 @@ pub fn push_bundled_mesh(
 /// The meshes of a bundle.
 pub fn decode_mesh_bundle(bytes: &[u8]) -> Result<Vec<BundledMesh>, MeshBundleError> {
     if bytes.get(..4) != Some(&MESH_BUNDLE_MAGIC[..]) {
-        return Err(MeshBundleError::Magic);
+        return Err(MeshBundleError::Magic("PMB1"));
     }
     let mut at = 4;
     let count =
@@ -230,15 +257,15 @@ mod tests {
         let bytes = encode_placed_mesh_bundle(&meshes);
         assert_eq!(&bytes[..4], b"PMB2");
         assert_eq!(decode_placed_mesh_bundle(&bytes), Ok(meshes));
-        assert_eq!(decode_mesh_bundle(&bytes), Err(MeshBundleError::Magic));
+        assert_eq!(decode_mesh_bundle(&bytes), Err(MeshBundleError::Magic("PMB1")));
         assert!(decode_placed_mesh_bundle(&bytes[..bytes.len() - 1]).is_err());
     }
 
     #[test]
     fn bad_bundles_are_refused_with_where() {
         let bytes = encode_mesh_bundle(&[mesh(1, 10), mesh(2, 10)]);
-        assert_eq!(decode_mesh_bundle(b"PMB2\0\0\0\0"), Err(MeshBundleError::Magic));
-        assert_eq!(decode_mesh_bundle(&bytes[..3]), Err(MeshBundleError::Magic));
+        assert_eq!(decode_mesh_bundle(b"PMB2\0\0\0\0"), Err(MeshBundleError::Magic("PMB1")));
+        assert_eq!(decode_mesh_bundle(&bytes[..3]), Err(MeshBundleError::Magic("PMB1")));
         // Cut inside the second mesh's GLB: the error names it and where its header began.
         assert_eq!(
             decode_mesh_bundle(&bytes[..bytes.len() - 1]),

@@ -55,9 +55,11 @@ pub use http::{
     StrokeSamples,
 };
 pub use mesh_bundle::{
-    BundledMesh, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC, MESH_BUNDLE_PLACED_MAGIC,
-    MeshBundleError, PlacedMesh, decode_mesh_bundle, decode_placed_mesh_bundle, encode_mesh_bundle,
-    encode_placed_mesh_bundle, mesh_bundle_head, push_bundled_mesh,
+    BUNDLED_STROKE_BYTES, BundledMesh, BundledStroke, MESH_BUNDLE_CONTENT_TYPE, MESH_BUNDLE_MAGIC,
+    MESH_BUNDLE_PLACED_MAGIC, MESH_BUNDLE_TABLE_MAGIC, MeshBundleError, MeshTableBundle,
+    PlacedMesh, decode_mesh_bundle, decode_mesh_table_bundle, decode_placed_mesh_bundle,
+    encode_mesh_bundle, encode_mesh_table_bundle, encode_placed_mesh_bundle, mesh_bundle_head,
+    mesh_table_bundle_head, push_bundled_mesh, push_bundled_stroke, push_table_mesh,
 };
 
 /// Stroke ids are chosen by the client (UUID v4), so a resent stroke is recognised.

@@ -8,7 +8,7 @@ use penmesh::Sample;
 use penmesh::protocol::{ServerMessage, StrokeId, decode_server};
 use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault};
 use penmesh_e2e::{
-    TestDatabase, TestProxy, TestSession, WsClient, draw_stroke, minimal_glb,
+    TestDatabase, TestProxy, TestSession, WsClient, draw_stroke, minimal_glb, plain_glb,
     spawn_faulty_proxy_on, spawn_proxy_with,
 };
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -161,22 +161,6 @@ async fn the_meshes_of_a_session_are_held_to_its_quota() {
     let (_other_ws, other_strokes) = done_strokes(&proxy, &other, 1, 50).await;
     let elsewhere = proxy.put_mesh(&other, other_strokes[0], glb).send().await.unwrap();
     assert_eq!(elsewhere.status(), 200);
-}
-
-/// A GLB of `vertices` positions and normals, not compressed: about 24 bytes a vertex.
-fn plain_glb(vertices: usize) -> Vec<u8> {
-    let mesh = penmesh::StrokeMesh {
-        positions: (0..vertices).map(|i| [i as f32, 1.0, 2.0]).collect(),
-        normals: vec![[0.0, 0.0, 1.0]; vertices],
-        indices: vec![0, 1, 2],
-    };
-    let meta = penmesh::GlbMeta {
-        stroke: Uuid::nil(),
-        author: "penmesh-e2e".into(),
-        brush: penmesh::Brush::default(),
-    };
-    let options = penmesh::GlbOptions::default().encoding(penmesh::GlbEncoding::Plain);
-    penmesh::stroke_glb(&mesh, &meta, &options)
 }
 
 /// The mesh bundle is a large body like the others: a 200 waits for one of the permits (and

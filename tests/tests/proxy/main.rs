@@ -4,6 +4,7 @@
 
 mod auth;
 mod bad_input;
+mod bundle;
 mod costs;
 mod deploy;
 mod export;

@@ -217,14 +217,120 @@ async fn page(proxy: &TestProxy, who: &TestSession, stroke: Uuid, query: &str) -
     proxy.get_json(&format!("/v1/strokes/{stroke}/placements{query}"), who).await
 }
 
-/// (3) A placement history is read a page at a time, at most `MAX_PLACEMENTS_PAGE` a page
+/// A stroke's history (`route`: `placements` or `solids`) followed page after page from
+/// `?from=0&limit={limit}`: every entry, oldest first.
+async fn follow_pages(
+    proxy: &TestProxy,
+    who: &TestSession,
+    stroke: Uuid,
+    route: &str,
+    limit: usize,
+) -> Vec<Value> {
+    let mut all = Vec::new();
+    let mut from = Some(0);
+    while let Some(at) = from {
+        let path = format!("/v1/strokes/{stroke}/{route}?from={at}&limit={limit}");
+        let body = proxy.get_json(&path, who).await;
+        let got = body[route].as_array().unwrap();
+        assert!(!got.is_empty() && got.len() <= limit, "{path}");
+        all.extend(got.iter().cloned());
+        from = body["next"].as_u64();
+    }
+    all
+}
+
+/// (Issue 51) A solid history is read a page at a time as a placement history is: at most
+/// `MAX_HISTORY_PAGE` a page whatever is asked, `next` where the next begins, the pages
+/// together the whole history in order.
+#[tokio::test]
+async fn a_solid_history_is_read_a_bounded_page_at_a_time() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let stroke = done_stroke(&proxy, &session, 20).await;
+    let max = penmesh_proxy::MAX_HISTORY_PAGE as usize;
+    // More changes than a page holds (the rod of its begin is implied: one more entry); each
+    // a wall as deep as its number.
+    let changes = max + 4;
+    for chunk in (0..changes).collect::<Vec<_>>().chunks(16) {
+        let puts = chunk.iter().map(|&i| {
+            proxy
+                .http
+                .put(proxy.url(&format!("/v1/strokes/{stroke}/solid")))
+                .bearer_auth(&session.token)
+                .header(KEY_HEADER, &session.key)
+                .json(&json!({"kind": "line", "depth": i as f64 + 1.0}))
+                .send()
+        });
+        for response in futures_util::future::join_all(puts).await {
+            assert_eq!(response.unwrap().status(), 200);
+        }
+    }
+    let page = |query: &str| {
+        let path = format!("/v1/strokes/{stroke}/solids{query}");
+        let (proxy, session) = (&proxy, &session);
+        async move { proxy.get_json(&path, session).await }
+    };
+    for query in ["", "?limit=100000"] {
+        let first = page(query).await;
+        assert_eq!(first["solids"].as_array().unwrap().len(), max, "{query}");
+        assert_eq!(first["next"], max, "{query}");
+        assert_eq!(first["solids"][0]["cause"], "begin");
+    }
+    let all = follow_pages(&proxy, &session, stroke, "solids", 300).await;
+    assert_eq!(all, follow_pages(&proxy, &session, stroke, "solids", max).await);
+    assert_eq!(all.len(), changes + 1);
+    assert_eq!(all[0]["solid"], json!({"kind": "line", "depth": null}));
+    let mut depths: Vec<u64> = all[1..]
+        .iter()
+        .map(|entry| {
+            assert_eq!(entry["cause"], "set");
+            entry["solid"]["depth"].as_f64().unwrap() as u64
+        })
+        .collect();
+    depths.sort_unstable();
+    assert_eq!(depths, (1..=changes as u64).collect::<Vec<_>>());
+    let last = page(&format!("?from={changes}")).await;
+    assert_eq!(last["solids"].as_array().unwrap().len(), 1);
+    assert!(last.get("next").is_none(), "{last}");
+    let past = page(&format!("?from={}", changes + 10)).await;
+    assert_eq!(past["solids"], json!([]), "past the end: an empty page, no next");
+    assert!(past.get("next").is_none(), "{past}");
+}
+
+/// A page of a history that does not read (`from` or `limit` not a whole number, a limit of
+/// 0) is a JSON 400 naming what is wrong, on both histories.
+#[tokio::test]
+async fn a_bad_page_of_a_stroke_history_is_a_json_400_naming_it() {
+    let proxy = spawn_proxy().await;
+    let session = proxy.create_session().await;
+    let stroke = done_stroke(&proxy, &session, 20).await;
+    for route in ["placements", "solids"] {
+        for (query, says) in [
+            ("from=-1", "from"),
+            ("from=first", "from"),
+            ("limit=ten", "limit"),
+            ("limit=1.5", "limit"),
+            ("limit=0", "limit=0"),
+        ] {
+            let path = format!("/v1/strokes/{stroke}/{route}?{query}");
+            let response = proxy.get(&path, &session).send().await.unwrap();
+            assert_eq!(response.status(), 400, "{path}");
+            let body: Value = response.json().await.expect("a JSON error body");
+            assert_eq!(body["error"], "bad_request", "{path}: {body}");
+            let message = body["message"].as_str().unwrap();
+            assert!(message.contains(says), "{path}: {message}");
+        }
+    }
+}
+
+/// (3) A placement history is read a page at a time, at most `MAX_HISTORY_PAGE` a page
 /// whatever is asked: the pages, followed by `next`, are the whole history in order.
 #[tokio::test]
 async fn a_placement_history_is_read_a_bounded_page_at_a_time() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
     let stroke = done_stroke(&proxy, &session, 200).await;
-    let max = penmesh_proxy::MAX_PLACEMENTS_PAGE as usize;
+    let max = penmesh_proxy::MAX_HISTORY_PAGE as usize;
     // More moves than a page holds (the begin is implied: one more entry).
     let moves = max + 4;
     for chunk in (0..moves).collect::<Vec<_>>().chunks(16) {
@@ -241,7 +347,7 @@ async fn a_placement_history_is_read_a_bounded_page_at_a_time() {
             assert_eq!(response.unwrap().status(), 204);
         }
     }
-    // The default page and one asking for more: at most MAX_PLACEMENTS_PAGE, and where next.
+    // The default page and one asking for more: at most MAX_HISTORY_PAGE, and where next.
     for query in ["", "?limit=100000"] {
         let first = page(&proxy, &session, stroke, query).await;
         assert_eq!(first["placements"].as_array().unwrap().len(), max, "{query}");
@@ -251,20 +357,8 @@ async fn a_placement_history_is_read_a_bounded_page_at_a_time() {
     // Pages followed to the end, small or whole: the same history, oldest first, each move
     // once (they were sent 16 at a time, so in any order).
     let (proxy, session) = (&proxy, &session);
-    let follow = |limit: usize| async move {
-        let mut all = Vec::new();
-        let mut from = Some(0);
-        while let Some(at) = from {
-            let body = page(proxy, session, stroke, &format!("?from={at}&limit={limit}")).await;
-            let got = body["placements"].as_array().unwrap();
-            assert!(!got.is_empty() && got.len() <= limit);
-            all.extend(got.iter().cloned());
-            from = body["next"].as_u64();
-        }
-        all
-    };
-    let all = follow(300).await;
-    assert_eq!(all, follow(max).await);
+    let all = follow_pages(proxy, session, stroke, "placements", 300).await;
+    assert_eq!(all, follow_pages(proxy, session, stroke, "placements", max).await);
     assert_eq!(all.len(), moves + 1);
     assert_eq!(all[0]["cause"], "begin");
     let mut moved: Vec<u64> = all[1..]
@@ -515,23 +609,25 @@ async fn an_import_sent_again_with_its_idempotency_key_is_stored_once() {
     assert_eq!(strokes(&target).await, 8);
 }
 
-/// (3) Pages of placement histories are read `MAX_PLACEMENT_READS` at a time on a replica:
-/// with every permit held a read waits its turn (1 s here), then is 503 `busy`; one freed
-/// meanwhile lets it through.
+/// (3) Pages of stroke histories (placements, and solids since issue 51: one mechanism) are
+/// read `MAX_HISTORY_READS` at a time on a replica: with every permit held a read waits its
+/// turn (1 s here), then is 503 `busy`; one freed meanwhile lets it through.
 #[tokio::test]
-async fn placement_history_reads_take_turns() {
+async fn stroke_history_reads_take_turns() {
     let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 2).await;
     let session = proxy.create_session().await;
     let stroke = done_stroke(&proxy, &session, 200).await;
     let path = format!("/v1/strokes/{stroke}/placements");
     let mut held = Vec::new();
-    for _ in 0..penmesh_proxy::MAX_PLACEMENT_READS {
-        held.push(proxy.state.placement_read_permit(Duration::ZERO).await.unwrap());
+    for _ in 0..penmesh_proxy::MAX_HISTORY_READS {
+        held.push(proxy.state.history_read_permit(Duration::ZERO).await.unwrap());
     }
-    let asked = Instant::now();
-    let response = proxy.get(&path, &session).send().await.unwrap();
-    assert_eq!(response.status(), 503);
-    assert!(asked.elapsed() >= Duration::from_millis(900), "it waited its turn first");
+    for path in [path.clone(), format!("/v1/strokes/{stroke}/solids")] {
+        let asked = Instant::now();
+        let response = proxy.get(&path, &session).send().await.unwrap();
+        assert_eq!(response.status(), 503, "{path}");
+        assert!(asked.elapsed() >= Duration::from_millis(900), "it waited its turn first");
+    }
     let freed = async {
         tokio::time::sleep(Duration::from_millis(300)).await;
         held.pop();

@@ -20,6 +20,7 @@ mod placement_replicas;
 mod removal;
 mod replicas;
 mod sessions;
+mod shared_meshes;
 mod slow_reader;
 mod solids;
 mod told;

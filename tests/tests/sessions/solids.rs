@@ -21,7 +21,7 @@ use uuid::Uuid;
 use crate::helpers::Participant;
 
 /// A circle of radius 60 px (closed: it ends where it began), or three quarters of one (open).
-fn circle(turns: f64) -> Vec<Sample> {
+pub(crate) fn circle(turns: f64) -> Vec<Sample> {
     let n = (96.0 * turns) as usize;
     (0..=n)
         .map(|i| {
@@ -34,7 +34,7 @@ fn circle(turns: f64) -> Vec<Sample> {
 }
 
 /// `PUT /v1/strokes/{stroke}/solid` with `body` as `who`: the status and the answer's text.
-async fn put_solid(
+pub(crate) async fn put_solid(
     proxy: &TestProxy,
     who: &TestSession,
     stroke: uuid::Uuid,
@@ -54,7 +54,11 @@ async fn put_solid(
     (status, response.text().await.unwrap())
 }
 
-async fn mesh_bytes(proxy: &TestProxy, session: &TestSession, stroke: uuid::Uuid) -> Vec<u8> {
+pub(crate) async fn mesh_bytes(
+    proxy: &TestProxy,
+    session: &TestSession,
+    stroke: uuid::Uuid,
+) -> Vec<u8> {
     let response = proxy.get(&format!("/v1/strokes/{stroke}/mesh"), session).send().await.unwrap();
     assert_eq!(response.status(), 200);
     response.bytes().await.unwrap().to_vec()

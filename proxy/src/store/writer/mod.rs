@@ -36,6 +36,7 @@ mod known;
 mod ops;
 mod plan;
 mod queue;
+mod sharing;
 mod sql;
 mod transaction;
 

@@ -32,10 +32,12 @@ pub enum WriteOp {
     Leave { connection: Uuid },
     /// A participant present in a session took another name (every presence row of it).
     Rename { participant: Uuid, session: Uuid, name: String },
-    /// Stores (or replaces) a done stroke's mesh, unless the meshes of `session` would then
-    /// hold more than `quota` bytes (refused: [`WriteError::Quota`]). A request of its own: it
-    /// is written where it is planned, as only the write tells whether it fits.
-    PutMesh { stroke: Uuid, session: Uuid, mesh: MeshRow, quota: u64 },
+    /// Stores (or replaces) a done stroke's mesh, a mesh of `solid`, unless the meshes of
+    /// `session` would then hold more than `quota` bytes (refused: [`WriteError::Quota`]). A
+    /// request of its own: it is written where it is planned, as only the write tells whether
+    /// it fits. The duplicates that shared the replaced mesh and are another solid keep it
+    /// (`writer/sharing.rs`).
+    PutMesh { stroke: Uuid, session: Uuid, mesh: MeshRow, solid: Solid, quota: u64 },
     /// Keeps what ACUTS retains of a stroke's first `upto` samples before its end (`kept`), so
     /// that the next history of its session need not replay them (`Store::session_history`).
     /// Never replaces the simplified stroke of a stroke that is done.
@@ -50,8 +52,12 @@ pub enum WriteOp {
     /// `import`): a row of its own, never an overwrite (`stroke_solids`). A duplicate given a
     /// solid of its own stops sharing its source's mesh (`mesh_of`): its own is built.
     SetSolid { stroke: Uuid, solid: Solid, by: Uuid, at: i64, cause: &'static str },
-    /// Records that `stroke` is a duplicate of `source`, showing the mesh of `mesh_of`.
-    MarkDuplicate { stroke: Uuid, source: Uuid, mesh_of: Uuid },
+    /// Records that `stroke` is a duplicate of `source`. `shares: Some(solid)` (a duplicate
+    /// made here, of that solid): it shows the mesh its source shows, shared, never copied;
+    /// refused ([`WriteError::Refused`]) when the source is no longer `solid` (changed since it
+    /// was read), as that mesh would not be the duplicate's solid. `None` (an import): it has
+    /// its own mesh.
+    MarkDuplicate { stroke: Uuid, source: Uuid, shares: Option<Solid> },
     /// Records where an imported stroke came from (`stroke_imports`), and the name its
     /// importer gave.
     MarkImported { stroke: Uuid, from: Box<penmesh::ImportedFrom>, importer_name: String },

@@ -11,7 +11,7 @@ use uuid::Uuid;
 
 use super::known::{Known, load_stroke};
 use super::sql::{put_mesh, session_samples};
-use super::{WriteError, WriteOp, WriteRequest, closes};
+use super::{WriteError, WriteOp, WriteRequest, closes, sharing};
 use crate::store::log;
 
 /// An op as it will be written: an append trimmed to what is not stored yet.
@@ -95,8 +95,8 @@ impl<'a> Plan<'a> {
     ) -> anyhow::Result<Option<WriteError>> {
         for op in &req.ops {
             let refusal = match op {
-                WriteOp::PutMesh { stroke, session, mesh, quota } => {
-                    put_mesh(tx, *stroke, *session, mesh, *quota).await?.err()
+                WriteOp::PutMesh { stroke, session, mesh, solid, quota } => {
+                    put_mesh(tx, (*stroke, *session), mesh, *solid, *quota).await?.err()
                 }
                 WriteOp::Append { stroke, seq, samples } => {
                     self.append(tx, (*stroke, *seq, samples), req_plan, known, writer).await?
@@ -155,6 +155,15 @@ impl<'a> Plan<'a> {
                     ))));
                 }
                 req_plan.counted.push((*session, *samples));
+            }
+            WriteOp::MarkDuplicate { source, shares: Some(solid), .. } => {
+                let now = sharing::current_solid(tx, *source).await?;
+                if now != *solid {
+                    return Ok(Some(WriteError::Refused(format!(
+                        "stroke {source} became {now} while it was being duplicated as {solid}: \
+                         duplicate it again"
+                    ))));
+                }
             }
             // A stroke exists before anything of it is stored.
             WriteOp::Finish { stroke, .. }

@@ -3,12 +3,12 @@
 
 use std::collections::HashMap;
 
-use penmesh::{Kept, Sample};
+use penmesh::{Kept, Sample, Solid};
 use sqlx::AnyConnection;
 use uuid::Uuid;
 
 use super::known::Known;
-use super::{WriteError, WriteOp};
+use super::{WriteError, WriteOp, sharing};
 use crate::store::{Backend, MeshRow, encode_indices, encode_samples};
 
 /// Stores the simplified stroke, marks it `done`, and moves the rest of its samples (those
@@ -133,16 +133,18 @@ pub(super) async fn insert_chunks(
     Ok(())
 }
 
-/// Stores a done stroke's mesh unless the meshes of its session would then hold more than
-/// `quota` bytes: one statement, which sees the meshes this transaction wrote before it.
-/// `Err`: refused, nothing written.
+/// Stores a done stroke's mesh, a mesh of `solid`, unless the meshes of its session would then
+/// hold more than `quota` bytes: one statement, which sees the meshes this transaction wrote
+/// before it (the replaced row too when a duplicate keeps it: [`sharing`]). `Err`: refused,
+/// nothing written.
 pub(super) async fn put_mesh(
     conn: &mut AnyConnection,
-    stroke: Uuid,
-    session: Uuid,
+    (stroke, session): (Uuid, Uuid),
     mesh: &MeshRow,
+    solid: Solid,
     quota: u64,
 ) -> anyhow::Result<Result<(), WriteError>> {
+    let left = sharing::leave_row(conn, stroke, solid).await?;
     // `length` of a blob is its size in bytes in both SQLite and PostgreSQL, read without
     // loading the blob.
     const OTHERS: &str = "SELECT COALESCE(SUM(length(m.glb)), 0) FROM meshes m \
@@ -166,8 +168,10 @@ pub(super) async fn put_mesh(
     .execute(&mut *conn)
     .await?;
     if written.rows_affected() > 0 {
+        sharing::settle(conn, stroke, solid, left).await?;
         return Ok(Ok(()));
     }
+    sharing::undo(conn, stroke, left).await?;
     let others: i64 = sqlx::query_scalar(OTHERS)
         .bind(session.to_string())
         .bind(stroke.to_string())
@@ -360,13 +364,19 @@ pub(super) async fn apply(
                 .await?;
             }
         }
-        WriteOp::MarkDuplicate { stroke, source, mesh_of } => {
-            sqlx::query("UPDATE strokes SET duplicate_of = $1, mesh_of = $2 WHERE id = $3")
-                .bind(source.to_string())
-                .bind(mesh_of.to_string())
-                .bind(stroke.to_string())
-                .execute(&mut *conn)
-                .await?;
+        WriteOp::MarkDuplicate { stroke, source, shares } => {
+            // The row its source shows as this transaction commits (the source's own, or the
+            // one it shares), not as it was read before.
+            sqlx::query(
+                "UPDATE strokes SET duplicate_of = $1, mesh_of = CASE WHEN $2 THEN \
+                 (SELECT COALESCE(s.mesh_of, s.id) FROM strokes s WHERE s.id = $1) END \
+                 WHERE id = $3",
+            )
+            .bind(source.to_string())
+            .bind(shares.is_some())
+            .bind(stroke.to_string())
+            .execute(&mut *conn)
+            .await?;
         }
         WriteOp::MarkImported { stroke, from, importer_name } => {
             sqlx::query(
