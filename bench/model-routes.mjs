@@ -25,6 +25,11 @@
 //     of its own: one request's body size and time, then 4 requests at once (gzip accepted, as
 //     browsers do: the bytes sent), RSS before and at most. The mesh's positions are scattered,
 //     so gzip shrinks it about as little as a real mesh.
+//   watchers: a 20,000-sample zigzag (every sample retained) and 8 JSON watchers reading, then
+//     200 duplicates of it asked by one client as fast as it can (4 at a time; a 429 or 503
+//     tries again after its Retry-After); the time to make them, the refusals, and per watcher
+//     its `lagged` errors, whether it was dropped, and the lag of each duplicate (from its 201
+//     to the watcher holding it done).
 //
 // Usage (from the repository root, after `cargo build --release -p penmesh-proxy`):
 //   node --experimental-websocket bench/model-routes.mjs [part ...] [--bin target/release/penmesh-proxy]
@@ -50,11 +55,12 @@ const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
 const BIN = resolve(option("--bin", join(root, "target/release/penmesh-proxy")));
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-async function startProxy() {
+/// The proxy on a fresh SQLite file, with `extra` flags.
+async function startProxy(extra = []) {
   const work = mkdtempSync(join(tmpdir(), "penmesh-model-routes-"));
   const port = 20000 + Math.floor(Math.random() * 20000);
   const timeout = option("--timeout-secs", "30");
-  const settings = ["--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`, "--request-timeout-secs", timeout];
+  const settings = ["--port", String(port), "--database-url", `sqlite://${work}/db.sqlite`, "--request-timeout-secs", timeout, ...extra];
   const proc = spawn(BIN, ["--host", "127.0.0.1", ...settings], {
     stdio: ["ignore", "ignore", "pipe"],
     env: { ...process.env, RUST_LOG: "warn" },
@@ -216,8 +222,12 @@ async function wrongToken() {
   return { part: "wrong-token", statuses: counts, rss_mb: { before, most, after } };
 }
 
+// The parts below measure what a session of many duplicates or moves costs, not how fast they
+// may be made: the rates of duplicates and moves are off (`--… 0`).
+const UNLIMITED = ["--duplicate-samples-per-second", "0", "--move-rate-per-second", "0"];
+
 async function prints() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 20000, 0, 3);
@@ -342,7 +352,7 @@ async function retry() {
 }
 
 async function duplicates() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 1_000_000);
@@ -364,7 +374,7 @@ async function duplicates() {
 /// Two scene exports at once of a session of one 20,000-sample zigzag (every sample retained)
 /// and `copies` duplicates of it.
 async function scenesOf(copies) {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const source = await drawLong(p, 20000, 0, 3);
@@ -425,7 +435,7 @@ async function race() {
 /// 20,000 moves of one stroke (16 clients moving it at once), then 16 readers each following
 /// its whole placement history, page by page, over and over for 10 s, while the canary draws.
 async function history() {
-  const proxy = await startProxy();
+  const proxy = await startProxy(UNLIMITED);
   const { session, token } = await newSession(proxy);
   const p = await join_(proxy, session, token);
   const stroke = await drawLong(p, 200);
@@ -526,7 +536,81 @@ async function bundle() {
   return { part: "bundle", pmb2: await bundleOf("?placements=true"), pmb3: await bundleOf("?layout=PMB3") };
 }
 
-const all = { "wrong-token": wrongToken, prints, retry, duplicates, scenes, race, history, bundle };
+/// A JSON watcher of the session: when it held each stroke done, its `lagged` errors, and
+/// whether the proxy dropped it.
+async function watcher(proxy, session, token) {
+  const ws = new WebSocket(`ws://127.0.0.1:${proxy.port}/v1/sessions/${session}/ws`, ["penmesh", `penmesh.token.${token}`]);
+  const w = { ws, done: new Map(), lagged: 0, dropped: false, synced: 0 };
+  const hold = (stroke) => w.done.has(stroke) || w.done.set(stroke, performance.now());
+  ws.onmessage = (e) => {
+    const msg = JSON.parse(e.data);
+    if (msg.synced) w.synced++;
+    if (msg.peer_stroke_done) hold(msg.peer_stroke_done.stroke);
+    if (msg.peer_strokes) for (const s of msg.peer_strokes.strokes) if (s.done) hold(s.stroke);
+    if (msg.error?.code === "lagged") w.lagged++;
+  };
+  ws.onclose = () => (w.dropped = true);
+  await new Promise((r, j) => ((ws.onopen = r), (ws.onerror = j)));
+  ws.send(JSON.stringify({ hello: { protocol: 5, client: "model-routes-watcher", resume: [] } }));
+  while (!w.synced) await sleep(10);
+  return w;
+}
+
+/// Item 11 of the review: 200 duplicates of a 20,000-sample stroke asked as fast as one client
+/// can, 8 watchers reading.
+async function watchers() {
+  const proxy = await startProxy();
+  const { session, token } = await newSession(proxy);
+  const p = await join_(proxy, session, token);
+  const source = await drawLong(p, 20000, 0, 3);
+  const ws = await Promise.all(Array.from({ length: 8 }, () => watcher(proxy, session, token)));
+  const made = new Map(); // duplicate -> when its 201 came
+  const refused = {};
+  let next = 0;
+  const started = performance.now();
+  await Promise.all(
+    Array.from({ length: 4 }, async () => {
+      while (next < 200) {
+        const k = next++;
+        const id = randomUUID();
+        for (;;) {
+          const res = await fetch(`${proxy.base}/v1/strokes/${source}/duplicate`, {
+            method: "POST",
+            headers: drawer(p, { "content-type": "application/json" }),
+            body: JSON.stringify({ stroke: id, placement: at((k % 20) * 40, Math.floor(k / 20) * 40) }),
+          });
+          await res.arrayBuffer();
+          if (res.status === 201) break;
+          if (res.status !== 429 && res.status !== 503) throw new Error(`duplicate ${res.status}`);
+          refused[res.status] = (refused[res.status] ?? 0) + 1;
+          await sleep(1000 * Number(res.headers.get("retry-after") ?? 1));
+        }
+        made.set(id, performance.now());
+      }
+    }),
+  );
+  const making_s = Math.round((performance.now() - started) / 100) / 10;
+  // Every watcher holds every duplicate, or is dropped, or 60 s pass.
+  const all = () => ws.every((w) => w.dropped || [...made.keys()].every((id) => w.done.has(id)));
+  for (const until_ = performance.now() + 60000; !all() && performance.now() < until_; ) await sleep(50);
+  const lags = [];
+  for (const w of ws) for (const [id, at_] of made) if (w.done.has(id)) lags.push(Math.max(0, w.done.get(id) - at_));
+  lags.sort((a, b) => a - b);
+  const q = (f) => Math.round(lags[Math.min(lags.length - 1, Math.floor(f * lags.length))] ?? 0);
+  const result = {
+    part: "watchers",
+    duplicates: made.size,
+    making_s,
+    refused,
+    watchers: ws.map((w) => ({ lagged: w.lagged, dropped: w.dropped, held: [...made.keys()].filter((id) => w.done.has(id)).length })),
+    lag_ms: { p50: q(0.5), p99: q(0.99), max: q(1) },
+  };
+  for (const w of ws) w.ws.close();
+  proxy.stop();
+  return result;
+}
+
+const all = { "wrong-token": wrongToken, prints, retry, duplicates, scenes, race, history, bundle, watchers };
 for (const part of parts.length ? parts : Object.keys(all)) {
   console.log(JSON.stringify(await all[part]()));
 }

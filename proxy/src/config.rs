@@ -212,6 +212,35 @@ pub struct Config {
     #[arg(long, env = "PENMESH_SESSION_BURST", default_value_t = 10)]
     pub session_burst: u32,
 
+    /// Moves one participant may make a second (a stroke placed anew: `set_placement`, `PUT
+    /// /v1/strokes/{id}/placement`), after a burst of `move_burst`. Past it, HTTP answers 429
+    /// with `Retry-After` and the WebSocket connection waits its turn (reading nothing
+    /// meanwhile). 0: no limit.
+    #[arg(long, env = "PENMESH_MOVE_RATE_PER_SECOND", default_value_t = 200)]
+    pub move_rate_per_second: u32,
+
+    /// Moves one participant may make at once before `move_rate_per_second` applies (the page
+    /// sends one per selected stroke when a drag, a nudge or an undo ends).
+    #[arg(long, env = "PENMESH_MOVE_BURST", default_value_t = 2000)]
+    pub move_burst: u32,
+
+    /// Solid changes one participant may make a second (`set_solid`, `PUT
+    /// /v1/strokes/{id}/solid`: each builds a mesh), after a burst of `solid_burst`; past it as
+    /// for moves. 0: no limit.
+    #[arg(long, env = "PENMESH_SOLID_RATE_PER_SECOND", default_value_t = 10)]
+    pub solid_rate_per_second: u32,
+
+    /// Solid changes one participant may make at once before `solid_rate_per_second` applies.
+    #[arg(long, env = "PENMESH_SOLID_BURST", default_value_t = 100)]
+    pub solid_burst: u32,
+
+    /// Retained samples a session's duplicates may tell its watchers a second (each watcher
+    /// is sent a duplicate with its source's retained samples), after a burst of what one
+    /// watcher's event queue holds (`outgoing_queue_bytes` of samples); past it a duplicate
+    /// gets 429 with `Retry-After`. 0: no limit.
+    #[arg(long, env = "PENMESH_DUPLICATE_SAMPLES_PER_SECOND", default_value_t = 32_768)]
+    pub duplicate_samples_per_second: u32,
+
     /// Take the client address from `X-Forwarded-For` / `X-Real-IP` / `Forwarded` (only
     /// behind a proxy that sets them; otherwise a client can claim any address). Off: the
     /// peer's address, which behind a proxy is the proxy's.
@@ -401,6 +430,8 @@ impl Config {
             (self.request_timeout_secs, "--request-timeout-secs (PENMESH_REQUEST_TIMEOUT_SECS)"),
             (self.max_large_bodies as u64, "--max-large-bodies (PENMESH_MAX_LARGE_BODIES)"),
             (self.max_replays as u64, "--max-replays (PENMESH_MAX_REPLAYS)"),
+            (self.move_burst.into(), "--move-burst (PENMESH_MOVE_BURST)"),
+            (self.solid_burst.into(), "--solid-burst (PENMESH_SOLID_BURST)"),
         ] {
             anyhow::ensure!(value > 0, "bad setting {setting}: must be above 0");
         }

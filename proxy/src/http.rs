@@ -55,9 +55,10 @@ pub enum AppError {
     QuotaExceeded(String),
     #[error("the proxy is shutting down")]
     ShuttingDown,
-    /// A rate limit: the client may try again after this long.
-    #[error("too many requests from this address; try again in {} s", .0.as_secs())]
-    TooManyRequests(std::time::Duration),
+    /// A rate limit (`crate::rate`): the message names it; the client may try again after
+    /// `wait`.
+    #[error("{message}")]
+    TooManyRequests { wait: std::time::Duration, message: String },
     /// This replica is at a limit (e.g. `max_connections`): try again later or elsewhere.
     #[error("{0}")]
     Busy(String),
@@ -81,7 +82,9 @@ impl AppError {
             AppError::TooLarge(m) => AppError::TooLarge(m.clone()),
             AppError::QuotaExceeded(m) => AppError::QuotaExceeded(m.clone()),
             AppError::ShuttingDown => AppError::ShuttingDown,
-            AppError::TooManyRequests(wait) => AppError::TooManyRequests(*wait),
+            AppError::TooManyRequests { wait, message } => {
+                AppError::TooManyRequests { wait: *wait, message: message.clone() }
+            }
             AppError::Busy(m) => AppError::Busy(m.clone()),
             AppError::TimedOut(m) => AppError::TimedOut(m.clone()),
             AppError::Internal(err) => AppError::Internal(anyhow::anyhow!("{err:#}")),
@@ -102,7 +105,9 @@ impl IntoResponse for AppError {
             AppError::ShuttingDown => (StatusCode::SERVICE_UNAVAILABLE, "shutting_down"),
             AppError::Busy(_) => (StatusCode::SERVICE_UNAVAILABLE, "busy"),
             AppError::TimedOut(_) => (StatusCode::REQUEST_TIMEOUT, "timeout"),
-            AppError::TooManyRequests(_) => (StatusCode::TOO_MANY_REQUESTS, "too_many_requests"),
+            AppError::TooManyRequests { .. } => {
+                (StatusCode::TOO_MANY_REQUESTS, "too_many_requests")
+            }
             AppError::Internal(err) => {
                 tracing::error!(error = ?err, "request failed");
                 (StatusCode::INTERNAL_SERVER_ERROR, "internal")
@@ -111,8 +116,9 @@ impl IntoResponse for AppError {
         metrics::counter!("penmesh_http_errors_total", "code" => code).increment(1);
         let body = ErrorBody { error: code.into(), message: self.to_string() };
         let mut response = (status, Json(body)).into_response();
-        if let AppError::TooManyRequests(wait) = &self {
-            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(wait.as_secs()));
+        if let AppError::TooManyRequests { wait, .. } = &self {
+            let seconds = crate::rate::retry_after_secs(*wait);
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(seconds));
         }
         if let AppError::Busy(_) = &self {
             response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(1));
@@ -249,7 +255,7 @@ pub async fn create_session(
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     headers: HeaderMap,
 ) -> Result<(StatusCode, Json<NewSession>), AppError> {
-    state.session_limiter.check(peer, &headers).map_err(AppError::TooManyRequests)?;
+    state.session_limiter.check(peer, &headers)?;
     let mut bytes = [0u8; 32];
     rand::rng().fill_bytes(&mut bytes);
     let token = hex::encode(bytes);

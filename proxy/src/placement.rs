@@ -126,7 +126,8 @@ fn placement_body(body: &[u8]) -> Result<Placement, AppError> {
         (status = 403, description = "not the stroke's drawer, or no key", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
         (status = 409, description = "the stroke is still being drawn", body = ErrorBody),
-        (status = 413, description = "a body over 16 KiB", body = ErrorBody)))]
+        (status = 413, description = "a body over 16 KiB", body = ErrorBody),
+        (status = 429, description = "past the participant's rate of moves (`--move-rate-per-second` after `--move-burst`), with `Retry-After`", body = ErrorBody)))]
 pub async fn put_placement(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -135,6 +136,7 @@ pub async fn put_placement(
 ) -> Result<StatusCode, AppError> {
     // The token, the stroke and its drawer first: a stranger's body is never read.
     let (row, by) = owned_stroke(&state, &headers, &id, "place it").await?;
+    state.rates.moves.take(&by, 1)?;
     let body = small_body(&headers, body, SMALL_BODY_BYTES).await?;
     let placement = placement_body(&body)?;
     check(&row, by).map_err(|refused| AppError::Conflict(refused.message))?;
@@ -209,6 +211,7 @@ const DUPLICATE_WAIT: Duration = Duration::from_secs(10);
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
         (status = 409, description = "the source is still being drawn or taken back, its solid changed while it was being duplicated, or the new id is taken", body = ErrorBody),
         (status = 413, description = "a body over 16 KiB, or the session's samples would pass its quota (`quota_exceeded`)", body = ErrorBody),
+        (status = 429, description = "past the session's rate of duplicated samples told to its watchers (`--duplicate-samples-per-second`), with `Retry-After`", body = ErrorBody),
         (status = 503, description = "busy: as many duplicates as allowed are being made", body = ErrorBody)))]
 pub async fn duplicate(
     State(state): State<AppState>,
@@ -244,6 +247,9 @@ pub async fn duplicate(
     if let Some(existing) = state.store.stroke(stroke).await? {
         return made_before(&existing, &source, by);
     }
+    // Every watcher of the session is sent the copy's retained samples: the session's
+    // duplicates may send them no faster than its watchers take them (`crate::rate`).
+    state.rates.duplicated.take(&source.session_id, source.n_retained)?;
     // What the session is told: the simplified samples (at most `max_stroke_retained`). The
     // drawn samples are copied in the database, never read here.
     let simplified = state.store.simplified(source.id).await?.ok_or_else(|| {

@@ -104,14 +104,16 @@ fn solid_body(body: &[u8]) -> Result<Solid, AppError> {
         (status = 401, body = ErrorBody),
         (status = 403, description = "not the stroke's drawer", body = ErrorBody),
         (status = 404, description = "no such stroke in this session", body = ErrorBody),
-        (status = 409, description = "the stroke is still being drawn, or cannot be that solid (an open stroke filled)", body = ErrorBody)))]
+        (status = 409, description = "the stroke is still being drawn, or cannot be that solid (an open stroke filled)", body = ErrorBody),
+        (status = 429, description = "past the participant's rate of solid changes (`--solid-rate-per-second` after `--solid-burst`), with `Retry-After`", body = ErrorBody)))]
 pub async fn put_solid(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Json<MeshInfo>, AppError> {
-    let (row, _) = owned_stroke(&state, &headers, &id, "set its solid").await?;
+    let (row, by) = owned_stroke(&state, &headers, &id, "set its solid").await?;
+    state.rates.solids.take(&by, 1)?;
     let body = axum::body::to_bytes(body, MAX_SOLID_BODY).await.map_err(|e| {
         AppError::BadRequest(format!(
             "the body is not a solid of at most {MAX_SOLID_BODY} bytes: {e}"

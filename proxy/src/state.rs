@@ -50,6 +50,8 @@ pub struct Inner {
     hubs: Mutex<HashMap<Uuid, usize>>,
     /// The rate limit of `POST /v1/sessions`.
     pub session_limiter: crate::rate::SessionLimiter,
+    /// The rate limits of moves, solid changes and duplicates.
+    pub rates: crate::rate::Rates,
     /// One permit per WebSocket connection on this replica (`max_connections`).
     connections: Arc<tokio::sync::Semaphore>,
     /// Live WebSocket connections per client address on this replica (with a limit only).
@@ -102,6 +104,7 @@ impl AppState {
             config.session_burst,
             config.trust_forwarded_for,
         );
+        let rates = crate::rate::Rates::new(&config);
         AppState {
             inner: Arc::new(Inner {
                 config,
@@ -126,6 +129,7 @@ impl AppState {
                     crate::change_history::MAX_HISTORY_READS,
                 )),
                 session_limiter,
+                rates,
                 next_connection: AtomicU64::new(1),
             }),
         }

@@ -8,18 +8,32 @@ export async function createSession() {
   return res.json();
 }
 
+// How many times a call refused by a rate (429) is sent in all.
+const RATE_TRIES = 30;
+
 export class Api {
   constructor(token) {
     this.token = token;
   }
 
   /// `fetch` with the token; a non-2xx answer throws an Error naming the call and the
-  /// proxy's message, with the HTTP `status` (no answer at all throws fetch's own error).
+  /// proxy's message, with the HTTP `status` (no answer at all throws fetch's own error). A
+  /// 429 (past a rate: a session's duplicates, one's solid changes) is sent again after its
+  /// `Retry-After`, up to `RATE_TRIES` times in all: each such call says what it changes, so
+  /// sending it again is safe (a duplicate names its new id).
   async request(path, init = {}) {
-    const res = await fetch(path, {
-      ...init,
-      headers: { ...(init.headers || {}), authorization: `Bearer ${this.token}` },
-    });
+    for (let tries = 1; ; tries++) {
+      const res = await fetch(path, {
+        ...init,
+        headers: { ...(init.headers || {}), authorization: `Bearer ${this.token}` },
+      });
+      if (res.status !== 429 || tries === RATE_TRIES) return this.answer(path, init, res);
+      await new Promise((r) => setTimeout(r, 1000 * Number(res.headers.get("retry-after") || 1)));
+    }
+  }
+
+  /// `res`, or the Error of a non-2xx answer.
+  async answer(path, init, res) {
     if (!res.ok) {
       let detail = "";
       try {

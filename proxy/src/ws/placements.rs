@@ -17,6 +17,8 @@ use crate::placement;
 impl Connection {
     /// Places the stroke of `set` anew.
     pub(super) async fn on_set_placement(&mut self, set: SetPlacement) -> Result<(), ConnError> {
+        // Past the participant's rate of moves, the connection waits its turn (`crate::rate`).
+        self.state.rates.moves.wait(&self.participant).await;
         let stroke = set.stroke;
         let row = self.stroke_of_session(stroke, "reading a stroke to place").await?;
         placement::check(&row, self.participant)

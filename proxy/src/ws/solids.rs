@@ -21,6 +21,8 @@ impl Connection {
     /// Sets the solid of the stroke of `set`: checked, its mesh built (refused with
     /// `bad_solid` when the stroke cannot be that solid), then committed.
     pub(super) async fn on_set_solid(&mut self, set: SetSolid) -> Result<(), ConnError> {
+        // Past the participant's rate of solid changes, the connection waits its turn.
+        self.state.rates.solids.wait(&self.participant).await;
         let stroke = set.stroke;
         let row = self.stroke_of_session(stroke, "reading a stroke to set its solid").await?;
         crate::solid::check(&row, self.participant)

@@ -16,6 +16,7 @@ mod model_roundtrip;
 mod old_database;
 mod postgres;
 mod protocol_doc;
+mod rates;
 mod resume;
 mod roundtrip_bytes;
 mod shutdown;

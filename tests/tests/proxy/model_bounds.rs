@@ -250,7 +250,8 @@ async fn follow_pages(
 /// together the whole history in order.
 #[tokio::test]
 async fn a_solid_history_is_read_a_bounded_page_at_a_time() {
-    let proxy = spawn_proxy().await;
+    // A history of 1,004 changes made at once: the rate of solid changes off.
+    let proxy = spawn_proxy_with(|c| c.solid_rate_per_second = 0).await;
     let session = proxy.create_session().await;
     let stroke = done_stroke(&proxy, &session, 20).await;
     let max = penmesh_proxy::MAX_HISTORY_PAGE as usize;
@@ -453,7 +454,8 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
 /// 413 naming the bound before anything is read; fewer strokes chosen are exported.
 #[tokio::test]
 async fn a_scene_past_its_sample_bound_is_refused() {
-    let proxy = spawn_proxy().await;
+    // A session of many copies, made at once: the rate of duplicated samples off.
+    let proxy = spawn_proxy_with(|c| c.duplicate_samples_per_second = 0).await;
     let session = proxy.create_session().await;
     let source = done_stroke(&proxy, &session, 20_000).await;
     let retained = proxy.stroke_info(&session, source).await["n_retained"].as_u64().unwrap();

@@ -13,7 +13,7 @@ use penmesh::protocol::{
     SetSolid, SolidHistory, StrokeId, StrokeRef, decode_server, encode_client_as,
 };
 use penmesh::{Placement, Sample, Solid, SolidKind};
-use penmesh_e2e::{TestProxy, TestSession, count_rows, spawn_proxy};
+use penmesh_e2e::{TestProxy, TestSession, count_rows, spawn_proxy, spawn_proxy_with};
 use serde_json::json;
 use tokio_tungstenite::tungstenite::Message;
 use uuid::Uuid;
@@ -408,8 +408,8 @@ async fn a_solid_leaves_in_the_scene_and_comes_back_exactly_with_an_import() {
 async fn racing_solid_changes_leave_the_mesh_of_the_solid_stored_last() {
     // Two changes of one stroke's solid at once, round after round: whichever is stored last,
     // the stored mesh is that solid's (the bytes the proxy builds for it alone), never the
-    // other request's mesh stored after it.
-    let proxy = spawn_proxy().await;
+    // other request's mesh stored after it. (202 changes as fast as they go: the rate off.)
+    let proxy = spawn_proxy_with(|c| c.solid_rate_per_second = 0).await;
     let session = proxy.create_session().await;
     let mut ann = Participant::join(&proxy, &session, "Ann").await;
     let drawer = TestSession { key: ann.key.clone(), ..session.clone() };
