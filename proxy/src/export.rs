@@ -262,20 +262,16 @@ fn progress_stream(waiter: Waiter, content_type: &'static str, name: String) -> 
     let start = Some((waiter, progress, name));
     let body = futures_util::stream::unfold(start, move |state| async move {
         let (waiter, mut progress, name) = state?;
-        loop {
-            tokio::select! {
-                biased;
-                outcome = waiter.outcome() => {
-                    let line = last_line(outcome, content_type, &name).await;
-                    return Some((Ok::<_, std::convert::Infallible>(line), None));
-                }
-                _ = progress.changed() => {
-                    let Some(Progress { stage, done, total }) = *progress.borrow_and_update() else {
-                        continue;
-                    };
-                    let line = json!({ "progress": { "stage": stage, "done": done, "total": total } });
-                    return Some((Ok(ndjson(&line)), Some((waiter, progress, name))));
-                }
+        // The progress first: every line told before the file.
+        tokio::select! {
+            biased;
+            Progress { stage, done, total } = progress.next() => {
+                let line = json!({ "progress": { "stage": stage, "done": done, "total": total } });
+                Some((Ok::<_, std::convert::Infallible>(ndjson(&line)), Some((waiter, progress, name))))
+            }
+            outcome = waiter.outcome() => {
+                let line = last_line(outcome, content_type, &name).await;
+                Some((Ok(line), None))
             }
         }
     });

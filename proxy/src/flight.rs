@@ -7,6 +7,7 @@
 //! answered 408 ([`Waiter::timed_out`]: the client was told to ask again); once neither holds,
 //! [`Flight::is_wanted`] says so for good and the work stops at its next step.
 
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -31,7 +32,9 @@ pub(crate) type Outcome = Result<Bytes, Arc<AppError>>;
 #[derive(Debug)]
 pub(crate) struct Flight {
     wanted: Mutex<Wanted>,
-    progress: watch::Sender<Option<Progress>>,
+    /// The latest report of each stage so far, in order: a waiter slower than the reports
+    /// still sees every stage (a later stage's report never hides an earlier stage's last).
+    progress: watch::Sender<Vec<Progress>>,
     outcome: watch::Sender<Option<Outcome>>,
 }
 
@@ -51,7 +54,7 @@ impl Flight {
     pub fn start() -> (Arc<Flight>, Waiter) {
         let flight = Arc::new(Flight {
             wanted: Mutex::new(Wanted::default()),
-            progress: watch::Sender::new(None),
+            progress: watch::Sender::new(Vec::new()),
             outcome: watch::Sender::new(None),
         });
         let waiter = flight.join().expect("a new flight is not stopped");
@@ -81,7 +84,10 @@ impl Flight {
 
     /// Tells the waiters where the work is.
     pub fn report(&self, progress: Progress) {
-        self.progress.send_replace(Some(progress));
+        self.progress.send_modify(|stages| match stages.last_mut() {
+            Some(last) if last.stage == progress.stage => *last = progress,
+            _ => stages.push(progress),
+        });
     }
 
     /// Tells the waiters, present and future, how it ended.
@@ -109,11 +115,11 @@ impl Waiter {
         ended.clone().expect("waited for Some")
     }
 
-    /// The work's progress, each change (the current one first).
-    pub fn progress(&self) -> watch::Receiver<Option<Progress>> {
-        let mut progress = self.flight.progress.subscribe();
-        progress.mark_changed();
-        progress
+    /// The work's progress as lines to tell, from the start (every stage so far first).
+    pub fn progress(&self) -> ProgressLines {
+        let mut reports = self.flight.progress.subscribe();
+        reports.mark_changed();
+        ProgressLines { reports, told: Vec::new(), pending: VecDeque::new() }
     }
 
     /// The request was answered 408: its client was told to ask again, so the work stays
@@ -122,6 +128,43 @@ impl Waiter {
         let mut wanted = self.flight.wanted.lock().expect("flight lock");
         let until = Instant::now() + window;
         wanted.retry_until = Some(wanted.retry_until.map_or(until, |u| u.max(until)));
+    }
+}
+
+/// A waiter's progress lines: each stage's latest report not yet told, in stage order, so
+/// every stage is told at least once and, within a stage, `done` only grows.
+#[derive(Debug)]
+pub(crate) struct ProgressLines {
+    reports: watch::Receiver<Vec<Progress>>,
+    /// The last report told of each stage.
+    told: Vec<Progress>,
+    pending: VecDeque<Progress>,
+}
+
+impl ProgressLines {
+    /// The next line to tell, once there is one. Cancel-safe: what was read and not yet
+    /// returned stays pending.
+    pub async fn next(&mut self) -> Progress {
+        loop {
+            if let Some(line) = self.pending.pop_front() {
+                return line;
+            }
+            if self.reports.changed().await.is_err() {
+                // The flight is gone with its sender: no more reports.
+                std::future::pending::<()>().await;
+            }
+            let stages = self.reports.borrow_and_update().clone();
+            for (i, report) in stages.into_iter().enumerate() {
+                if self.told.get(i) == Some(&report) {
+                    continue;
+                }
+                self.pending.push_back(report);
+                match self.told.get_mut(i) {
+                    Some(told) => *told = report,
+                    None => self.told.push(report),
+                }
+            }
+        }
     }
 }
 
@@ -159,5 +202,27 @@ mod tests {
         assert_eq!(first.outcome().await.unwrap(), Bytes::from_static(b"file"));
         let late = flight.join().unwrap();
         assert_eq!(late.outcome().await.unwrap(), Bytes::from_static(b"file"));
+    }
+
+    #[tokio::test]
+    async fn a_waiter_slower_than_the_reports_is_told_every_stage_in_order() {
+        let at = |stage, done, total| Progress { stage, done, total };
+        let (flight, waiter) = Flight::start();
+        let mut lines = waiter.progress();
+        flight.report(at("reading", 0, 2));
+        assert_eq!(lines.next().await, at("reading", 0, 2));
+        // Reports come faster than this waiter reads: each stage's latest is told, none hidden.
+        for report in
+            [at("reading", 2, 2), at("solids", 1, 2), at("solids", 2, 2), at("union", 1, 1)]
+        {
+            flight.report(report);
+        }
+        let told = [lines.next().await, lines.next().await, lines.next().await];
+        assert_eq!(told, [at("reading", 2, 2), at("solids", 2, 2), at("union", 1, 1)]);
+        // One joining late is told every stage so far.
+        let late = flight.join().unwrap();
+        let mut late_lines = late.progress();
+        let told = [late_lines.next().await, late_lines.next().await, late_lines.next().await];
+        assert_eq!(told, [at("reading", 2, 2), at("solids", 2, 2), at("union", 1, 1)]);
     }
 }
