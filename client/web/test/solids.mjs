@@ -102,10 +102,16 @@ browserTest(async ({ proxy, browser }) => {
   await ada.press("#selection-solid-depth", "Enter");
   const filled = { kind: "filled", depth: PLATE_DEPTH };
   await stored(base, s, { [plate]: filled }, "the depth typed");
-  const mm = Number(await ada.inputValue("#selection-solid-depth-mm"));
-  assert.ok(mm > 0, `the depth in the print's mm: ${mm}`);
   await showsPlate(bob, true, "solids-1-bob-filled.png", "Filled, live on Bob's page");
   await showsPlate(ada, true, "solids-1-ada-filled.png", "Filled on Ada's page");
+  // The panel's mm are read once Ada's page knows the typed depth as stored (its peer_solid,
+  // which may come after the proxy's strokes list has it): until then they are the last
+  // depth's (24 px, the default of Filled), as a person would see for that moment.
+  await until("Ada's page knows the depth typed", () =>
+    ada.evaluate(([id, depth]) => window.penmesh.strokes.get(id).solid?.depth === depth, [plate, PLATE_DEPTH]),
+  );
+  const mm = Number(await ada.inputValue("#selection-solid-depth-mm"));
+  assert.ok(mm > 0, `the depth in the print's mm: ${mm}`);
   log(`the square filled ${PLATE_DEPTH} px deep (${mm} mm of the print); Bob's page shows the plate`);
 
   // --- 2. undo and redo of the solid, two steps each --------------------------------------------
