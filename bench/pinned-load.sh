@@ -10,7 +10,12 @@
 #   PENMESH_TARGETS="proxy" (default "ceiling proxy") runs only some targets;
 #   PENMESH_CEILING_ARGS="--answer-task" passes settings to the ceiling (space-separated);
 #   PENMESH_DATABASE_URL=postgres://... runs the proxy on PostgreSQL (a fresh database each run
-#   is the caller's business; the database server is then not pinned and not counted).
+#   is the caller's business; the database server is then not pinned and not counted);
+#   PENMESH_STALL_AT=S stops the server with SIGSTOP S seconds after the pens start, for
+#   PENMESH_STALL_SECONDS (default 2), and says how long after it every second's p99
+#   sample→Ack was back under 50 ms (issue 53's recovery goal);
+#   --stage-timing after -- makes the proxy count its stages: the JSON then has "stages", and
+#   the script prints them (docs/performance.md, "Where a sample's CPU goes").
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(dirname "$here")"
@@ -45,6 +50,12 @@ run_one() { # TARGET PENS
         --json "$work/run.json" > "$work/load.log" 2>&1 &
     local load_pid=$! pid
     pid="$(pin_spawned_server "$load_pid")" || { cat "$work/load.log" >&2; return 1; }
+    if [ -n "${PENMESH_STALL_AT:-}" ]; then
+        # The pens start about 0.2 s after the load tool has made its sessions, which is at
+        # most a second after the server is up: the stall lands within a second of S.
+        (sleep "$PENMESH_STALL_AT"; kill -STOP "$pid"; sleep "${PENMESH_STALL_SECONDS:-2}"
+         kill -CONT "$pid") &
+    fi
     # Keep the snapshot with the most CPU: threads vanish one by one while the server stops.
     local best=0 snapshot total
     : > "$work/io"
@@ -62,9 +73,9 @@ run_one() { # TARGET PENS
     done
     wait "$load_pid" || echo "(the load tool reported a failure; see the JSON)" >&2
     [ -f "$work/run.json" ] || { cat "$work/load.log" >&2; return 1; }
-    python3 - "$work" "$(getconf CLK_TCK)" "$out/pinned-$target-$n.json" <<'PY'
+    python3 - "$work" "$(getconf CLK_TCK)" "$out/pinned-$target-$n.json" "${PENMESH_STALL_AT:-}" <<'PY'
 import collections, json, os, sys
-work, ticks_per_s, dest = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+work, ticks_per_s, dest, stall_at = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 run = json.load(open(f"{work}/run.json"))
 per_thread = collections.Counter()
 for line in open(f"{work}/threads"):
@@ -96,6 +107,22 @@ print(f"{run['label']:>22}: acked {run['throughput']['acked_per_s']:8.0f}/s, p99
       f"lost {run['samples']['lost']}, server {server['cpu_percent']:.0f} % = "
       f"{pinned['server_cpu_us_per_acked_sample']:.2f} us/sample, written "
       f"{pinned['write_bytes_per_stored_sample']:.1f} B/sample{held_txt}")
+stages = run.get("stages")
+if stages:
+    rows = stages["stages"] + stages["threads"]
+    print("  per sample: " + ", ".join(f"{r['name']} {r['us_per_sample']:.2f} us" for r in rows))
+if stall_at:
+    # A second's p99 is under 50 ms when under 1 % of its samples were slow (>= 50 ms).
+    seconds = run["latency_ms"]["sample_to_ack_by_second"]
+    bad = [s["second"] for s in seconds if s["acked"] and s["slow"] / s["acked"] >= 0.01
+           and s["second"] < run["settings"]["duration_s"]]
+    after = [b for b in bad if b >= int(stall_at)]
+    last_bad = max(after) if after else None
+    run["stall"] = {"at_s": int(stall_at), "last_second_p99_over_50ms": last_bad,
+                    "seconds_over_50ms": bad}
+    json.dump(run, open(dest, "w"), indent=2)
+    print(f"  stall at {stall_at} s: seconds with p99 >= 50 ms: {bad}; "
+          f"back under 50 ms from second {last_bad + 1 if last_bad is not None else int(stall_at)}")
 PY
 }
 

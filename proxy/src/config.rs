@@ -140,6 +140,12 @@ pub struct Config {
     #[arg(long, env = "PENMESH_WORKER_NICE", default_value_t = 10, value_parser = clap::value_parser!(i32).range(0..=19))]
     pub worker_nice: i32,
 
+    /// Count the time spent in each stage of the ingest path, read at `/metrics` as
+    /// `penmesh_stage_nanoseconds_total{stage}` (`proxy/src/stages.rs`, docs/performance.md).
+    /// Off: one relaxed atomic load per stage; on: two clock reads per poll.
+    #[arg(long, env = "PENMESH_STAGE_TIMING")]
+    pub stage_timing: bool,
+
     /// Group commit: at most one commit per this many milliseconds (0: commit as soon as the
     /// previous commit is done).
     #[arg(long, env = "PENMESH_COMMIT_INTERVAL_MS", default_value_t = 2)]
@@ -318,6 +324,11 @@ pub struct Config {
     /// Batches per connection accepted but not yet committed; reading pauses past it.
     #[arg(long, env = "PENMESH_MAX_INFLIGHT", default_value_t = 64)]
     pub max_inflight: usize,
+
+    /// Most frames a connection reads in one wake-up; the `points` batches of one stroke among
+    /// them go to the writer as one request, answered by one `ack` (1: each frame alone).
+    #[arg(long, env = "PENMESH_GATHER_FRAMES", default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    pub gather_frames: u64,
 
     /// How long a resumed stroke waits for the connection that still holds it to let go (ms).
     #[arg(long, env = "PENMESH_CLAIM_WAIT_MS", default_value_t = 2000)]

@@ -29,6 +29,7 @@ mod scene;
 mod send_deadline;
 mod session_meshes;
 mod solid;
+mod stages;
 mod startup;
 mod state;
 mod store;

@@ -70,6 +70,9 @@ impl Application {
     ) -> anyhow::Result<Application> {
         config.check()?;
         let metrics = metrics::install();
+        if config.stage_timing {
+            crate::stages::enable();
+        }
         let store = Store::connect(&config).await?;
         let orphans = store.interrupt_orphans().await?;
         if orphans > 0 {

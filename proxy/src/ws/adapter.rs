@@ -14,6 +14,7 @@ use penmesh::protocol::{ErrorCode, ErrorMessage, ServerMessage, encode_server_js
 use super::error::ReadError;
 use super::{Frame, close_code, serve};
 use crate::http::{AppError, authorize_session};
+use crate::stages::{self, Stage};
 use crate::state::{AppState, NoSlot};
 
 /// `GET /v1/sessions/{session}/ws`: authenticates, then upgrades.
@@ -78,8 +79,12 @@ pub async fn ws_handler(
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
         let (_tracked, _slot) = (tracked, slot);
         let (sink, stream) = split(socket);
+        let stream = stages::timed_stream(Stage::Read, stream);
         match guard {
-            Some(guard) => serve(state, session, guard, sink, stream).await,
+            Some(guard) => {
+                stages::timed(Stage::ConnectionTask, serve(state, session, guard, sink, stream))
+                    .await
+            }
             None => refuse_full_session(state, sink).await,
         }
     }))

@@ -61,6 +61,24 @@ pub(super) struct Decided {
     pub kept: Vec<Kept>,
 }
 
+/// `Points` batches of one stroke read in one wake-up of the connection, not yet handed to the
+/// writer: they go as one request, one commit answer and one `Ack` (`Connection::gather`).
+#[derive(Debug)]
+pub(super) struct Gathered {
+    pub stroke: StrokeId,
+    /// The seq of the first sample.
+    pub seq: u64,
+    pub samples: Vec<penmesh::Sample>,
+    pub retained: Decided,
+}
+
+impl Gathered {
+    /// The seq after the last sample: what the `Ack` says.
+    pub fn upto_seq(&self) -> u64 {
+        self.seq + self.samples.len() as u64
+    }
+}
+
 /// The connection's requests to the writer that await their commit, oldest first. The writer
 /// answers one connection's requests in the order it got them, so only the oldest is polled.
 #[derive(Debug, Default)]
@@ -135,6 +153,8 @@ pub(super) struct Connection {
     /// asked for): at most one rename per `RENAME_INTERVAL` (`ws/serve.rs`).
     pub renamed_at: Option<Instant>,
     pub pending_name: Option<String>,
+    /// Batches read but not handed to the writer yet ([`Gathered`]).
+    pub gathered: Option<Gathered>,
 }
 
 impl Connection {
@@ -161,6 +181,7 @@ impl Connection {
             end: None,
             renamed_at: None,
             pending_name: None,
+            gathered: None,
             state,
         }
     }

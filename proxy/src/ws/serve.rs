@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use futures_util::FutureExt;
 use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
@@ -18,11 +19,13 @@ use super::outgoing::{Form, Outgoing, forward};
 use super::{Frame, close_code};
 use crate::events::{EventKind, SessionEvent};
 use crate::identity::clean_name;
+use crate::stages::{self, Stage};
 use crate::state::{AppState, SessionGuard};
 use crate::store::WriteOp;
 
 /// At most one new name is stored per connection in this time (`Connection::on_rename`).
 pub(super) const RENAME_INTERVAL: Duration = Duration::from_secs(1);
+
 
 /// Runs one connection to its end.
 pub async fn serve<Si, St, E>(
@@ -39,7 +42,7 @@ pub async fn serve<Si, St, E>(
     let config = &state.config;
     let (outgoing, out_rx) =
         Outgoing::new(config.outgoing_queue, config.outgoing_queue_bytes, &state.counters);
-    let sender = tokio::spawn(forward(out_rx, sink));
+    let sender = tokio::spawn(stages::timed(Stage::SenderTask, forward(out_rx, sink)));
     let mut conn = Connection::new(state.clone(), session, guard, outgoing);
     metrics::gauge!("penmesh_ws_connections").increment(1.0);
     metrics::counter!("penmesh_ws_connections_total").increment(1);
@@ -81,7 +84,7 @@ pub async fn serve<Si, St, E>(
                 End::Close(close_code::GOING_AWAY, "shutting down".into()),
             )),
             Some((result, after)) = conn.pending.next(), if !conn.pending.is_empty() => {
-                conn.after_commit(result, after).await;
+                stages::timed(Stage::Answer, conn.after_commit(result, after)).await;
             }
             event = super::peers::next_event(&mut conn.events), if can_forward => match event {
                 // A page that watches a session being drawn in is in use, though it says
@@ -89,7 +92,7 @@ pub async fn serve<Si, St, E>(
                 // fetch the whole history again.
                 Ok(event) => {
                     last_work = Instant::now();
-                    conn.on_event(&event).await
+                    stages::timed(Stage::Events, conn.on_event(&event)).await
                 }
                 Err(lag) => conn.resync(Some(lag)).await,
             },
@@ -110,16 +113,25 @@ pub async fn serve<Si, St, E>(
             }
             frame = stream.next(), if can_read => {
                 last_heard = Instant::now();
-                match frame {
-                    None | Some(Ok(Frame::Close(_))) => conn.end_with(End::Gone),
-                    Some(Err(err)) => conn.on_read_error(err.into()),
-                    // The answer to the heartbeat's ping: the client is there, nothing to do.
-                    Some(Ok(Frame::Pong(_))) => {}
-                    Some(Ok(frame)) => {
-                        if conn.on_frame(frame).await {
-                            last_work = Instant::now();
-                        }
-                    }
+                let mut work = conn.on_read(frame).await;
+                // The frames already read from the socket with it (a client's frames wait
+                // there when the connection fell behind) go with it: their batches in one
+                // request (`Connection::gather`).
+                for _ in 1..config.gather_frames {
+                    let reading = conn.end.is_none()
+                        && conn.pending.len() < config.max_inflight.max(1)
+                        && !conn.outgoing.is_behind();
+                    // Polled without a waker of this task's: the loop polls the stream again
+                    // with its own before it waits.
+                    let Some(frame) = reading.then(|| stream.next().now_or_never()).flatten()
+                    else {
+                        break;
+                    };
+                    work |= conn.on_read(frame).await;
+                }
+                conn.hand_over_gathered().await;
+                if work {
+                    last_work = Instant::now();
                 }
             }
             _ = &mut watch => {
@@ -204,6 +216,23 @@ async fn sleep_until_some(deadline: Option<Instant>) {
 }
 
 impl Connection {
+    /// What the socket gave: `true` when it was work ([`Connection::on_frame`]).
+    async fn on_read<E: Into<ReadError>>(&mut self, frame: Option<Result<Frame, E>>) -> bool {
+        match frame {
+            None | Some(Ok(Frame::Close(_))) => {
+                self.end_with(End::Gone);
+                false
+            }
+            Some(Err(err)) => {
+                self.on_read_error(err.into());
+                false
+            }
+            // The answer to the heartbeat's ping: the client is there, nothing to do.
+            Some(Ok(Frame::Pong(_))) => false,
+            Some(Ok(frame)) => self.on_frame(frame).await,
+        }
+    }
+
     fn on_read_error(&mut self, err: ReadError) {
         match err {
             ReadError::TooLarge(why) => self.fail(ConnError::fatal(
@@ -232,6 +261,7 @@ impl Connection {
             // The connection's version is not known yet: answer in the client's.
             self.outgoing.version = version;
         }
+        let decoding = stages::start();
         let decoded = match &frame {
             Frame::Binary(bytes) => {
                 self.outgoing.form = Form::Binary;
@@ -248,6 +278,7 @@ impl Connection {
             // The WebSocket library answers pings itself.
             Frame::Ping(_) | Frame::Pong(_) | Frame::Close(_) => return false,
         };
+        decoding.stop(Stage::Decode);
         let done = match decoded {
             Ok(msg) => match self.speaks(frame_version, &msg) {
                 Ok(()) => {
@@ -265,6 +296,10 @@ impl Connection {
     }
 
     async fn on_message(&mut self, msg: ClientMessage) -> Result<(), ConnError> {
+        if !matches!(msg, ClientMessage::Points(_)) {
+            // In order: the batches gathered before it are handed over first.
+            self.hand_over_gathered().await;
+        }
         if !self.hello {
             return match msg {
                 ClientMessage::Hello(hello) => self.on_hello(hello).await,
@@ -465,6 +500,8 @@ impl Connection {
     /// Waits for every pending commit (sending its ack if the client still listens), then
     /// marks the strokes still open `interrupted` and lets go of them.
     async fn wind_down(&mut self) {
+        // Batches read are stored, as any acknowledged or not (the loop may end mid-burst).
+        self.hand_over_gathered().await;
         // A name asked for is stored, even by a client that leaves before its turn.
         if self.joined {
             self.store_pending_name().await;

@@ -10,10 +10,11 @@ use penmesh::protocol::{
 };
 use penmesh::{Kept, Sample};
 
-use super::connection::{AfterCommit, Connection, Decided};
+use super::connection::{AfterCommit, Connection, Decided, Gathered};
 use super::error::ConnError;
 use crate::events::{EventKind, SessionEvent};
 use crate::ingest::{Accepted, Finished, StrokeLimits, StrokeState};
+use crate::stages::{self, Stage};
 use crate::store::{PlacementIds, StrokeRow, WriteError, WriteOp};
 
 /// The strokes a client drew before (and retained samples to send again), from `Hello.resume`.
@@ -330,9 +331,11 @@ impl Connection {
             return Err(self.not_open(stroke).await.0);
         };
         self.state.counters.samples_in.increment(points.points.0.len() as u64);
-        let accepted = state
-            .push_points(points.seq, &points.points.0, &limits)
-            .map_err(|refusal| ConnError::from_refusal(refusal, Some(stroke)))?;
+        let checking = stages::start();
+        let accepted = state.push_points(points.seq, &points.points.0, &limits);
+        checking.stop(Stage::Acuts);
+        let accepted =
+            accepted.map_err(|refusal| ConnError::from_refusal(refusal, Some(stroke)))?;
         match accepted {
             Accepted::Duplicate => {
                 let end = points.seq + points.points.0.len() as u64;
@@ -343,18 +346,55 @@ impl Connection {
                 // Otherwise the ack of the first copy is on its way.
             }
             Accepted::New { seq, samples, kept, first_kept } => {
-                let upto_seq = seq + samples.len() as u64;
-                let events = self.retained_event(stroke, first_kept, &kept).into_iter().collect();
-                let pending = self
-                    .state
-                    .writer
-                    .submit_with(vec![WriteOp::Append { stroke, seq, samples }], events)
-                    .await;
-                let retained = Decided { first: first_kept, kept };
-                self.pending.push(pending, AfterCommit::Ack { stroke, upto_seq, retained });
+                self.gather(Gathered {
+                    stroke,
+                    seq,
+                    samples,
+                    retained: Decided { first: first_kept, kept },
+                })
+                .await;
             }
         }
         Ok(())
+    }
+
+    /// Adds a batch to those gathered since the connection woke up, when it follows them (the
+    /// same stroke, the next seq, the next retained sample); else hands those to the writer
+    /// first. Behind (its client's frames waiting in its socket), a connection reads several
+    /// batches per wake-up: as one request they cost the writer, the commit's answer and the
+    /// socket one round, not one each, so a connection that fell behind catches up.
+    async fn gather(&mut self, batch: Gathered) {
+        if let Some(gathered) = &mut self.gathered {
+            let follows_retained = batch.retained.kept.is_empty()
+                || gathered.retained.kept.is_empty()
+                || batch.retained.first
+                    == gathered.retained.first + gathered.retained.kept.len() as u64;
+            if gathered.stroke == batch.stroke
+                && gathered.upto_seq() == batch.seq
+                && follows_retained
+            {
+                gathered.samples.extend(batch.samples);
+                if gathered.retained.kept.is_empty() {
+                    gathered.retained.first = batch.retained.first;
+                }
+                gathered.retained.kept.extend(batch.retained.kept);
+                return;
+            }
+        }
+        self.hand_over_gathered().await;
+        self.gathered = Some(batch);
+    }
+
+    /// Hands the gathered batches to the writer, as one request answered with one `Ack`.
+    pub(super) async fn hand_over_gathered(&mut self) {
+        let Some(gathered) = self.gathered.take() else { return };
+        let upto_seq = gathered.upto_seq();
+        let Gathered { stroke, seq, samples, retained } = gathered;
+        let events = self.retained_event(stroke, retained.first, &retained.kept).into_iter().collect();
+        let ops = vec![WriteOp::Append { stroke, seq, samples }];
+        let submitting = self.state.writer.submit_with(ops, events);
+        let pending = stages::timed(Stage::Submit, submitting).await;
+        self.pending.push(pending, AfterCommit::Ack { stroke, upto_seq, retained });
     }
 
     pub(super) async fn on_stroke_end(&mut self, end: StrokeEnd) -> Result<(), ConnError> {

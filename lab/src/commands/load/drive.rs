@@ -73,7 +73,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
     // The proxy's commits and CPU second by second (the ceiling has no writer to read).
     let (stop_reading, stop) = tokio::sync::oneshot::channel();
     let reader = (!is_ceiling).then(|| {
-        tokio::spawn(super::commits::read_until(http.clone(), base.to_string(), pid, start, stop))
+        tokio::spawn(super::readings::read_until(http.clone(), base.to_string(), pid, start, stop))
     });
     let mut pens = tokio::task::JoinSet::new();
     for pen_idx in 0..plan.clients {
@@ -142,9 +142,16 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
     }
     progress.finish_and_clear();
     let _ = stop_reading.send(());
-    let server_by_second = match reader {
-        Some(reader) => super::commits::by_second(&reader.await.context("the /metrics reader")?),
-        None => Vec::new(),
+    let (server_by_second, stages) = match reader {
+        Some(reader) => {
+            let readings = reader.await.context("the /metrics reader")?;
+            let window = (shared.ramp.as_secs_f64(), plan.duration_s);
+            (
+                super::readings::by_second(&readings),
+                super::readings::stage_table(&readings, window.0, window.1),
+            )
+        }
+        None => (Vec::new(), None),
     };
 
     let mut total = PenResult::new();
@@ -260,6 +267,7 @@ pub(super) async fn drive(plan: &Plan, base: &str, pid: Option<u32>) -> anyhow::
             kb_per_connection: None,
         },
         server_by_second,
+        stages,
     })
 }
 

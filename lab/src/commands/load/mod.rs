@@ -19,7 +19,7 @@
 //! Limits: loopback targets only (this is a load generator, not a tool to aim at other hosts),
 //! at most [`MAX_CLIENTS`] pens and [`MAX_DURATION_SECS`] seconds.
 
-mod commits;
+mod readings;
 mod drive;
 mod pen;
 mod procstat;

@@ -23,6 +23,34 @@ pub struct Summary {
     /// The proxy second by second (not for the ceiling, which has no writer).
     #[serde(default)]
     pub server_by_second: Vec<ServerSecond>,
+    /// Where the proxy's CPU went over the steady window, when it counted its stages
+    /// (`--stage-timing`, passed with `--proxy-arg`).
+    #[serde(default)]
+    pub stages: Option<StageTable>,
+}
+
+/// Microseconds per sample received, by stage of the ingest path and by thread, between two
+/// readings of the proxy inside the steady window.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct StageTable {
+    /// The readings' times, seconds from the run's start.
+    pub from_s: f64,
+    pub to_s: f64,
+    /// Samples the proxy received between them.
+    pub samples: u64,
+    /// The whole server's CPU per sample (from `/proc`).
+    pub server_cpu_us_per_sample: f64,
+    /// The stages (`proxy/src/stages.rs`); the connection task's stages are parts of
+    /// `connection_task`.
+    pub stages: Vec<StageRow>,
+    /// The server's threads by what they do (from `/proc`).
+    pub threads: Vec<StageRow>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct StageRow {
+    pub name: String,
+    pub us_per_sample: f64,
 }
 
 /// The proxy in one second of a run: its writer's commits (from its `/metrics`) and its CPU.
@@ -36,6 +64,13 @@ pub struct ServerSecond {
     pub requests_per_commit: f64,
     /// Of one core; 0 when the run did not start the proxy.
     pub cpu_percent: f64,
+    /// Bytes the load tool sent that the proxy has not read yet (its sockets' receive
+    /// queues), at the end of this second, KiB.
+    #[serde(default)]
+    pub server_unread_kb: f64,
+    /// Bytes the proxy wrote that the load tool has not read yet, KiB.
+    #[serde(default)]
+    pub load_tool_unread_kb: f64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -210,6 +245,15 @@ pub(super) fn print_table(s: &Summary) {
         s.machine.loadavg_before.as_deref().unwrap_or("?"),
         s.machine.loadavg_after.as_deref().unwrap_or("?")
     );
+    if let Some(table) = &s.stages {
+        println!(
+            "stages            {:.2} us a sample in all, {} samples from {:.0} to {:.0} s",
+            table.server_cpu_us_per_sample, table.samples, table.from_s, table.to_s
+        );
+        for row in table.stages.iter().chain(&table.threads) {
+            println!("  {:<22}{:.2} us", row.name, row.us_per_sample);
+        }
+    }
     if s.errors.count > 0 {
         println!("errors            {}: {}", s.errors.count, s.errors.first.join("; "));
     }

@@ -68,6 +68,7 @@ pub use queue::{Committed, PlacementIds, Writer};
 use super::{Backend, Store};
 use crate::events::SessionEvent;
 use crate::fanout::Fanout;
+use crate::stages::{self, Stage};
 
 /// The thread that owns the write connection.
 ///
@@ -296,15 +297,17 @@ impl WriterLoop {
         let started = Instant::now();
         let n_samples: usize = batch.iter().flat_map(|r| &r.ops).map(WriteOp::n_samples).sum();
         let mut all: Vec<&mut WriteRequest> = batch.iter_mut().collect();
-        let result = self.commit(&mut all, false).await;
+        let result = stages::timed(Stage::Commit, self.commit(&mut all, false)).await;
         metrics::histogram!("penmesh_commit_seconds").record(started.elapsed().as_secs_f64());
         metrics::histogram!("penmesh_commit_batch_requests").record(batch.len() as f64);
         metrics::histogram!("penmesh_commit_batch_samples").record(n_samples as f64);
         match result {
             Ok(refused) => {
+                let publishing = stages::start();
                 for (req, refusal) in batch.drain(..).zip(refused) {
                     self.answer(req, refusal.map_or(Ok(()), Err));
                 }
+                publishing.stop(Stage::Publish);
             }
             // A request alone is answered with its failure, unless the transaction also moved
             // other strokes: then it is tried again alone (below), after the writer has looked
