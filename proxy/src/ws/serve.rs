@@ -500,7 +500,7 @@ impl Connection {
     /// Waits for every pending commit (sending its ack if the client still listens), then
     /// marks the strokes still open `interrupted` and lets go of them.
     async fn wind_down(&mut self) {
-        // Batches read are stored, as any acknowledged or not (the loop may end mid-burst).
+        // The batches gathered when the loop ended (mid-burst) go to the writer like the rest.
         self.hand_over_gathered().await;
         // A name asked for is stored, even by a client that leaves before its turn.
         if self.joined {
@@ -695,6 +695,52 @@ mod tests {
         drop(to_server);
         task.await.unwrap();
         writer_task.stop().await;
+    }
+
+    /// The acks a client gets for three batches of a stroke that wait in its socket together
+    /// (sent with its hello and begin before the connection's task first runs: the test's
+    /// runtime has one thread), with `gather_frames`; then the stroke ends with all nine stored.
+    async fn acks_for_three_waiting_batches(gather_frames: u64) -> Vec<u64> {
+        let dir = tempfile::tempdir().unwrap();
+        let (state, writer_task, session) = app_with(&dir, |c| c.gather_frames = gather_frames).await;
+        let (to_server, mut from_server, task) = connect(&state, session);
+        let stroke = Uuid::new_v4();
+        to_server.send(hello()).await.unwrap();
+        to_server.send(begin(stroke)).await.unwrap();
+        for seq in [0u64, 3, 6] {
+            let points = (seq..seq + 3)
+                .map(|i| penmesh::Sample::new(i as f64 * 7.0, (i * i) as f64, i as f64 * 8.0, 0.5))
+                .collect();
+            let batch = penmesh::protocol::Points {
+                stroke,
+                seq,
+                points: penmesh::protocol::PointBatch(points),
+            };
+            to_server.send(Frame::Binary(encode_client(&ClientMessage::Points(batch)))).await.unwrap();
+        }
+        let mut acks = Vec::new();
+        while acks.last() != Some(&9) {
+            if let ServerMessage::Ack(ack) = decode(from_server.recv().await) {
+                acks.push(ack.upto_seq);
+            }
+        }
+        let end = penmesh::protocol::StrokeEnd { stroke, n_points: 9 };
+        to_server.send(Frame::Binary(encode_client(&ClientMessage::StrokeEnd(end)))).await.unwrap();
+        while !matches!(decode(from_server.recv().await), ServerMessage::StrokeDone(_)) {}
+        let row = state.store.stroke(stroke).await.unwrap().expect("stored");
+        assert_eq!(row.n_points, 9, "every sample stored");
+        drop(to_server);
+        task.await.unwrap();
+        writer_task.stop().await;
+        acks
+    }
+
+    /// Batches read in one wake-up go to the writer as one request, with one ack for them all;
+    /// with `--gather-frames 1`, one each.
+    #[tokio::test]
+    async fn batches_waiting_together_are_stored_and_acknowledged_as_one() {
+        assert_eq!(acks_for_three_waiting_batches(16).await, [0, 9]);
+        assert_eq!(acks_for_three_waiting_batches(1).await, [0, 3, 6, 9]);
     }
 
     /// A connection task that panics (here its socket's stream does) lets go of its strokes:

@@ -105,7 +105,9 @@ fn write_samples(
 
 /// Encodes a batch into its self-delimiting bit string (see the module documentation).
 fn encode_batch(samples: &[Sample]) -> Vec<u8> {
-    let mut w = BitWriter::default();
+    // Real strokes take 2 to 8 bytes a sample: room for that, so the bytes are not moved as
+    // they grow (the writer encodes every sample the proxy stores, twice).
+    let mut w = BitWriter::with_capacity(4 + samples.len() * 8);
     if samples.is_empty() {
         w.bits(0b00, 2);
         return w.finish();
