@@ -45,12 +45,11 @@ impl BitWriter {
         self.acc &= (1u64 << self.n_acc) - 1;
     }
 
-    /// `len - 1 - k` zero bits then the `len` bits of `v`: as `v < 2^len`, that is `v` in
-    /// `2 len - 1 - k` bits, one write.
     pub(super) fn exp_golomb(&mut self, u: u64, k: u32) {
         let v = u + (1u64 << k);
         let len = 64 - v.leading_zeros();
-        self.bits(v, 2 * len - 1 - k);
+        self.bits(0, len - 1 - k);
+        self.bits(v, len);
     }
 
     pub(super) fn finish(mut self) -> Vec<u8> {
