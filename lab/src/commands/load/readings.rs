@@ -69,6 +69,8 @@ pub(super) struct Reading {
     totals: ServerTotals,
     /// The server's CPU seconds (0 when the run did not spawn it).
     cpu: f64,
+    /// Its resident memory, KB (0 when the run did not spawn it).
+    rss_kb: u64,
     threads: ThreadCpu,
     /// Bytes in the receive queues of the server's sockets (sent by the load tool, not yet read
     /// by the proxy) and of the load tool's (written by the proxy, not yet read by the tool).
@@ -148,6 +150,7 @@ pub(super) async fn read_until(
                     at,
                     totals: server_totals(&text),
                     cpu: pid.map_or(0.0, procstat::cpu_seconds),
+                    rss_kb: pid.map_or(0, |pid| procstat::memory_kb(pid).0),
                     threads: pid.map(thread_cpu).unwrap_or_default(),
                     queued: socket_queues(port),
                 });
@@ -175,6 +178,7 @@ pub(super) fn by_second(readings: &[Reading]) -> Vec<ServerSecond> {
                 cpu_percent: 100.0 * (b.cpu - a.cpu) / (b.at - a.at).max(1e-9),
                 server_unread_kb: b.queued.server_unread as f64 / 1024.0,
                 load_tool_unread_kb: b.queued.load_tool_unread as f64 / 1024.0,
+                rss_kb: b.rss_kb,
             }
         })
         .collect()
@@ -264,6 +268,7 @@ mod tests {
         };
         let mut second = reading(2.0, later.clone(), 1.4);
         second.queued = SocketQueues { server_unread: 2048, load_tool_unread: 512 };
+        second.rss_kb = 40_960;
         let seconds = by_second(&[reading(1.0, server_totals(METRICS), 0.5), second]);
         assert_eq!(seconds.len(), 1);
         let s = &seconds[0];
@@ -273,6 +278,7 @@ mod tests {
         assert!((s.requests_per_commit - 10.0).abs() < 1e-9, "{s:?}");
         assert!((s.cpu_percent - 90.0).abs() < 1e-9, "{s:?}");
         assert_eq!((s.server_unread_kb, s.load_tool_unread_kb), (2.0, 0.5));
+        assert_eq!(s.rss_kb, 40_960, "the memory at the second's end");
         // No commit in a second: nothing divided by zero.
         let idle = by_second(&[reading(1.0, later.clone(), 1.0), reading(2.0, later, 1.0)]);
         assert_eq!((idle[0].commits, idle[0].mean_commit_ms), (0, 0.0));

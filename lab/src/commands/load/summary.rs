@@ -71,6 +71,10 @@ pub struct ServerSecond {
     /// Bytes the proxy wrote that the load tool has not read yet, KiB.
     #[serde(default)]
     pub load_tool_unread_kb: f64,
+    /// The proxy's resident memory at the end of this second, KB (0 when not spawned): flat
+    /// over a long run, or it grows with what it has taken in.
+    #[serde(default)]
+    pub rss_kb: u64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
