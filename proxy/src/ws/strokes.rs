@@ -359,12 +359,17 @@ impl Connection {
     }
 
     /// Adds a batch to those gathered since the connection woke up, when it follows them (the
-    /// same stroke, the next seq, the next retained sample); else hands those to the writer
-    /// first. Behind (its client's frames waiting in its socket), a connection reads several
-    /// batches per wake-up: as one request they cost the writer, the commit's answer and the
-    /// socket one round, not one each, so a connection that fell behind catches up.
+    /// same stroke, the next seq, the next retained sample) and they stay within one batch's
+    /// size (`--max-batch-samples`: what a connection has in flight is bounded as before, by
+    /// `--max-inflight` requests of at most that); else hands those to the writer first.
+    /// Behind (its client's frames waiting in its socket), a connection reads several batches
+    /// per wake-up: as one request they cost the writer, the commit's answer and the socket one
+    /// round, not one each, so a connection that fell behind catches up.
     async fn gather(&mut self, batch: Gathered) {
-        if let Some(gathered) = &mut self.gathered {
+        let most = self.state.config.max_batch_samples.max(1);
+        if let Some(gathered) = &mut self.gathered
+            && gathered.samples.len() + batch.samples.len() <= most
+        {
             let follows_retained = batch.retained.kept.is_empty()
                 || gathered.retained.kept.is_empty()
                 || batch.retained.first

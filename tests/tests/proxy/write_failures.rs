@@ -19,7 +19,11 @@ const BATCH: usize = 4;
 /// share transactions.
 async fn faulty_proxy(faults: &Arc<CommitFaults>) -> TestProxy {
     spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |c| {
-        c.commit_interval_ms = 40
+        c.commit_interval_ms = 40;
+        // Each batch its own request: the faults name a request by the seq its append starts
+        // at, and batches sent back to back would otherwise be read together and gathered
+        // into one (`--gather-frames`), starting elsewhere.
+        c.gather_frames = 1;
     })
     .await
 }

@@ -277,6 +277,20 @@ impl Participant {
         self.finish(stroke, samples.len()).await;
         assert_eq!(self.own[&stroke], batch_simplified(samples), "own retained samples");
     }
+
+    /// [`Participant::draw`] at a pen's pace: each batch waits for its ack, so the proxy reads
+    /// and stores it alone (batches sent back to back may be read together, stored as one
+    /// request and told to the peers as one event).
+    pub async fn draw_paced(&mut self, stroke: StrokeId, samples: &[Sample], batch: usize) {
+        self.begin(stroke).await;
+        for start in (0..samples.len()).step_by(batch) {
+            let end = (start + batch).min(samples.len());
+            self.send_points(stroke, samples, start, end, batch).await;
+            self.wait_ack(stroke, end as u64).await;
+        }
+        self.finish(stroke, samples.len()).await;
+        assert_eq!(self.own[&stroke], batch_simplified(samples), "own retained samples");
+    }
 }
 
 /// The samples of stroke number `k`: the test stroke moved so that every stroke differs.

@@ -66,7 +66,8 @@ async fn a_slow_reader_is_cut_off_with_lagged_and_resynced_while_the_others_keep
     tokio::join!(
         async {
             for (stroke, samples) in &strokes {
-                drawer.draw(*stroke, samples, 4).await;
+                // Paced: a batch per event, enough events to overflow the slow reader.
+                drawer.draw_paced(*stroke, samples, 4).await;
             }
         },
         async {
