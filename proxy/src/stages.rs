@@ -13,9 +13,9 @@
 //! `penmesh-lab load` turns the totals into microseconds per sample received over its steady
 //! window, beside the threads' CPU from `/proc`.
 
+use std::cell::Cell;
 use std::future::Future;
 use std::pin::Pin;
-use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::task::{Context, Poll};
 
@@ -215,7 +215,8 @@ pub fn render() -> Option<String> {
     );
     for stage in Stage::ALL {
         let nanos = NANOS[stage as usize].load(Ordering::Relaxed);
-        let _ = writeln!(out, "penmesh_stage_nanoseconds_total{{stage=\"{}\"}} {nanos}", stage.name());
+        let _ =
+            writeln!(out, "penmesh_stage_nanoseconds_total{{stage=\"{}\"}} {nanos}", stage.name());
     }
     out.push_str(
         "# HELP penmesh_stage_polls_total Polls in each stage, estimated from those timed (--stage-timing)\n\

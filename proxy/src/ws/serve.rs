@@ -26,7 +26,6 @@ use crate::store::WriteOp;
 /// At most one new name is stored per connection in this time (`Connection::on_rename`).
 pub(super) const RENAME_INTERVAL: Duration = Duration::from_secs(1);
 
-
 /// Runs one connection to its end.
 pub async fn serve<Si, St, E>(
     state: AppState,
@@ -114,11 +113,14 @@ pub async fn serve<Si, St, E>(
             frame = stream.next(), if can_read => {
                 last_heard = Instant::now();
                 let mut work = conn.on_read(frame).await;
-                // The frames already read from the socket with it (a client's frames wait
-                // there when the connection fell behind) go with it: their batches in one
-                // request (`Connection::gather`).
+                // The `points` frames already read from the socket with it (a client's frames
+                // wait there when the connection fell behind) go with it: their batches in one
+                // request (`Connection::gather`). Only while they are `points` of one stroke
+                // (something else hands them over): other messages are read one a round, with
+                // the commits' answers and the peers' events in between, as before.
                 for _ in 1..config.gather_frames {
-                    let reading = conn.end.is_none()
+                    let reading = conn.gathered.is_some()
+                        && conn.end.is_none()
                         && conn.pending.len() < config.max_inflight.max(1)
                         && !conn.outgoing.is_behind();
                     // Polled without a waker of this task's: the loop polls the stream again
@@ -702,7 +704,8 @@ mod tests {
     /// runtime has one thread), with `gather_frames`; then the stroke ends with all nine stored.
     async fn acks_for_three_waiting_batches(gather_frames: u64) -> Vec<u64> {
         let dir = tempfile::tempdir().unwrap();
-        let (state, writer_task, session) = app_with(&dir, |c| c.gather_frames = gather_frames).await;
+        let (state, writer_task, session) =
+            app_with(&dir, |c| c.gather_frames = gather_frames).await;
         let (to_server, mut from_server, task) = connect(&state, session);
         let stroke = Uuid::new_v4();
         to_server.send(hello()).await.unwrap();
@@ -716,7 +719,10 @@ mod tests {
                 seq,
                 points: penmesh::protocol::PointBatch(points),
             };
-            to_server.send(Frame::Binary(encode_client(&ClientMessage::Points(batch)))).await.unwrap();
+            to_server
+                .send(Frame::Binary(encode_client(&ClientMessage::Points(batch))))
+                .await
+                .unwrap();
         }
         let mut acks = Vec::new();
         while acks.last() != Some(&9) {

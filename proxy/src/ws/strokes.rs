@@ -395,7 +395,8 @@ impl Connection {
         let Some(gathered) = self.gathered.take() else { return };
         let upto_seq = gathered.upto_seq();
         let Gathered { stroke, seq, samples, retained } = gathered;
-        let events = self.retained_event(stroke, retained.first, &retained.kept).into_iter().collect();
+        let events =
+            self.retained_event(stroke, retained.first, &retained.kept).into_iter().collect();
         let ops = vec![WriteOp::Append { stroke, seq, samples }];
         let submitting = self.state.writer.submit_with(ops, events);
         let pending = stages::timed(Stage::Submit, submitting).await;

@@ -19,10 +19,10 @@
 //! Limits: loopback targets only (this is a load generator, not a tool to aim at other hosts),
 //! at most [`MAX_CLIENTS`] pens and [`MAX_DURATION_SECS`] seconds.
 
-mod readings;
 mod drive;
 mod pen;
 mod procstat;
+mod readings;
 mod report;
 mod server;
 mod summary;
