@@ -150,7 +150,7 @@ pub(super) struct Connection {
     pub pending: InFlight,
     pub end: Option<End>,
     /// When the last new name was stored, and the one that waits for its turn (the latest
-    /// asked for): at most one rename per `RENAME_INTERVAL` (`ws/serve.rs`).
+    /// asked for): at most one rename per `RENAME_INTERVAL` (`ws/hello.rs`).
     pub renamed_at: Option<Instant>,
     pub pending_name: Option<String>,
     /// Batches read but not handed to the writer yet ([`Gathered`]).

@@ -50,6 +50,7 @@
 mod adapter;
 mod connection;
 mod error;
+mod hello;
 mod outgoing;
 mod peers;
 mod placements;

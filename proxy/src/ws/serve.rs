@@ -6,9 +6,8 @@ use futures_util::FutureExt;
 use futures_util::future::OptionFuture;
 use futures_util::{Sink, Stream, StreamExt};
 use penmesh::protocol::{
-    ClientMessage, CodecError, ErrorCode, Hello, MAX_NAME_CHARS, OLDEST_PROTOCOL_VERSION,
-    PROTOCOL_VERSION, ServerMessage, StrokeId, Welcome, binary_frame_version, check_text,
-    decode_client_json_limited, decode_client_limited, is_supported_version,
+    ClientMessage, CodecError, ErrorCode, ServerMessage, StrokeId, binary_frame_version,
+    decode_client_json_limited, decode_client_limited,
 };
 use tokio::time::Instant;
 use uuid::Uuid;
@@ -18,13 +17,9 @@ use super::error::{ConnError, End, ReadError};
 use super::outgoing::{Form, Outgoing, forward};
 use super::{Frame, close_code};
 use crate::events::{EventKind, SessionEvent};
-use crate::identity::clean_name;
 use crate::stages::{self, Stage};
 use crate::state::{AppState, SessionGuard};
 use crate::store::WriteOp;
-
-/// At most one new name is stored per connection in this time (`Connection::on_rename`).
-pub(super) const RENAME_INTERVAL: Duration = Duration::from_secs(1);
 
 /// Runs one connection to its end.
 pub async fn serve<Si, St, E>(
@@ -64,7 +59,7 @@ pub async fn serve<Si, St, E>(
     let slow_reader = Duration::from_millis(config.slow_reader_ms);
     while conn.end.is_none() {
         let behind = conn.outgoing.is_behind();
-        let can_read = !behind && conn.pending.len() < config.max_inflight.max(1);
+        let can_read = conn.can_read();
         let idle_at = if conn.hello { last_work + idle } else { opened + hello_timeout };
         // A connection that waits for its commits does not hear its client, which is not the
         // client's silence: the heartbeat counts only while reading.
@@ -119,10 +114,7 @@ pub async fn serve<Si, St, E>(
                 // (something else hands them over): other messages are read one a round, with
                 // the commits' answers and the peers' events in between, as before.
                 for _ in 1..config.gather_frames {
-                    let reading = conn.gathered.is_some()
-                        && conn.end.is_none()
-                        && conn.pending.len() < config.max_inflight.max(1)
-                        && !conn.outgoing.is_behind();
+                    let reading = conn.gathered.is_some() && conn.end.is_none() && conn.can_read();
                     // Polled without a waker of this task's: the loop polls the stream again
                     // with its own before it waits.
                     let Some(frame) = reading.then(|| stream.next().now_or_never()).flatten()
@@ -218,6 +210,12 @@ async fn sleep_until_some(deadline: Option<Instant>) {
 }
 
 impl Connection {
+    /// Whether the loop reads its socket: not while answers owed wait for room, nor past
+    /// `--max-inflight` requests awaiting their commit.
+    fn can_read(&self) -> bool {
+        !self.outgoing.is_behind() && self.pending.len() < self.state.config.max_inflight.max(1)
+    }
+
     /// What the socket gave: `true` when it was work ([`Connection::on_frame`]).
     async fn on_read<E: Into<ReadError>>(&mut self, frame: Option<Result<Frame, E>>) -> bool {
         match frame {
@@ -333,172 +331,6 @@ impl Connection {
         }
     }
 
-    async fn on_hello(&mut self, hello: Hello) -> Result<(), ConnError> {
-        if !is_supported_version(hello.protocol) {
-            return Err(ConnError::fatal(
-                ErrorCode::Protocol,
-                format!(
-                    "protocol version {} is not supported; this proxy speaks \
-                     {OLDEST_PROTOCOL_VERSION} to {PROTOCOL_VERSION}",
-                    hello.protocol
-                ),
-                End::Close(close_code::PROTOCOL, "unsupported protocol".into()),
-            ));
-        }
-        let max_resume = self.state.config.max_open_strokes;
-        if hello.resume.len() > max_resume {
-            // Each entry costs a query and perhaps a claim wait: refuse a long list outright.
-            return Err(ConnError::fatal(
-                ErrorCode::TooManyOpenStrokes,
-                format!(
-                    "hello.resume names {} strokes, more than the limit of {max_resume} open \
-                     strokes per connection",
-                    hello.resume.len()
-                ),
-                End::Close(close_code::POLICY, "resume list too long".into()),
-            ));
-        }
-        let name = hello.name.as_deref();
-        for (field, text) in [("hello.client", Some(hello.client.as_str())), ("hello.name", name)] {
-            if let Some(Err(why)) = text.map(|t| check_text(t, MAX_NAME_CHARS)) {
-                return Err(ConnError::refused(
-                    ErrorCode::Malformed,
-                    format!("{field} {why}"),
-                    None,
-                ));
-            }
-        }
-        if let Some(key) = &hello.key {
-            self.participant = crate::identity::participant_of(self.session, "hello.key", key)
-                .map_err(|why| ConnError::refused(ErrorCode::Malformed, why, None))?;
-        }
-        self.hello = true;
-        self.outgoing.version = hello.protocol;
-        tracing::debug!(connection = self.id, client = %hello.client, "hello");
-        let (resume, resent) = self.resume_strokes(hello.resume).await;
-        self.send(ServerMessage::Welcome(Welcome {
-            protocol: hello.protocol,
-            session: self.session,
-            participant: self.participant,
-            resume,
-        }));
-        for (stroke, kept) in resent {
-            self.send_retained(stroke, 0, &kept);
-        }
-        let (participant, session, connection) = (self.participant, self.session, self.presence);
-        let asked = hello.name.as_deref().and_then(clean_name);
-        let known = self.known_name(hello.key.is_some()).await;
-        let name = (asked.clone().or_else(|| known.clone()))
-            .or_else(|| clean_name(&hello.client))
-            .unwrap_or_else(|| "guest".into());
-        let mut ops = vec![WriteOp::Join {
-            connection,
-            participant,
-            session,
-            name: name.clone(),
-            replica: self.state.claims.replica_key(),
-        }];
-        let mut events = vec![SessionEvent::from_connection(
-            self.id,
-            session,
-            EventKind::Joined { participant, connection, name: name.clone() },
-        )];
-        // Another name than the participant's connections had: a rename, which the session
-        // hears (a second connection's join is not news to it).
-        if known.is_some_and(|known| known != name) {
-            ops.push(WriteOp::Rename { participant, session, name: name.clone() });
-            events.push(SessionEvent::from_connection(
-                self.id,
-                session,
-                EventKind::Renamed { participant, name },
-            ));
-        }
-        let joined = self.state.writer.write_with(ops, events).await;
-        match joined {
-            Ok(()) => self.joined = true,
-            // Drawing goes on; the others do not see this participant in the list.
-            Err(err) => {
-                tracing::error!(connection = self.id, error = %err, "storing a participant failed")
-            }
-        }
-        self.resync(None).await;
-        Ok(())
-    }
-
-    /// The name the participant last went by in this session (an earlier connection's), which
-    /// a hello without a name keeps: none for a participant without a key (a fresh one).
-    async fn known_name(&self, has_key: bool) -> Option<String> {
-        if !has_key {
-            return None;
-        }
-        match self.state.store.participant_names(self.session).await {
-            Ok(mut names) => names.remove(&self.participant),
-            Err(err) => {
-                tracing::warn!(connection = self.id, error = %err, "reading the participant's name failed");
-                None
-            }
-        }
-    }
-
-    /// A new display name ([`clean_name`]): stored on the participant's presence rows and
-    /// told to the others. Not answered: the client knows its name. At most one is stored per
-    /// [`RENAME_INTERVAL`]: one asked for sooner waits for its turn, and a later one replaces
-    /// it (a name typed letter by letter reaches the others as its last form, within a second).
-    async fn on_rename(&mut self, name: String) -> Result<(), ConnError> {
-        check_text(&name, MAX_NAME_CHARS).map_err(|why| {
-            ConnError::refused(ErrorCode::Malformed, format!("rename.name {why}"), None)
-        })?;
-        let Some(name) = clean_name(&name) else {
-            return Err(ConnError::refused(
-                ErrorCode::Malformed,
-                "rename.name is empty once cleaned (control and bidirectional characters and a \
-                 trailing \"(you)\" removed)",
-                None,
-            ));
-        };
-        if self.rename_due().is_some_and(|due| due > Instant::now()) {
-            metrics::counter!("penmesh_renames_deferred_total").increment(1);
-            self.pending_name = Some(name);
-            return Ok(());
-        }
-        self.pending_name = None;
-        self.store_name(name).await
-    }
-
-    /// When the next rename may be stored.
-    pub(super) fn rename_due(&self) -> Option<Instant> {
-        self.renamed_at.map(|at| at + RENAME_INTERVAL)
-    }
-
-    /// Stores the rename that waited for its turn, if any.
-    pub(super) async fn store_pending_name(&mut self) {
-        if let Some(name) = self.pending_name.take()
-            && let Err(err) = self.store_name(name).await
-        {
-            self.fail(err);
-        }
-    }
-
-    async fn store_name(&mut self, name: String) -> Result<(), ConnError> {
-        self.renamed_at = Some(Instant::now());
-        let (participant, session) = (self.participant, self.session);
-        let event = SessionEvent::from_connection(
-            self.id,
-            session,
-            EventKind::Renamed { participant, name: name.clone() },
-        );
-        let op = WriteOp::Rename { participant, session, name };
-        if let Err(err) = self.state.writer.write_with(vec![op], vec![event]).await {
-            return Err(ConnError::internal(
-                "storing a new name",
-                err,
-                "the new name could not be stored; send it again",
-                None,
-            ));
-        }
-        Ok(())
-    }
-
     /// Waits for every pending commit (sending its ack if the client still listens), then
     /// marks the strokes still open `interrupted` and lets go of them.
     async fn wind_down(&mut self) {
@@ -571,8 +403,8 @@ fn decode_error(err: CodecError, malformed: ErrorCode) -> ConnError {
 #[cfg(test)]
 mod tests {
     use penmesh::protocol::{
-        Ack, Ping, StrokeBegin, Synced, decode_server, decode_server_json, encode_client,
-        encode_client_json,
+        Ack, Hello, PROTOCOL_VERSION, Ping, StrokeBegin, Synced, decode_server, decode_server_json,
+        encode_client, encode_client_json,
     };
     use tokio::sync::mpsc;
     use tokio_util::sync::{CancellationToken, PollSender};
