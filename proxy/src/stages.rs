@@ -160,9 +160,9 @@ impl Started {
     }
 }
 
-/// `future`, its polls counted as `stage`.
-pub fn timed<F: Future>(stage: Stage, future: F) -> Timed<F> {
-    Timed { stage, inner: future }
+/// `inner` (a future or a stream), its polls counted as `stage`.
+pub fn timed<F>(stage: Stage, inner: F) -> Timed<F> {
+    Timed { stage, inner }
 }
 
 pin_project_lite::pin_project! {
@@ -196,11 +196,6 @@ impl<S: Stream> Stream for Timed<S> {
         started.stop(*this.stage);
         polled
     }
-}
-
-/// `stream`, its polls counted as `stage`.
-pub fn timed_stream<S: Stream>(stage: Stage, stream: S) -> Timed<S> {
-    Timed { stage, inner: stream }
 }
 
 /// The totals in Prometheus' text form (appended to `/metrics` when counting is on).

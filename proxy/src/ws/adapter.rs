@@ -79,7 +79,7 @@ pub async fn ws_handler(
     Ok(upgrade.max_message_size(hard).max_frame_size(hard).on_upgrade(move |socket| async move {
         let (_tracked, _slot) = (tracked, slot);
         let (sink, stream) = split(socket);
-        let stream = stages::timed_stream(Stage::Read, stream);
+        let stream = stages::timed(Stage::Read, stream);
         match guard {
             Some(guard) => {
                 stages::timed(Stage::ConnectionTask, serve(state, session, guard, sink, stream))

@@ -5,11 +5,15 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use futures_util::StreamExt;
 use penmesh::Sample;
-use penmesh::protocol::{ErrorCode, ServerMessage, StrokeId, StrokeStatus};
-use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault, stored_pieces};
+use penmesh::protocol::{
+    ClientMessage, ErrorCode, Hello, PROTOCOL_VERSION, PointBatch, Points, ServerMessage,
+    StrokeBegin, StrokeId, StrokeStatus, decode_server, encode_client,
+};
+use penmesh_e2e::penmesh_proxy::{CommitFaults, Fault, Frame, stored_pieces};
 use penmesh_e2e::{
-    TestDatabase, TestProxy, TestSession, WsClient, spawn_faulty_proxy_on, stroke_samples,
+    TIMEOUT, TestDatabase, TestProxy, TestSession, WsClient, spawn_faulty_proxy_on, stroke_samples,
 };
 use uuid::Uuid;
 
@@ -157,6 +161,89 @@ async fn an_append_queued_behind_a_failed_one_is_not_stored_nor_acknowledged() {
     drop(ws);
     faults.clear();
     resume_and_finish(&proxy, &session, stroke, &samples, stored).await;
+}
+
+/// Batches read together are stored as one request (`--gather-frames`, the default 16); when
+/// it fails, none of them is acknowledged, stored or shown, the drawer is told, and the stroke
+/// resumes and is stored whole.
+#[tokio::test]
+async fn gathered_batches_that_fail_together_are_neither_stored_nor_acknowledged() {
+    // Arrange: every frame (hello, begin, ten batches) waits in the connection's queue before
+    // its task first runs (the test's runtime has one thread), so the batches are read in one
+    // burst and gathered; the request holding sample 8 fails every time.
+    let faults = CommitFaults::new();
+    let proxy =
+        spawn_faulty_proxy_on(TestDatabase::fresh().await, Some(faults.clone()), |_| {}).await;
+    let session = proxy.create_session().await;
+    let (stroke, samples) = (Uuid::new_v4(), stroke_samples(40));
+    faults.fail_append(stroke, 8, Fault::Fail, u32::MAX);
+    let guard = proxy.state.join_session(session.session).expect("room in the session");
+    let (to_server, from_client) = tokio::sync::mpsc::channel::<Frame>(16);
+    let frame = |msg: ClientMessage| Frame::Binary(encode_client(&msg));
+    let hello = Hello {
+        protocol: PROTOCOL_VERSION,
+        client: "gathered".into(),
+        name: None,
+        resume: vec![],
+        // The session's drawer, as the connection that resumes the stroke below.
+        key: Some(session.key.clone()),
+    };
+    to_server.send(frame(ClientMessage::Hello(hello))).await.unwrap();
+    let begin = StrokeBegin {
+        stroke,
+        brush: Default::default(),
+        device: None,
+        params: None,
+        placement: None,
+        solid: None,
+    };
+    to_server.send(frame(ClientMessage::StrokeBegin(begin))).await.unwrap();
+    for (k, chunk) in samples.chunks(BATCH).enumerate() {
+        let points = Points { stroke, seq: (k * BATCH) as u64, points: PointBatch(chunk.to_vec()) };
+        to_server.send(frame(ClientMessage::Points(points))).await.unwrap();
+    }
+    let (to_client, mut from_server) = tokio::sync::mpsc::channel::<Frame>(64);
+    let stream = futures_util::stream::unfold(from_client, |mut rx| async move {
+        rx.recv().await.map(|f| (Ok::<_, std::convert::Infallible>(f), rx))
+    })
+    .boxed();
+    let task = tokio::spawn(penmesh_e2e::penmesh_proxy::serve(
+        proxy.state.clone(),
+        session.session,
+        guard,
+        tokio_util::sync::PollSender::new(to_client),
+        stream,
+    ));
+
+    // Act: read the answers up to the failure's error.
+    let (mut acks, mut shown) = (Vec::new(), 0);
+    loop {
+        let Some(Frame::Binary(bytes)) =
+            tokio::time::timeout(TIMEOUT, from_server.recv()).await.expect("an answer in time")
+        else {
+            panic!("the connection ended before the failure was told");
+        };
+        match decode_server(&bytes, usize::MAX).unwrap() {
+            ServerMessage::Ack(ack) => acks.push(ack.upto_seq),
+            ServerMessage::Retained(r) => shown += r.points.0.len(),
+            ServerMessage::Error(e) if e.stroke == Some(stroke) => {
+                assert_eq!(e.code, ErrorCode::Internal, "{e:?}");
+                break;
+            }
+            _ => {}
+        }
+    }
+    drop(to_server);
+    task.await.unwrap();
+
+    // Assert: only the begin was acknowledged (one batch's ack would say the batches were
+    // stored one by one), nothing stored or shown; then the stroke resumes from 0.
+    assert_eq!(acks, [0], "acknowledged");
+    assert_eq!(shown, 0, "retained samples of batches not committed were shown");
+    let stored = assert_stored_prefix(&proxy, &session, stroke, &samples, 0).await;
+    assert_eq!(stored, 0);
+    faults.clear();
+    resume_and_finish(&proxy, &session, stroke, &samples, 0).await;
 }
 
 #[tokio::test]

@@ -42,7 +42,7 @@ struct FaultRule {
 enum FaultTarget {
     /// The transaction the writer begins `k`th (1-based).
     Transaction(u64),
-    /// Any transaction holding the append of `stroke` submitted at `seq`.
+    /// Any transaction holding an append of `stroke` that holds sample `seq`.
     Append { stroke: Uuid, seq: u64 },
     /// Any transaction holding the begin of `stroke`.
     Begin { stroke: Uuid },
@@ -62,7 +62,8 @@ impl CommitFaults {
         state.rules.push(FaultRule { target, fault, remaining: 1 });
     }
 
-    /// The next `times` transactions that hold the append of `stroke` at `seq` get `fault`.
+    /// The next `times` transactions that hold an append of `stroke` holding sample `seq` get
+    /// `fault`.
     pub fn fail_append(&self, stroke: Uuid, seq: u64, fault: Fault, times: u32) {
         let rule =
             FaultRule { target: FaultTarget::Append { stroke, seq }, fault, remaining: times };
@@ -91,9 +92,12 @@ impl CommitFaults {
         let mut state = self.state.lock().expect("faults lock");
         state.transactions += 1;
         let k = state.transactions;
+        // An append holds the samples from its seq on (batches gathered into one request
+        // make one append that starts at the first of them).
         let holds = |stroke: &Uuid, seq: &u64| {
             requests.iter().flat_map(|r| &r.ops).any(|op| {
-                matches!(op, WriteOp::Append { stroke: s, seq: q, .. } if s == stroke && q == seq)
+                matches!(op, WriteOp::Append { stroke: s, seq: q, samples }
+                    if s == stroke && (*q..*q + samples.len() as u64).contains(seq))
             })
         };
         let begins = |stroke: &Uuid| {
