@@ -262,6 +262,51 @@ impl TestProxy {
         response.json().await.unwrap()
     }
 
+    /// A done stroke of `n` samples drawn by `session`'s participant.
+    pub async fn done_stroke(&self, session: &TestSession, n: usize) -> StrokeId {
+        let mut ws = self.connect(session).await;
+        ws.hello(vec![]).await;
+        let stroke = uuid::Uuid::new_v4();
+        draw_stroke(&mut ws, stroke, &stroke_samples(n), 500).await;
+        stroke
+    }
+
+    /// `POST /v1/strokes/{source}/duplicate` as `who` (its key) with `body`: the status and
+    /// the JSON answer.
+    pub async fn duplicate(
+        &self,
+        who: &TestSession,
+        source: StrokeId,
+        body: serde_json::Value,
+    ) -> (u16, serde_json::Value) {
+        let response = self
+            .http
+            .post(self.url(&format!("/v1/strokes/{source}/duplicate")))
+            .bearer_auth(&who.token)
+            .header(KEY_HEADER, &who.key)
+            .json(&body)
+            .send()
+            .await
+            .unwrap();
+        let status = response.status().as_u16();
+        (status, response.json().await.unwrap_or(serde_json::Value::Null))
+    }
+
+    /// A model whose print outlasts a request timeout of 1 s: a 2,000-sample stroke drawn by
+    /// `session`'s participant and 40 duplicates of it, side by side and crossing. Returns the
+    /// stroke.
+    pub async fn slow_print_model(&self, session: &TestSession) -> StrokeId {
+        let source = self.done_stroke(session, 2_000).await;
+        for i in 0..40 {
+            let mut m = *penmesh::Placement::IDENTITY.matrix();
+            (m[12], m[13]) = (f64::from(i % 8) * 40.0, f64::from(i / 8) * 40.0);
+            let body = serde_json::json!({"placement": {"matrix": m}});
+            let (status, answer) = self.duplicate(session, source, body).await;
+            assert_eq!(status, 201, "{answer}");
+        }
+        source
+    }
+
     /// The stroke list entry for `stroke`.
     pub async fn stroke_info(&self, session: &TestSession, stroke: StrokeId) -> serde_json::Value {
         let list =

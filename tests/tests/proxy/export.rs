@@ -150,15 +150,6 @@ async fn a_scene_is_exported_while_a_print_is_being_made() {
     assert_eq!(last["file"]["content_type"], "model/stl", "{last}");
 }
 
-/// A done stroke of `n` samples drawn by `session`'s participant.
-async fn done_stroke(proxy: &TestProxy, session: &TestSession, n: usize) -> Uuid {
-    let mut ws = proxy.connect(session).await;
-    ws.hello(vec![]).await;
-    let stroke = Uuid::new_v4();
-    draw_stroke(&mut ws, stroke, &stroke_samples(n), 500).await;
-    stroke
-}
-
 /// The identity moved by `(dx, dy)`.
 fn moved(dx: f64, dy: f64) -> [f64; 16] {
     let mut m = *penmesh::Placement::IDENTITY.matrix();
@@ -200,17 +191,8 @@ async fn export(proxy: &TestProxy, session: &TestSession, path: &str) -> (u16, V
 async fn a_print_that_outlives_its_request_is_kept_for_its_retry() {
     let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 1).await;
     let session = proxy.create_session().await;
-    let source = done_stroke(&proxy, &session, 2_000).await;
-    // Enough solids that the print outlasts the 1 s timeout: the stroke and its duplicates,
-    // side by side and crossing.
-    for i in 0..40 {
-        let m = moved(f64::from(i % 8) * 40.0, f64::from(i / 8) * 40.0);
-        let body = json!({"placement": {"matrix": m}});
-        let path = format!("/v1/strokes/{source}/duplicate");
-        let (status, answer) =
-            as_drawer(&proxy, &session, reqwest::Method::POST, &path, Some(body)).await;
-        assert_eq!(status, 201, "{answer}");
-    }
+    // Enough solids that the print outlasts the 1 s timeout.
+    proxy.slow_print_model(&session).await;
     let path = format!("/v1/sessions/{}/export?format=stl", session.session);
     let made = || proxy.state.kept_prints.made();
 
@@ -321,7 +303,7 @@ async fn a_kept_print_is_never_served_for_a_changed_model() {
 async fn a_placement_far_past_any_model_is_refused_and_one_stored_before_is_named() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 200).await;
+    let stroke = proxy.done_stroke(&session, 200).await;
     let placement = format!("/v1/strokes/{stroke}/placement");
     let put = reqwest::Method::PUT;
     let body = json!({ "matrix": moved(1e39, 0.0) });

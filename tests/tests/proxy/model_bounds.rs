@@ -26,39 +26,10 @@ fn moved(samples: &[penmesh::Sample], dx: f64, dy: f64) -> Vec<penmesh::Sample> 
         .collect()
 }
 
-/// A done stroke of `n` samples drawn by `session`'s participant.
-async fn done_stroke(proxy: &TestProxy, session: &TestSession, n: usize) -> Uuid {
-    let mut ws = proxy.connect(session).await;
-    ws.hello(vec![]).await;
-    let stroke = Uuid::new_v4();
-    draw_stroke(&mut ws, stroke, &stroke_samples(n), 500).await;
-    stroke
-}
-
 fn placement_json(dx: f64) -> Value {
     let mut m = *penmesh::Placement::IDENTITY.matrix();
     m[12] = dx;
     json!({ "matrix": m })
-}
-
-/// `POST /v1/strokes/{source}/duplicate` as `who` with `body`: the status and the JSON answer.
-async fn duplicate(
-    proxy: &TestProxy,
-    who: &TestSession,
-    source: Uuid,
-    body: Value,
-) -> (u16, Value) {
-    let response = proxy
-        .http
-        .post(proxy.url(&format!("/v1/strokes/{source}/duplicate")))
-        .bearer_auth(&who.token)
-        .header(KEY_HEADER, &who.key)
-        .json(&body)
-        .send()
-        .await
-        .unwrap();
-    let status = response.status().as_u16();
-    (status, response.json().await.unwrap_or(Value::Null))
 }
 
 /// Sends a request head announcing a `length`-byte body and the first KiB of it, then waits up
@@ -106,15 +77,8 @@ async fn status_before_the_body(
 async fn a_print_nobody_waits_for_stops_and_holds_its_permit_until_it_has() {
     let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 1).await;
     let session = proxy.create_session().await;
-    let source = done_stroke(&proxy, &session, 2_000).await;
-    // Enough solids that the print outlasts the 1 s timeout: the stroke and its duplicates,
-    // side by side and crossing.
-    for i in 0..40 {
-        let mut m = *penmesh::Placement::IDENTITY.matrix();
-        (m[12], m[13]) = (f64::from(i % 8) * 40.0, f64::from(i / 8) * 40.0);
-        let body = json!({"placement": {"matrix": m}});
-        assert_eq!(duplicate(&proxy, &session, source, body).await.0, 201);
-    }
+    // Enough solids that the print outlasts the 1 s timeout.
+    proxy.slow_print_model(&session).await;
     let path = format!("/v1/sessions/{}/export?format=stl", session.session);
     let working = || proxy.state.exports_working.load(Ordering::Relaxed);
 
@@ -178,7 +142,7 @@ type Case<'a> = (&'a str, Vec<(&'a str, &'a str)>, u16);
 async fn a_placement_or_duplicate_is_refused_before_its_body_is_read() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 200).await;
+    let stroke = proxy.done_stroke(&session, 200).await;
     let stranger = session.stranger();
     let wrong = format!("Bearer {}", "f".repeat(64));
     let token = format!("Bearer {}", session.token);
@@ -253,7 +217,7 @@ async fn a_solid_history_is_read_a_bounded_page_at_a_time() {
     // A history of 1,004 changes made at once: the rate of solid changes off.
     let proxy = spawn_proxy_with(|c| c.solid_rate_per_second = 0).await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 20).await;
+    let stroke = proxy.done_stroke(&session, 20).await;
     let max = penmesh_proxy::MAX_HISTORY_PAGE as usize;
     // More changes than a page holds (the rod of its begin is implied: one more entry); each
     // a wall as deep as its number.
@@ -310,7 +274,7 @@ async fn a_solid_history_is_read_a_bounded_page_at_a_time() {
 async fn a_bad_page_of_a_stroke_history_is_a_json_400_naming_it() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 20).await;
+    let stroke = proxy.done_stroke(&session, 20).await;
     for route in ["placements", "solids"] {
         for (query, says) in [
             ("from=-1", "from"),
@@ -336,7 +300,7 @@ async fn a_bad_page_of_a_stroke_history_is_a_json_400_naming_it() {
 async fn a_placement_history_is_read_a_bounded_page_at_a_time() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 200).await;
+    let stroke = proxy.done_stroke(&session, 200).await;
     let max = penmesh_proxy::MAX_HISTORY_PAGE as usize;
     // More moves than a page holds (the begin is implied: one more entry).
     let moves = max + 4;
@@ -401,9 +365,9 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
     })
     .await;
     let session = proxy.create_session().await;
-    let source = done_stroke(&proxy, &session, 1_000).await;
+    let source = proxy.done_stroke(&session, 1_000).await;
     let (status, body) =
-        duplicate(&proxy, &session, source, json!({"placement": placement_json(1.0)})).await;
+        proxy.duplicate(&session, source, json!({"placement": placement_json(1.0)})).await;
     assert_eq!(status, 201, "{body}");
     let copy: Uuid = body["stroke"].as_str().unwrap().parse().unwrap();
     assert_eq!(proxy.raw_samples(&session, copy).await, stroke_samples(1_000));
@@ -420,7 +384,7 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
     assert_eq!(b["n_points"], 1_000);
     // 2,000 stored: another 1,000 would pass 2,500.
     let (status, body) =
-        duplicate(&proxy, &session, source, json!({"placement": placement_json(2.0)})).await;
+        proxy.duplicate(&session, source, json!({"placement": placement_json(2.0)})).await;
     assert_eq!(status, 413, "{body}");
     assert_eq!(body["error"], "quota_exceeded");
     assert!(body["message"].as_str().unwrap().contains("2500 samples"), "{body}");
@@ -435,7 +399,7 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
     }
     let asked = Instant::now();
     let (status, body) =
-        duplicate(&proxy, &session, copy, json!({"placement": placement_json(3.0)})).await;
+        proxy.duplicate(&session, copy, json!({"placement": placement_json(3.0)})).await;
     assert_eq!((status, body["error"].as_str()), (503, Some("busy")), "{body}");
     assert!(asked.elapsed() >= Duration::from_millis(900), "it waited its turn first");
     // A permit freed while it waits: it is made.
@@ -444,7 +408,7 @@ async fn duplicates_count_toward_the_sample_quota_and_take_a_permit() {
         held.pop();
     };
     let body = json!({"placement": placement_json(4.0)});
-    let ((status, _), ()) = tokio::join!(duplicate(&proxy, &session, copy, body), freed);
+    let ((status, _), ()) = tokio::join!(proxy.duplicate(&session, copy, body), freed);
     assert_eq!(status, 413, "made once its turn came (past the quota here)");
     drop(held);
     assert_eq!(count_rows(&proxy.db, "SELECT COUNT(*) FROM strokes").await, 2);
@@ -457,15 +421,14 @@ async fn a_scene_past_its_sample_bound_is_refused() {
     // A session of many copies, made at once: the rate of duplicated samples off.
     let proxy = spawn_proxy_with(|c| c.duplicate_samples_per_second = 0).await;
     let session = proxy.create_session().await;
-    let source = done_stroke(&proxy, &session, 20_000).await;
+    let source = proxy.done_stroke(&session, 20_000).await;
     let retained = proxy.stroke_info(&session, source).await["n_retained"].as_u64().unwrap();
     let copies = penmesh_proxy::MAX_SCENE_SAMPLES / retained;
     assert!(copies < 700, "{retained} retained: too many duplicates to make");
     let mut last = source;
     for i in 0..copies {
         let (status, body) =
-            duplicate(&proxy, &session, source, json!({"placement": placement_json(i as f64)}))
-                .await;
+            proxy.duplicate(&session, source, json!({"placement": placement_json(i as f64)})).await;
         assert_eq!(status, 201, "{body}");
         last = body["stroke"].as_str().unwrap().parse().unwrap();
     }
@@ -497,8 +460,8 @@ async fn of_two_duplicates_naming_one_new_id_exactly_one_is_made_whole() {
         let id = Uuid::new_v4();
         let body = json!({"stroke": id, "placement": placement_json(round as f64)});
         let (first, second) = tokio::join!(
-            duplicate(&proxy, &session, a, body.clone()),
-            duplicate(&proxy, &other, b, body.clone()),
+            proxy.duplicate(&session, a, body.clone()),
+            proxy.duplicate(&other, b, body.clone()),
         );
         let mut statuses = [first.0, second.0];
         statuses.sort();
@@ -520,7 +483,7 @@ async fn of_two_duplicates_naming_one_new_id_exactly_one_is_made_whole() {
         assert_eq!(simplified(id).await, simplified(source).await, "round {round}");
         // The winner's request again: answered as made, nothing stored twice.
         let strokes = count_rows(&proxy.db, "SELECT COUNT(*) FROM strokes").await;
-        let again = duplicate(&proxy, winner, source, body.clone()).await;
+        let again = proxy.duplicate(winner, source, body.clone()).await;
         assert_eq!(again.0, 201, "round {round}: {again:?}");
         assert_eq!(again.1["stroke"], id.to_string());
         assert_eq!(count_rows(&proxy.db, "SELECT COUNT(*) FROM strokes").await, strokes);
@@ -533,7 +496,7 @@ async fn of_two_duplicates_naming_one_new_id_exactly_one_is_made_whole() {
 async fn a_missing_key_is_403_on_every_route_that_needs_one() {
     let proxy = spawn_proxy().await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 200).await;
+    let stroke = proxy.done_stroke(&session, 200).await;
     let placement = serde_json::to_vec(&placement_json(1.0)).unwrap();
     let duplicate = serde_json::to_vec(&json!({"placement": placement_json(1.0)})).unwrap();
     let routes: Vec<(reqwest::Method, String, Vec<u8>)> = vec![
@@ -586,8 +549,8 @@ async fn import(proxy: &TestProxy, who: &TestSession, glb: &[u8], key: Option<&s
 async fn an_import_sent_again_with_its_idempotency_key_is_stored_once() {
     let proxy = spawn_proxy().await;
     let source = proxy.create_session().await;
-    let a = done_stroke(&proxy, &source, 300).await;
-    done_stroke(&proxy, &source, 200).await;
+    let a = proxy.done_stroke(&source, 300).await;
+    proxy.done_stroke(&source, 200).await;
     assert_eq!(proxy.build_mesh(&source, a).send().await.unwrap().status(), 200);
     let path = format!("/v1/sessions/{}/export?format=glb", source.session);
     let glb = proxy.get(&path, &source).send().await.unwrap().bytes().await.unwrap().to_vec();
@@ -623,7 +586,7 @@ async fn an_import_sent_again_with_its_idempotency_key_is_stored_once() {
 async fn stroke_history_reads_take_turns() {
     let proxy = spawn_proxy_with(|c| c.request_timeout_secs = 2).await;
     let session = proxy.create_session().await;
-    let stroke = done_stroke(&proxy, &session, 200).await;
+    let stroke = proxy.done_stroke(&session, 200).await;
     let path = format!("/v1/strokes/{stroke}/placements");
     let mut held = Vec::new();
     for _ in 0..penmesh_proxy::MAX_HISTORY_READS {
